@@ -1,0 +1,35 @@
+#pragma once
+// Mesh files. The format follows the file extension:
+//   .vtu            VTK XML unstructured grid (VTK library), read and write
+//   .msh            Gmsh MSH 4.1 (Gmsh library), read and write
+//   .exo .e .ex2    Exodus II (libexodusII), write
+//   .inp            Abaqus input (C3D8), write
+//   .mesh           MEDIT, write
+// Every write goes to a temporary file in the target folder and is renamed
+// into place, so a failure never leaves a truncated file or clobbers an old one.
+#include <string>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+
+namespace isohex::io {
+
+enum class Format { Vtu, Msh, Exodus, Abaqus, Medit };
+
+// Throws isohex::Error naming the file and the supported extensions.
+Format formatFromPath(const std::string& path);
+bool canRead(Format f);
+std::vector<std::string> writableExtensions();
+std::vector<std::string> readableExtensions();
+
+struct WriteOptions {
+    bool overwrite = false;                 // refuse to replace an existing file unless set
+    // Optional per-hex scalar written next to the material (VTU cell data
+    // "scaled_jacobian"); computed by the writer when empty.
+    std::vector<double> scaledJacobian;
+};
+
+void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt = {});
+HexMesh read(const std::string& path);
+
+}  // namespace isohex::io

@@ -1,0 +1,73 @@
+#pragma once
+// Element quality, with Verdict's definitions so numbers agree with VTK,
+// ParaView and CUBIT.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "isohex/core/HexMesh.hpp"
+
+namespace isohex {
+
+using HexCoords = std::array<Vec3, 8>;
+
+// Verdict's HexScaledJacobian: the minimum of a.(b x c)/(|a||b||c|) over the
+// 8 corners (edge vectors along kCornerNeighbours) and the centre principal
+// axes. Returns 1e30, like Verdict, when any of those vectors has squared
+// length <= 1e-30 (a collapsed hex): treat values > 1 as degenerate.
+double scaledJacobian(const HexCoords& x);
+// Knupp's inverse mean ratio averaged over the 8 corners: |A|_F^2 / (3 det(A)^(2/3))
+// per corner with A = [x_a - x_k, x_b - x_k, x_c - x_k]; 1 for a cube,
+// +infinity if any corner determinant is <= 0.
+double inverseMeanRatio(const HexCoords& x);
+// Verdict's HexCondition: max over the 9 Jacobians of |A|_F |A^-1|_F, divided by 3.
+double conditionNumber(const HexCoords& x);
+// Verdict's HexEdgeRatio: longest / shortest of the 12 edges (1e30 when an edge vanishes).
+double edgeRatio(const HexCoords& x);
+// Exact volume of the trilinear hex (2x2x2 Gauss quadrature of det J is exact).
+double hexVolume(const HexCoords& x);
+// Smallest corner Jacobian determinant (unscaled), the inversion test.
+double minCornerDeterminant(const HexCoords& x);
+
+HexCoords hexCoords(const HexMesh& mesh, Index hex);
+
+struct HexQuality {
+    std::vector<double> scaledJacobian;
+    std::vector<double> inverseMeanRatio;
+    std::vector<double> condition;
+    std::vector<double> edgeRatio;
+    std::vector<double> volume;
+};
+HexQuality computeQuality(const HexMesh& mesh);      // parallel over hexes
+std::vector<double> scaledJacobians(const HexMesh& mesh);
+
+// Fixed histogram edges so runs can be compared: [-1,0), [0,0.1), ..., [0.9,1.0].
+inline constexpr std::array<double, 12> kScaledJacobianBins = {-1.0, 0.0, 0.1, 0.2, 0.3, 0.4,
+                                                               0.5, 0.6, 0.7, 0.8, 0.9, 1.0};
+// "questionable or unacceptable" in the seed
+inline constexpr double kPoorScaledJacobian = 0.2;
+
+struct Stats {
+    double min = 0, mean = 0, max = 0;
+    std::size_t count = 0;
+};
+
+struct QualitySummary {
+    std::size_t hexes = 0, nodes = 0;
+    Stats scaledJacobian;          // over non-degenerate hexes
+    std::size_t inverted = 0;      // scaled Jacobian < 0
+    std::size_t below02 = 0;       // scaled Jacobian < 0.2 (inverted included)
+    std::size_t degenerate = 0;    // Verdict returned 1e30 (collapsed edge/axis)
+    std::array<std::size_t, 11> histogram{};  // over kScaledJacobianBins; degenerate hexes not binned
+    Stats inverseMeanRatio;        // over hexes where it is finite
+    Stats condition;
+    Stats edgeRatio;
+    Stats volume;
+    double totalVolume = 0;
+};
+QualitySummary summarize(const HexMesh& mesh, const HexQuality& q);
+nlohmann::json toJson(const QualitySummary& s);
+
+}  // namespace isohex

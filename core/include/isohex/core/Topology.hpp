@@ -1,0 +1,65 @@
+#pragma once
+// Derived topology of a HexMesh, built in linear time and in parallel.
+//
+// Faces and edges are matched by bucketing every hex-local face/edge under its
+// smallest node (a counting sort, O(n)), then matching inside each small
+// bucket; numbering is by (smallest node, sorted key) so the result is the
+// same for any thread count.
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+
+namespace isohex {
+
+// Compressed rows: the items of row r are items[offsets[r] .. offsets[r+1]).
+struct Csr {
+    std::vector<Index> offsets;  // rows + 1 entries
+    std::vector<Index> items;
+    std::size_t rows() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    std::size_t size(std::size_t r) const { return offsets[r + 1] - offsets[r]; }
+    const Index* begin(std::size_t r) const { return items.data() + offsets[r]; }
+    const Index* end(std::size_t r) const { return items.data() + offsets[r + 1]; }
+};
+
+// A unique quadrilateral. `nodes` are in the order hex[0] sees them, so the
+// right-hand normal points out of hex[0]. hex[1] is kNone on the boundary.
+// Quads found in more than two hexes (an invalid mesh) keep their first two in
+// hex[] and are listed in Topology::overfullQuads.
+struct Quad {
+    std::array<Index, 4> nodes;
+    std::array<Index, 2> hex{kNone, kNone};
+    std::array<std::int8_t, 2> localFace{-1, -1};
+    bool boundary() const { return hex[1] == kNone; }
+};
+
+struct Topology {
+    std::vector<Quad> quads;
+    std::vector<std::array<Index, 6>> hexQuads;      // per hex, quad id of local face f
+    std::vector<std::array<Index, 2>> edges;         // unique edges, (smaller node, larger node)
+    std::vector<std::array<Index, 12>> hexEdges;     // per hex, edge id of local edge e
+    Csr nodeHexes;                                   // node -> hexes using it (sorted)
+    Csr quadHexesAll;                                // quad -> every hex holding it (normally 1 or 2)
+    std::vector<Index> boundaryQuads;                // quads with exactly one hex
+    std::vector<Index> interfaceQuads;               // quads between two hexes of different material
+    std::vector<Index> overfullQuads;                // quads in more than two hexes (invalid)
+    std::vector<std::uint8_t> nodeOnBoundary;        // 1 if the node touches a boundary quad
+    std::vector<Index> boundaryNodes;                // sorted
+};
+
+// Builds every field of Topology. Hexes with repeated nodes still get their
+// faces and edges (validate() reports them); indices out of range throw.
+Topology buildTopology(const HexMesh& mesh);
+
+// The surfaces a mesh exposes: boundary quads grouped by (material inside,
+// -1), and interface quads grouped by (smaller material, larger material).
+// Sorted by (inside, outside) so ids are stable.
+struct SurfacePatch {
+    SurfaceTag tag;
+    std::vector<Index> quads;                      // quad ids
+    std::vector<std::pair<Index, int>> hexFaces;   // (hex, local face) seen from `tag.inside`
+};
+std::vector<SurfacePatch> surfacePatches(const HexMesh& mesh, const Topology& topo);
+
+}  // namespace isohex
