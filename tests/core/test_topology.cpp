@@ -1,0 +1,214 @@
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include <tbb/global_control.h>
+
+#include "isohex/core/Dual.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/HexCell.hpp"
+#include "isohex/core/Topology.hpp"
+#include "support/Blocks.hpp"
+
+using namespace isohex;
+using isohex::testing::makeBlock;
+
+namespace {
+// Closed-form counts for an a x b x c block of hexes.
+std::size_t blockQuads(std::size_t a, std::size_t b, std::size_t c) {
+    return (a + 1) * b * c + a * (b + 1) * c + a * b * (c + 1);
+}
+std::size_t blockEdges(std::size_t a, std::size_t b, std::size_t c) {
+    return a * (b + 1) * (c + 1) + (a + 1) * b * (c + 1) + (a + 1) * (b + 1) * c;
+}
+}  // namespace
+
+TEST(Topology, BlockHasClosedFormCounts) {
+    const HexMesh m = makeBlock(4, 3, 2);
+    const Topology t = buildTopology(m);
+    EXPECT_EQ(t.quads.size(), blockQuads(4, 3, 2));
+    EXPECT_EQ(t.edges.size(), blockEdges(4, 3, 2));
+    EXPECT_EQ(t.boundaryQuads.size(), 2u * (4 * 3 + 3 * 2 + 4 * 2));
+    EXPECT_EQ(t.boundaryNodes.size(), 5u * 4 * 3 - 3u * 2 * 1);
+    EXPECT_TRUE(t.interfaceQuads.empty());
+    EXPECT_TRUE(t.overfullQuads.empty());
+}
+
+TEST(Topology, BoundaryQuadNormalsPointOutOfTheirHex) {
+    const HexMesh m = makeBlock(3, 3, 3);
+    const Topology t = buildTopology(m);
+    for (Index q : t.boundaryQuads) {
+        const auto& n = t.quads[q].nodes;
+        Vec3 c{0, 0, 0}, fc{0, 0, 0};
+        for (Index v : m.hexes[t.quads[q].hex[0]])
+            for (int d = 0; d < 3; ++d) c[d] += m.nodes[v][d] / 8;
+        for (Index v : n)
+            for (int d = 0; d < 3; ++d) fc[d] += m.nodes[v][d] / 4;
+        const Vec3& p0 = m.nodes[n[0]];
+        const Vec3& p1 = m.nodes[n[1]];
+        const Vec3& p3 = m.nodes[n[3]];
+        const Vec3 a{p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        const Vec3 b{p3[0] - p0[0], p3[1] - p0[1], p3[2] - p0[2]};
+        const Vec3 normal{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+        const double out = normal[0] * (fc[0] - c[0]) + normal[1] * (fc[1] - c[1]) + normal[2] * (fc[2] - c[2]);
+        EXPECT_GT(out, 0) << "quad " << q;
+    }
+}
+
+TEST(Topology, EveryHexFaceAndEdgeIsFoundAgain) {
+    const HexMesh m = makeBlock(3, 2, 2);
+    const Topology t = buildTopology(m);
+    for (std::size_t h = 0; h < m.hexes.size(); ++h) {
+        for (int f = 0; f < 6; ++f) {
+            const Quad& q = t.quads[t.hexQuads[h][f]];
+            EXPECT_TRUE(q.hex[0] == Index(h) || q.hex[1] == Index(h));
+        }
+        for (int e = 0; e < 12; ++e) {
+            const auto& edge = t.edges[t.hexEdges[h][e]];
+            const auto& le = hexcell::kEdges[e];
+            const std::set<Index> want{m.hexes[h][le[0]], m.hexes[h][le[1]]};
+            EXPECT_EQ((std::set<Index>{edge[0], edge[1]}), want);
+        }
+    }
+}
+
+TEST(Topology, NodeHexAdjacencyMatchesConnectivity) {
+    const HexMesh m = makeBlock(2, 2, 2);
+    const Topology t = buildTopology(m);
+    // the centre node of a 2x2x2 block is in all 8 hexes; a corner node in one
+    const Index centre = 13;
+    EXPECT_EQ(t.nodeHexes.size(centre), 8u);
+    EXPECT_EQ(t.nodeHexes.size(0), 1u);
+    for (std::size_t v = 0; v < m.nodes.size(); ++v)
+        for (const Index* h = t.nodeHexes.begin(v); h != t.nodeHexes.end(v); ++h) {
+            const auto& hex = m.hexes[*h];
+            EXPECT_NE(std::find(hex.begin(), hex.end(), Index(v)), hex.end());
+        }
+}
+
+TEST(Topology, MaterialInterfacesAreFoundAndGroupedIntoSurfaces) {
+    HexMesh m = makeBlock(4, 2, 2);
+    for (std::size_t h = 0; h < m.hexes.size(); ++h) m.material[h] = (h % 4) < 2 ? 1 : 2;
+    const Topology t = buildTopology(m);
+    EXPECT_EQ(t.interfaceQuads.size(), 4u);
+    const auto patches = surfacePatches(m, t);
+    ASSERT_EQ(patches.size(), 3u);
+    EXPECT_EQ(patches[0].tag.inside, 1);
+    EXPECT_EQ(patches[0].tag.outside, -1);
+    EXPECT_EQ(patches[1].tag.inside, 1);
+    EXPECT_EQ(patches[1].tag.outside, 2);
+    EXPECT_EQ(patches[1].quads.size(), 4u);
+    EXPECT_EQ(patches[2].tag.inside, 2);
+    EXPECT_EQ(patches[0].quads.size() + patches[2].quads.size(), t.boundaryQuads.size());
+    for (const auto& [h, f] : patches[1].hexFaces) EXPECT_EQ(m.material[h], 1);
+}
+
+TEST(Topology, QuadInThreeHexesIsListedAsOverfull) {
+    HexMesh m = makeBlock(1, 1, 1);
+    // two more hexes on the same bottom face (a non-manifold "book")
+    for (int k = 0; k < 2; ++k) {
+        Hex h = m.hexes[0];
+        for (int i = 4; i < 8; ++i) {
+            Vec3 p = m.nodes[h[i]];
+            p[0] += 2.0 * (k + 1);
+            h[i] = m.addNode(p);
+        }
+        m.addHex(h);
+    }
+    const Topology t = buildTopology(m);
+    ASSERT_EQ(t.overfullQuads.size(), 1u);
+    EXPECT_EQ(t.quadHexesAll.size(t.overfullQuads[0]), 3u);
+}
+
+TEST(Topology, OutOfRangeNodeIsAnError) {
+    HexMesh m = makeBlock(1, 1, 1);
+    m.hexes[0][3] = 99;
+    EXPECT_THROW(buildTopology(m), Error);
+}
+
+TEST(Topology, ResultDoesNotDependOnThreadCount) {
+    HexMesh m = makeBlock(12, 9, 7);
+    // scramble node numbering so buckets see interleaved work
+    Topology one, many;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        one = buildTopology(m);
+    }
+    many = buildTopology(m);
+    ASSERT_EQ(one.quads.size(), many.quads.size());
+    for (std::size_t q = 0; q < one.quads.size(); ++q) {
+        EXPECT_EQ(one.quads[q].nodes, many.quads[q].nodes);
+        EXPECT_EQ(one.quads[q].hex, many.quads[q].hex);
+    }
+    EXPECT_EQ(one.edges, many.edges);
+    EXPECT_EQ(one.hexEdges, many.hexEdges);
+    EXPECT_EQ(one.nodeHexes.items, many.nodeHexes.items);
+}
+
+TEST(Dual, BlockSheetsAreItsGridPlanes) {
+    const HexMesh m = makeBlock(4, 3, 2);
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    EXPECT_EQ(s.count(), 4u + 3u + 2u);
+    // every sheet of a block is one layer: its hexes are a full slab
+    std::multiset<std::size_t> sizes;
+    for (std::size_t i = 0; i < s.count(); ++i) sizes.insert(s.sheetHexes.size(i));
+    EXPECT_EQ(sizes.count(3 * 2), 4u);  // layers across x hold 3*2 hexes
+    EXPECT_EQ(sizes.count(4 * 2), 3u);
+    EXPECT_EQ(sizes.count(4 * 3), 2u);
+    for (std::size_t h = 0; h < m.hexes.size(); ++h)
+        for (int d = 0; d < 3; ++d)
+            for (int k = 0; k < 4; ++k) EXPECT_EQ(s.edgeSheet[t.hexEdges[h][4 * d + k]], s.hexSheets[h][d]);
+}
+
+TEST(Dual, BlockChordsAreItsRowsOfHexes) {
+    const HexMesh m = makeBlock(4, 3, 2);
+    const Topology t = buildTopology(m);
+    const DualChords c = buildChords(m, t);
+    EXPECT_EQ(c.count(), 3u * 2 + 4u * 2 + 4u * 3);
+    for (std::size_t i = 0; i < c.count(); ++i) {
+        const std::size_t n = c.chordHexes.size(i);
+        EXPECT_TRUE(n == 4 || n == 3 || n == 2) << n;
+        // a stack of n hexes has n + 1 quads
+        EXPECT_EQ(c.chordQuads.size(i), n + 1);
+    }
+}
+
+TEST(Dual, SheetOfRingClosesOnItself) {
+    // a ring of 8 hexes around a square hole: the sheet across the ring is closed
+    HexMesh m;
+    const double pts[8][2] = {{0, 0}, {1, 0}, {2, 0}, {2, 1}, {2, 2}, {1, 2}, {0, 2}, {0, 1}};
+    const double in[8][2] = {{0.5, 0.5}, {1, 0.5}, {1.5, 0.5}, {1.5, 1}, {1.5, 1.5}, {1, 1.5}, {0.5, 1.5}, {0.5, 1}};
+    Index outer[2][8], inner[2][8];
+    for (int z = 0; z < 2; ++z)
+        for (int i = 0; i < 8; ++i) {
+            outer[z][i] = m.addNode({pts[i][0], pts[i][1], double(z)});
+            inner[z][i] = m.addNode({in[i][0], in[i][1], double(z)});
+        }
+    for (int i = 0; i < 8; ++i) {
+        const int j = (i + 1) % 8;
+        m.addHex({outer[0][i], outer[0][j], inner[0][j], inner[0][i], outer[1][i], outer[1][j], inner[1][j], inner[1][i]});
+    }
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const DualChords c = buildChords(m, t);
+    // sheets: the z-layer and the closed cylinder between inner and outer wall
+    // hold all 8 hexes; each of the 8 sheets cutting the ring radially holds one
+    EXPECT_EQ(s.count(), 10u);
+    int full = 0;
+    for (std::size_t i = 0; i < s.count(); ++i) {
+        if (s.sheetHexes.size(i) == 8) {
+            ++full;
+            EXPECT_EQ(s.sheetEdges.size(i), 16u);
+        } else {
+            EXPECT_EQ(s.sheetHexes.size(i), 1u);
+        }
+    }
+    EXPECT_EQ(full, 2);
+    EXPECT_EQ(c.count(), 17u);
+    // the chord around the ring is closed: 8 hexes, 8 quads (no end faces)
+    bool closedChord = false;
+    for (std::size_t i = 0; i < c.count(); ++i)
+        if (c.chordHexes.size(i) == 8 && c.chordQuads.size(i) == 8) closedChord = true;
+    EXPECT_TRUE(closedChord);
+}
