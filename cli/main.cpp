@@ -1,2 +1,49 @@
+// isohex: volumetric scans to all-hex finite-element meshes.
+#include <cstdio>
 #include <iostream>
-int main() { std::cout << "isohex\n"; return 0; }
+
+#include <CLI/CLI.hpp>
+
+#include "Commands.hpp"
+#include "Versions.hpp"
+#include "isohex/core/Error.hpp"
+
+namespace isohex::cli {
+int& pendingExitCode() {
+    static int code = kExitOk;
+    return code;
+}
+}  // namespace isohex::cli
+
+int main(int argc, char** argv) {
+    using namespace isohex::cli;
+    CLI::App app{"isohex: turns volumetric scans into all-hexahedral finite-element meshes\n"
+                 "whose every element is convex with positive volume, and reports their quality."};
+    app.set_version_flag("--version", versionText());
+    app.require_subcommand(1);
+    app.fallthrough();
+    addQualityCommand(app);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return kExitUsage;
+    } catch (const isohex::Error& e) {
+        std::cerr << "isohex: error: " << e.what() << "\n";
+        return kExitError;
+    } catch (const std::bad_alloc&) {
+        std::cerr << "isohex: error: out of memory; try a coarser --size or a machine with more memory\n";
+        return kExitError;
+    } catch (const std::exception& e) {
+        std::cerr << "isohex: internal error: " << e.what()
+                  << "\n(please report this with the command line that caused it)\n";
+        return kExitError;
+    }
+    return pendingExitCode();
+}

@@ -11,7 +11,7 @@
 #include "support/Blocks.hpp"
 
 using namespace isohex;
-using isohex::testing::makeBlock;
+using isohex::test::makeBlock;
 
 namespace {
 // Closed-form counts for an a x b x c block of hexes.

@@ -2,7 +2,7 @@
 // Small structured meshes for tests.
 #include "isohex/core/HexMesh.hpp"
 
-namespace isohex::testing {
+namespace isohex::test {
 
 // nx x ny x nz unit-spaced hexes (times `h`) starting at `origin`, VTK order,
 // positive Jacobians, all of material `mat`.
@@ -21,4 +21,4 @@ inline HexMesh makeBlock(int nx, int ny, int nz, double h = 1.0, Vec3 origin = {
     return m;
 }
 
-}  // namespace isohex::testing
+}  // namespace isohex::test

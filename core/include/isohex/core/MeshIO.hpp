@@ -8,6 +8,7 @@
 // Every write goes to a temporary file in the target folder and is renamed
 // into place, so a failure never leaves a truncated file or clobbers an old one.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
@@ -27,6 +28,9 @@ struct WriteOptions {
     // Optional per-hex scalar written next to the material (VTU cell data
     // "scaled_jacobian"); computed by the writer when empty.
     std::vector<double> scaledJacobian;
+    // Further per-hex fields (name, one value per hex), written as cell data
+    // where the format has a place for them (.vtu).
+    std::vector<std::pair<std::string, std::vector<double>>> cellFields;
 };
 
 void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt = {});

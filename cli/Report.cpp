@@ -1,0 +1,83 @@
+#include "Report.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <sys/resource.h>
+
+#include <nlohmann/json.hpp>
+
+#include "isohex/core/AtomicFile.hpp"
+#include "isohex/core/Error.hpp"
+
+namespace isohex::cli {
+
+double peakMemoryMb() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+namespace {
+std::string num(double v, int prec = 4) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
+    return buf;
+}
+std::string statsLine(const char* name, const Stats& s) {
+    if (s.count == 0) return std::string(name) + ": n/a\n";
+    return std::string(name) + ": min " + num(s.min) + "  mean " + num(s.mean) + "  max " + num(s.max) + "\n";
+}
+}  // namespace
+
+std::string formatQuality(const QualitySummary& q, const ValidityReport& v) {
+    std::ostringstream o;
+    o << "hexes " << q.hexes << ", nodes " << q.nodes << "\n";
+    o << statsLine("scaled Jacobian", q.scaledJacobian);
+    o << "  below 0.2: " << q.below02 << "   inverted (< 0): " << q.inverted << "   degenerate: " << q.degenerate
+      << "\n";
+    o << "  histogram:";
+    for (std::size_t i = 0; i < q.histogram.size(); ++i) {
+        if (i % 4 == 0) o << "\n   ";
+        char buf[64];
+        std::snprintf(buf, sizeof buf, " [%4.1f,%4.1f%c %9zu", kScaledJacobianBins[i], kScaledJacobianBins[i + 1],
+                      i + 1 == q.histogram.size() ? ']' : ')', q.histogram[i]);
+        o << buf;
+    }
+    o << "\n";
+    o << statsLine("inverse mean ratio", q.inverseMeanRatio);
+    o << statsLine("condition number", q.condition);
+    o << statsLine("edge ratio", q.edgeRatio);
+    o << statsLine("hex volume", q.volume);
+    o << "total volume: " << num(q.totalVolume, 10) << "\n";
+    if (v.ok()) {
+        o << "validity: ok (no defect found)\n";
+    } else {
+        o << "validity: " << v.defects.size() << " kind(s) of defect\n";
+        for (const auto& [key, d] : v.defects) {
+            o << "  " << key << " (constraint " << d.constraint << "): " << d.count << " " << d.entity
+              << (d.count == 1 ? "" : "s") << " - " << d.description;
+            if (!d.examples.empty()) {
+                o << "; e.g. " << d.entity << " " << d.examples[0];
+                if (!d.where.empty())
+                    o << " at (" << num(d.where[0][0], 6) << ", " << num(d.where[0][1], 6) << ", "
+                      << num(d.where[0][2], 6) << ")";
+            }
+            o << "\n";
+        }
+    }
+    return o.str();
+}
+
+void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwrite) {
+    io::writeAtomically(path, overwrite, [&](const std::string& tmp) {
+        std::ofstream f(tmp);
+        if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
+        f << j.dump(2) << "\n";
+        f.close();
+        if (!f) throw Error(path + ": write failed (disk full?)");
+    });
+}
+
+}  // namespace isohex::cli

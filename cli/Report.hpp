@@ -1,0 +1,18 @@
+#pragma once
+// Shared pieces of the reports commands print or write.
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Validate.hpp"
+
+namespace isohex::cli {
+
+double peakMemoryMb();
+// Human-readable quality and validity summary for a terminal.
+std::string formatQuality(const QualitySummary& q, const ValidityReport& v);
+// Writes JSON text to `path` atomically (refusing to clobber unless overwrite).
+void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwrite);
+
+}  // namespace isohex::cli
