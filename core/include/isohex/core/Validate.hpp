@@ -35,20 +35,46 @@ struct ValidityReport {
 
 inline constexpr std::size_t kMaxExamples = 10;
 
-// Defect keys:
-//   repeated_node        hex uses a node twice (B, D, G)
-//   overfull_quad        quad in more than two hexes (H)
-//   duplicate_hex        two hexes with the same node set
-//   hex_doublet          two hexes share two or more quads (I)
-//   quad_doublet         two boundary quads share two or more edges (E)
-//   nonmanifold_edge     boundary edge without exactly two boundary quads of one surface (K)
-//   nonmanifold_node     boundary quads around a node are not one fan (pinch, seed Fig. 7.13)
-//   inconsistent_orientation  two hexes see their shared quad with the same orientation
-//   inverted_hex         a corner Jacobian determinant <= 0 (N)
-//   unused_node          node in no hex (A)
+// Defect keys, the entity each one counts, and the seed's constraint letter(s):
+//   repeated_node        hex    a hex uses a node twice (B, D, G)
+//   overfull_quad        quad   a quad in more than two hexes (H)
+//   duplicate_hex        hex    same node set as a lower-numbered hex, so only
+//                               the later copies are counted (I)
+//   hex_doublet          hex    shares two or more quads with one other hex (I);
+//                               both hexes of a doublet are counted
+//   quad_doublet         quad   two surface quads share two or more edges (E)
+//   nonmanifold_edge     edge   a surface edge with three or more quads of one
+//                               surface, or with one quad of a surface and no
+//                               other surface there to end it (K)
+//   nonmanifold_node     node   the quads of one surface around the node form
+//                               more than one fan: the pinch where two solids
+//                               touch at a vertex or along an edge (K)
+//   inconsistent_orientation  quad  both hexes on it traverse it in the same
+//                               direction: one is folded onto the other (N)
+//   inverted_hex         hex    a corner or the centre Jacobian determinant <= 0 (N)
+//   unused_node          node   node in no hex (A)
+//
+// "Surface" means a patch of surfacePatches(): boundary quads grouped by
+// (material inside, exterior) and interface quads by their two materials. A
+// surface may be open (an interface ends where it meets the exterior), so an
+// edge with one quad of a surface is fine where another surface also has the
+// edge, and a node's fan may be a path rather than a cycle.
+//
+// Each defect is reported once, under its root cause: hexes with a repeated
+// node are not also judged for inversion or orientation, and two hexes with the
+// same node set are not also reported as a doublet or as misoriented. Results
+// that follow geometrically do appear: a hex doublet always has a corner of
+// 180 degrees or more (inverted_hex), and where its two hexes reach the
+// surface their faces there form quad doublets.
+//
+// Cost: linear in the mesh size (plus small per-node sorts), parallel over
+// hexes, quads, nodes and surface quads; the report does not depend on the
+// thread count. validate(mesh) builds the topology itself.
 ValidityReport validate(const HexMesh& mesh);
 ValidityReport validate(const HexMesh& mesh, const Topology& topo);
 
+// The report's "validity" object: {"ok": bool, "defects": {key: {"constraint",
+// "description", "count", "entity", "examples": [ids], "where": [[x, y, z]]}}}.
 nlohmann::json toJson(const ValidityReport& r);
 
 }  // namespace isohex
