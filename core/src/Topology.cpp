@@ -203,3 +203,29 @@ std::vector<SurfacePatch> surfacePatches(const HexMesh& mesh, const Topology& to
 }
 
 }  // namespace isohex
+
+namespace isohex {
+
+void classifyBoundaryNodes(HexMesh& mesh) {
+    const Topology topo = buildTopology(mesh);
+    const std::vector<SurfacePatch> patches = surfacePatches(mesh, topo);
+    mesh.surfaces.clear();
+    std::vector<std::int32_t> first(mesh.nodeCount(), -1);
+    std::vector<std::uint8_t> many(mesh.nodeCount(), 0);
+    for (std::size_t s = 0; s < patches.size(); ++s) {
+        mesh.surfaces.push_back(patches[s].tag);
+        for (Index q : patches[s].quads)
+            for (Index v : topo.quads[q].nodes) {
+                if (first[v] < 0) first[v] = static_cast<std::int32_t>(s);
+                else if (first[v] != static_cast<std::int32_t>(s)) many[v] = 1;
+            }
+    }
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
+        if (mesh.nodeClass[v].kind == NodeKind::Fixed) continue;
+        if (many[v]) mesh.nodeClass[v] = {NodeKind::Curve, -1};
+        else if (first[v] >= 0) mesh.nodeClass[v] = {NodeKind::Surface, first[v]};
+        else mesh.nodeClass[v] = {};
+    }
+}
+
+}  // namespace isohex

@@ -63,3 +63,11 @@ struct SurfacePatch {
 std::vector<SurfacePatch> surfacePatches(const HexMesh& mesh, const Topology& topo);
 
 }  // namespace isohex
+
+namespace isohex {
+// Sets mesh.surfaces to the surfaces the mesh exposes (surfacePatches order)
+// and classifies nodes: a node on one surface gets NodeKind::Surface with that
+// surface's id, a node on two or more gets NodeKind::Curve; other nodes become
+// Interior. Fixed nodes stay fixed.
+void classifyBoundaryNodes(HexMesh& mesh);
+}  // namespace isohex

@@ -1,0 +1,69 @@
+#include "isohex/core/QuadSurface.hpp"
+
+#include <algorithm>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "Parallel.hpp"
+
+namespace isohex {
+
+ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std::size_t nodeCount, bool closed) {
+    // node -> (quad, corner) items
+    const Csr around = detail::bucketItems(nodeCount, quads.size() * 4,
+                                           [&](std::size_t i) { return quads[i / 4][i % 4]; });
+    std::vector<std::uint8_t> nodeBad(nodeCount, 0);
+    tbb::enumerable_thread_specific<std::vector<std::array<Index, 2>>> badEdgesLocal;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodeCount, 256), [&](const auto& r) {
+        // (neighbour node, local quad slot) pairs and a tiny union-find over the quads at v
+        std::vector<std::pair<Index, Index>> spokes;
+        std::vector<Index> parent;
+        auto& bad = badEdgesLocal.local();
+        for (std::size_t v = r.begin(); v != r.end(); ++v) {
+            const std::size_t n = around.size(v);
+            if (n == 0) continue;
+            spokes.clear();
+            parent.resize(n);
+            for (std::size_t s = 0; s < n; ++s) {
+                parent[s] = static_cast<Index>(s);
+                const Index item = around.begin(v)[s];
+                const auto& q = quads[item / 4];
+                const int c = item % 4;
+                spokes.emplace_back(q[(c + 1) % 4], static_cast<Index>(s));
+                spokes.emplace_back(q[(c + 3) % 4], static_cast<Index>(s));
+            }
+            std::sort(spokes.begin(), spokes.end());
+            auto find = [&](Index a) {
+                while (parent[a] != a) a = parent[a] = parent[parent[a]];
+                return a;
+            };
+            for (std::size_t i = 0; i < spokes.size();) {
+                std::size_t j = i;
+                while (j < spokes.size() && spokes[j].first == spokes[i].first) ++j;
+                const std::size_t uses = j - i;
+                const Index w = spokes[i].first;
+                if (uses > 2 || (closed && uses == 1)) {
+                    if (static_cast<Index>(v) < w) bad.push_back({static_cast<Index>(v), w});
+                } else if (uses == 2) {
+                    const Index a = find(spokes[i].second), b = find(spokes[i + 1].second);
+                    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                }
+                i = j;
+            }
+            std::size_t components = 0;
+            for (std::size_t s = 0; s < n; ++s)
+                if (find(static_cast<Index>(s)) == static_cast<Index>(s)) ++components;
+            if (components > 1) nodeBad[v] = 1;
+        }
+    });
+    ManifoldCheck out;
+    for (auto& local : badEdgesLocal) out.badEdges.insert(out.badEdges.end(), local.begin(), local.end());
+    std::sort(out.badEdges.begin(), out.badEdges.end());
+    for (std::size_t v = 0; v < nodeCount; ++v)
+        if (nodeBad[v]) out.badNodes.push_back(static_cast<Index>(v));
+    return out;
+}
+
+}  // namespace isohex

@@ -1,0 +1,491 @@
+#include "isohex/core/Sheets.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <random>
+#include <set>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "Parallel.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/HexCell.hpp"
+#include "isohex/core/QuadSurface.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Validate.hpp"
+
+namespace isohex {
+
+namespace {
+
+Vec3 operator-(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+Vec3 operator+(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+Vec3 operator*(double s, const Vec3& a) { return {s * a[0], s * a[1], s * a[2]}; }
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+
+std::string at(const Vec3& p) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "(%.6g, %.6g, %.6g)", p[0], p[1], p[2]);
+    return buf;
+}
+
+// Reference coordinates of the VTK hex corners.
+constexpr int kRef[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+
+int cornerAt(int x, int y, int z) {
+    for (int c = 0; c < 8; ++c)
+        if (kRef[c][0] == x && kRef[c][1] == y && kRef[c][2] == z) return c;
+    return -1;
+}
+
+}  // namespace
+
+PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const PillowOptions& opt) {
+    if (shrinkSet.empty()) throw Error("cannot pillow: the shrink set is empty");
+    const Topology topo = buildTopology(mesh);
+    if (!topo.overfullQuads.empty())
+        throw Error("cannot pillow: the mesh has " + std::to_string(topo.overfullQuads.size()) +
+                    " quads shared by more than two hexes; repair the mesh first");
+    const std::size_t H = mesh.hexCount(), N = mesh.nodeCount();
+    std::vector<std::uint8_t> inS(H, 0);
+    for (Index h : shrinkSet) {
+        if (h < 0 || static_cast<std::size_t>(h) >= H)
+            throw Error("cannot pillow: shrink set names hex " + std::to_string(h) + " but the mesh has " +
+                        std::to_string(H) + " hexes");
+        inS[h] = 1;
+    }
+
+    // Quads with exactly one shrink-set hex, seen from that hex (outward).
+    std::vector<std::pair<Index, int>> faces;
+    std::vector<std::array<Index, 4>> quadNodes;
+    for (std::size_t q = 0; q < topo.quads.size(); ++q) {
+        const Quad& quad = topo.quads[q];
+        const bool a = inS[quad.hex[0]];
+        const bool b = quad.hex[1] != kNone && inS[quad.hex[1]];
+        if (a == b) continue;
+        const int side = a ? 0 : 1;
+        const Index h = quad.hex[side];
+        const int f = quad.localFace[side];
+        faces.emplace_back(h, f);
+        const auto& lf = hexcell::kFaces[f];
+        quadNodes.push_back({mesh.hexes[h][lf[0]], mesh.hexes[h][lf[1]], mesh.hexes[h][lf[2]], mesh.hexes[h][lf[3]]});
+    }
+    if (faces.empty()) throw Error("cannot pillow: the shrink set has no boundary");
+    const ManifoldCheck mc = checkManifold(quadNodes, N, true);
+    if (!mc.ok()) {
+        std::string msg = "cannot pillow: the boundary of the shrink set is not a closed 2-manifold (" +
+                          std::to_string(mc.badEdges.size()) + " non-manifold edges, " +
+                          std::to_string(mc.badNodes.size()) + " nodes where parts touch";
+        const Index v = mc.badNodes.empty() ? mc.badEdges[0][0] : mc.badNodes[0];
+        msg += ", first at node " + std::to_string(v) + " " + at(mesh.nodes[v]) +
+               "); repair the region's non-manifold edges and nodes first";
+        throw Error(msg);
+    }
+
+    // Split nodes, numbered in increasing original index.
+    PillowResult res;
+    res.firstNewHex = static_cast<Index>(H);
+    res.firstNewNode = static_cast<Index>(N);
+    std::vector<Index> copy(N, kNone);
+    for (const auto& q : quadNodes)
+        for (Index v : q) copy[v] = 0;
+    Index next = static_cast<Index>(N);
+    for (std::size_t v = 0; v < N; ++v)
+        if (copy[v] == 0) {
+            copy[v] = next++;
+            res.copyOf.push_back(static_cast<Index>(v));
+        }
+    const std::size_t C = res.copyOf.size();
+
+    // Averaged outward normal (area weighted) and local edge length per split node.
+    std::vector<Vec3> normal(N, Vec3{0, 0, 0});
+    std::vector<double> edgeSum(N, 0.0);
+    std::vector<int> edgeCount(N, 0);
+    for (const auto& q : quadNodes) {
+        const Vec3 n = 0.5 * cross(mesh.nodes[q[2]] - mesh.nodes[q[0]], mesh.nodes[q[3]] - mesh.nodes[q[1]]);
+        for (int i = 0; i < 4; ++i) {
+            normal[q[i]] = normal[q[i]] + n;
+            edgeSum[q[i]] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]) +
+                             norm(mesh.nodes[q[(i + 3) % 4]] - mesh.nodes[q[i]]);
+            edgeCount[q[i]] += 2;
+        }
+    }
+    // Centroid of the shrink-set hexes around each split node: the fallback
+    // inward direction where the normal is unreliable.
+    std::vector<Vec3> inward(C);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Index v = res.copyOf[i];
+            Vec3 c{0, 0, 0};
+            int n = 0;
+            for (const Index* h = topo.nodeHexes.begin(v); h != topo.nodeHexes.end(v); ++h)
+                if (inS[*h]) {
+                    for (Index u : mesh.hexes[*h]) c = c + mesh.nodes[u];
+                    n += 8;
+                }
+            const Vec3 toCentre = (1.0 / n) * c - mesh.nodes[v];
+            const double len = norm(normal[v]);
+            Vec3 dir = len > 0 ? (-1.0 / len) * normal[v] : Vec3{0, 0, 0};
+            if (dot(dir, toCentre) <= 0) {
+                const double l = norm(toCentre);
+                dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
+            }
+            inward[i] = (edgeSum[v] / edgeCount[v]) * dir;
+        }
+    });
+
+    // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
+    mesh.nodes.reserve(N + C);
+    mesh.nodeClass.reserve(N + C);
+    for (std::size_t i = 0; i < C; ++i)
+        mesh.addNode(mesh.nodes[res.copyOf[i]] + opt.inset * inward[i], NodeClass{});
+    for (std::size_t h = 0; h < H; ++h)
+        if (inS[h])
+            for (Index& v : mesh.hexes[h])
+                if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
+    mesh.hexes.reserve(H + faces.size());
+    mesh.material.reserve(H + faces.size());
+    for (std::size_t i = 0; i < faces.size(); ++i) {
+        const auto& q = quadNodes[i];
+        mesh.addHex({copy[q[0]], copy[q[1]], copy[q[2]], copy[q[3]], q[0], q[1], q[2], q[3]},
+                    mesh.material[faces[i].first]);
+    }
+
+    // Pull copies back toward their original where a hex around them inverted.
+    std::vector<Index> watch;  // hexes that contain a copy
+    for (std::size_t h = 0; h < H; ++h)
+        if (inS[h])
+            for (Index v : mesh.hexes[h])
+                if (v >= static_cast<Index>(N)) {
+                    watch.push_back(static_cast<Index>(h));
+                    break;
+                }
+    for (std::size_t h = H; h < mesh.hexCount(); ++h) watch.push_back(static_cast<Index>(h));
+    std::vector<double> scale(C, opt.inset);
+    std::vector<std::uint8_t> bad(watch.size());
+    for (int round = 0; round <= opt.maxHalvings; ++round) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i)
+                bad[i] = minCornerDeterminant(hexCoords(mesh, watch[i])) <= 0;
+        });
+        res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
+        if (res.invertedAtStart == 0 || round == opt.maxHalvings) break;
+        std::vector<std::uint8_t> shrink(C, 0);
+        for (std::size_t i = 0; i < watch.size(); ++i)
+            if (bad[i])
+                for (Index v : mesh.hexes[watch[i]])
+                    if (v >= static_cast<Index>(N)) shrink[v - N] = 1;
+        for (std::size_t i = 0; i < C; ++i)
+            if (shrink[i]) {
+                scale[i] *= 0.5;
+                mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + scale[i] * inward[i];
+            }
+    }
+    return res;
+}
+
+std::vector<PillowResult> pillowAllMaterials(HexMesh& mesh, int layers, const PillowOptions& opt) {
+    if (layers < 1) throw Error("boundary layers must be at least 1 (got " + std::to_string(layers) + ")");
+    std::vector<std::int32_t> mats(mesh.material);
+    std::sort(mats.begin(), mats.end());
+    mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
+    std::vector<PillowResult> out;
+    for (std::int32_t m : mats) {
+        std::vector<Index> shrink;
+        for (std::size_t h = 0; h < mesh.hexCount(); ++h)
+            if (mesh.material[h] == m) shrink.push_back(static_cast<Index>(h));
+        PillowResult r = pillow(mesh, shrink, opt);
+        if (layers > 1) {
+            const Topology topo = buildTopology(mesh);
+            const DualSheets sheets = buildSheets(mesh, topo);
+            const Index s = sheetThroughEdge(topo, sheets, r.firstNewNode, r.copyOf[0]);
+            dice(mesh, topo, sheets, s, layers - 1);
+        }
+        out.push_back(std::move(r));
+    }
+    return out;
+}
+
+// ----------------------------------------------------------------- dicing
+
+std::size_t dice(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet, int copies) {
+    if (copies < 1) throw Error("dice: the number of copies must be at least 1 (got " + std::to_string(copies) + ")");
+    if (sheet < 0 || static_cast<std::size_t>(sheet) >= sheets.count())
+        throw Error("dice: no sheet " + std::to_string(sheet));
+    const int k = copies;
+    // Hexes of the sheet and the direction the sheet crosses them in.
+    std::vector<std::pair<Index, int>> hexDir;
+    for (const Index* h = sheets.sheetHexes.begin(sheet); h != sheets.sheetHexes.end(sheet); ++h) {
+        int dir = -1;
+        for (int d = 0; d < 3; ++d)
+            if (sheets.hexSheets[*h][d] == sheet) {
+                if (dir >= 0)
+                    throw Error("dice: sheet " + std::to_string(sheet) + " crosses itself in hex " +
+                                std::to_string(*h) + "; dicing a self-intersecting sheet is not supported");
+                dir = d;
+            }
+        hexDir.emplace_back(*h, dir);
+    }
+    // Which edges lie in a surface (for the class of the new nodes).
+    std::vector<std::uint8_t> edgeOnSurface(topo.edges.size(), 0);
+    auto markQuadEdges = [&](Index q) {
+        const Quad& quad = topo.quads[q];
+        const int f = quad.localFace[0];
+        const Index h = quad.hex[0];
+        for (int e = 0; e < 12; ++e) {
+            const auto& le = hexcell::kEdges[e];
+            const auto& lf = hexcell::kFaces[f];
+            const bool in0 = std::find(lf.begin(), lf.end(), le[0]) != lf.end();
+            const bool in1 = std::find(lf.begin(), lf.end(), le[1]) != lf.end();
+            if (in0 && in1) edgeOnSurface[topo.hexEdges[h][e]] = 1;
+        }
+    };
+    for (Index q : topo.boundaryQuads) markQuadEdges(q);
+    for (Index q : topo.interfaceQuads) markQuadEdges(q);
+
+    // k new nodes per sheet edge, from its first (smaller) node to its second.
+    const std::size_t N = mesh.nodeCount();
+    std::vector<Index> base(topo.edges.size(), kNone);
+    Index next = static_cast<Index>(N);
+    for (const Index* e = sheets.sheetEdges.begin(sheet); e != sheets.sheetEdges.end(sheet); ++e) {
+        base[*e] = next;
+        next += k;
+    }
+    mesh.nodes.resize(static_cast<std::size_t>(next));
+    mesh.nodeClass.resize(static_cast<std::size_t>(next));
+    const std::size_t E = sheets.sheetEdges.size(sheet);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, E, 256), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Index e = sheets.sheetEdges.begin(sheet)[i];
+            const auto [a, b] = topo.edges[e];
+            const NodeClass ca = mesh.nodeClass[a], cb = mesh.nodeClass[b];
+            NodeClass c{};
+            if (edgeOnSurface[e]) {
+                if (ca == cb && ca.kind != NodeKind::Fixed) c = ca;
+                else if (ca.kind == NodeKind::Surface) c = ca;
+                else if (cb.kind == NodeKind::Surface) c = cb;
+            }
+            for (int j = 1; j <= k; ++j) {
+                const double t = static_cast<double>(j) / (k + 1);
+                mesh.nodes[base[e] + j - 1] = mesh.nodes[a] + t * (mesh.nodes[b] - mesh.nodes[a]);
+                mesh.nodeClass[base[e] + j - 1] = c;
+            }
+        }
+    });
+
+    // Split each sheet hex into k+1 along its direction.
+    const std::size_t H = mesh.hexCount();
+    mesh.hexes.resize(H + hexDir.size() * k);
+    mesh.material.resize(H + hexDir.size() * k);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hexDir.size(), 256), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const auto [h, d] = hexDir[i];
+            const Hex old = mesh.hexes[h];
+            // point t (0..k+1) along the sheet edge that starts at corner c
+            auto pointFrom = [&](int c, int t) -> Index {
+                int ref[3] = {kRef[c][0], kRef[c][1], kRef[c][2]};
+                ref[d] = 1;
+                const int other = cornerAt(ref[0], ref[1], ref[2]);
+                if (t == 0) return old[c];
+                if (t == k + 1) return old[other];
+                int le = -1;
+                for (int e = 4 * d; e < 4 * d + 4; ++e) {
+                    const auto& p = hexcell::kEdges[e];
+                    if ((p[0] == c && p[1] == other) || (p[1] == c && p[0] == other)) le = e;
+                }
+                const Index e = topo.hexEdges[h][le];
+                return topo.edges[e][0] == old[c] ? base[e] + t - 1 : base[e] + (k + 1 - t) - 1;
+            };
+            for (int j = 0; j <= k; ++j) {
+                Hex sub;
+                for (int c = 0; c < 8; ++c) {
+                    int ref[3] = {kRef[c][0], kRef[c][1], kRef[c][2]};
+                    const int up = ref[d];
+                    ref[d] = 0;
+                    sub[c] = pointFrom(cornerAt(ref[0], ref[1], ref[2]), j + up);
+                }
+                const std::size_t slot = j == 0 ? static_cast<std::size_t>(h) : H + i * k + (j - 1);
+                mesh.hexes[slot] = sub;
+                mesh.material[slot] = mesh.material[h];
+            }
+        }
+    });
+    return hexDir.size() * k;
+}
+
+// ----------------------------------------------------------------- extraction
+
+namespace {
+std::set<std::string> topologicalDefects(const ValidityReport& r) {
+    std::set<std::string> out;
+    for (const auto& [key, d] : r.defects)
+        if (key != "inverted_hex") out.insert(key);
+    return out;
+}
+}  // namespace
+
+std::size_t extract(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet) {
+    if (sheet < 0 || static_cast<std::size_t>(sheet) >= sheets.count())
+        throw Error("extract: no sheet " + std::to_string(sheet));
+    const std::size_t N = mesh.nodeCount();
+    std::vector<std::uint8_t> edgeOnSurface(topo.edges.size(), 0);
+    for (const auto* list : {&topo.boundaryQuads, &topo.interfaceQuads})
+        for (Index q : *list) {
+            const Quad& quad = topo.quads[q];
+            for (int e = 0; e < 12; ++e) {
+                const auto& le = hexcell::kEdges[e];
+                const auto& lf = hexcell::kFaces[quad.localFace[0]];
+                if (std::find(lf.begin(), lf.end(), le[0]) != lf.end() &&
+                    std::find(lf.begin(), lf.end(), le[1]) != lf.end())
+                    edgeOnSurface[topo.hexEdges[quad.hex[0]][e]] = 1;
+            }
+        }
+    // Decide the fate of each collapsed edge.
+    std::vector<Index> target(N);
+    std::iota(target.begin(), target.end(), 0);
+    std::vector<std::uint8_t> used(N, 0);
+    std::vector<Vec3> newPos;
+    std::vector<NodeClass> newClass;
+    for (const Index* pe = sheets.sheetEdges.begin(sheet); pe != sheets.sheetEdges.end(sheet); ++pe) {
+        const auto [a, b] = topo.edges[*pe];
+        const NodeClass ca = mesh.nodeClass[a], cb = mesh.nodeClass[b];
+        const bool fa = ca.kind != NodeKind::Interior, fb = cb.kind != NodeKind::Interior;
+        auto refuse = [&](const std::string& why) {
+            throw Error("cannot extract sheet " + std::to_string(sheet) + ": its edge from node " +
+                        std::to_string(a) + " " + at(mesh.nodes[a]) + " to node " + std::to_string(b) + " " + why);
+        };
+        if (used[a] || used[b]) refuse("shares a node with another of its edges (the sheet touches itself)");
+        used[a] = used[b] = 1;
+        Index keep = a, gone = b;
+        Vec3 pos = mesh.nodes[a];
+        NodeClass cls = ca;
+        if (fa && fb) {
+            if (!(ca == cb)) refuse("joins two different surfaces or curves; collapsing it would merge them");
+            if (ca.kind != NodeKind::Surface || !edgeOnSurface[*pe])
+                refuse("runs through the solid between two nodes of one surface; collapsing it would pinch the surface");
+            pos = 0.5 * (mesh.nodes[a] + mesh.nodes[b]);
+        } else if (fb) {
+            keep = b;
+            gone = a;
+            pos = mesh.nodes[b];
+            cls = cb;
+        } else if (!fa) {
+            pos = 0.5 * (mesh.nodes[a] + mesh.nodes[b]);
+        }
+        target[gone] = keep;
+        target[keep] = keep;
+        newPos.push_back(pos);
+        newClass.push_back(cls);
+    }
+
+    HexMesh out;
+    // Hexes of the sheet disappear; the others are remapped.
+    std::vector<std::uint8_t> inSheet(mesh.hexCount(), 0);
+    for (const Index* h = sheets.sheetHexes.begin(sheet); h != sheets.sheetHexes.end(sheet); ++h) inSheet[*h] = 1;
+    std::set<std::int32_t> before(mesh.material.begin(), mesh.material.end()), after;
+    std::vector<Index> newId(N, kNone);
+    Index nextNode = 0;
+    for (std::size_t v = 0; v < N; ++v)
+        if (target[v] == static_cast<Index>(v)) newId[v] = nextNode++;
+    out.nodes.resize(nextNode);
+    out.nodeClass.resize(nextNode);
+    for (std::size_t v = 0; v < N; ++v)
+        if (newId[v] != kNone) {
+            out.nodes[newId[v]] = mesh.nodes[v];
+            out.nodeClass[newId[v]] = mesh.nodeClass[v];
+        }
+    {
+        std::size_t i = 0;
+        for (const Index* pe = sheets.sheetEdges.begin(sheet); pe != sheets.sheetEdges.end(sheet); ++pe, ++i) {
+            const auto [a, b] = topo.edges[*pe];
+            const Index keep = target[a] == a ? a : b;
+            out.nodes[newId[keep]] = newPos[i];
+            out.nodeClass[newId[keep]] = newClass[i];
+        }
+    }
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+        if (inSheet[h]) continue;
+        Hex nh;
+        for (int c = 0; c < 8; ++c) nh[c] = newId[target[mesh.hexes[h][c]]];
+        out.addHex(nh, mesh.material[h]);
+        after.insert(mesh.material[h]);
+    }
+    for (std::int32_t m : before)
+        if (!after.count(m))
+            throw Error("cannot extract sheet " + std::to_string(sheet) + ": it holds every hex of material " +
+                        std::to_string(m));
+    // Nodes used only by the removed hexes (none for a proper sheet) are dropped.
+    out.surfaces = mesh.surfaces;
+    const auto was = topologicalDefects(validate(mesh));
+    const ValidityReport rep = validate(out);
+    for (const auto& key : topologicalDefects(rep))
+        if (!was.count(key))
+            throw Error("cannot extract sheet " + std::to_string(sheet) + ": the result would have " +
+                        std::to_string(rep.count(key)) + " defect(s) of kind " + key);
+    const std::size_t removed = mesh.hexCount() - out.hexCount();
+    mesh = std::move(out);
+    return removed;
+}
+
+// ----------------------------------------------------------------- selection
+
+Index sheetThroughEdge(const Topology& topo, const DualSheets& sheets, Index a, Index b) {
+    const Index lo = std::min(a, b), hi = std::max(a, b);
+    const auto it = std::lower_bound(topo.edges.begin(), topo.edges.end(), std::array<Index, 2>{lo, hi});
+    if (it == topo.edges.end() || (*it)[0] != lo || (*it)[1] != hi)
+        throw Error("no mesh edge joins nodes " + std::to_string(a) + " and " + std::to_string(b));
+    return sheets.edgeSheet[static_cast<std::size_t>(it - topo.edges.begin())];
+}
+
+std::vector<Index> sheetsTouchingSurfaces(const Topology& topo, const DualSheets& sheets) {
+    std::vector<std::uint8_t> touch(sheets.count(), 0);
+    for (std::size_t e = 0; e < topo.edges.size(); ++e)
+        if (topo.nodeOnBoundary[topo.edges[e][0]] || topo.nodeOnBoundary[topo.edges[e][1]]) touch[sheets.edgeSheet[e]] = 1;
+    std::vector<Index> out;
+    for (std::size_t s = 0; s < touch.size(); ++s)
+        if (touch[s]) out.push_back(static_cast<Index>(s));
+    return out;
+}
+
+std::vector<Index> fundamentalSheets(const HexMesh& mesh, const Topology& topo, const DualSheets& sheets) {
+    std::vector<std::uint8_t> onSurface(mesh.nodeCount(), 0);
+    for (Index v : topo.boundaryNodes) onSurface[v] = 1;
+    for (Index q : topo.interfaceQuads)
+        for (Index v : topo.quads[q].nodes) onSurface[v] = 1;
+    std::vector<Index> out;
+    for (std::size_t s = 0; s < sheets.count(); ++s) {
+        bool ok = true;
+        for (const Index* e = sheets.sheetEdges.begin(s); ok && e != sheets.sheetEdges.end(s); ++e)
+            ok = onSurface[topo.edges[*e][0]] != onSurface[topo.edges[*e][1]];
+        if (ok) out.push_back(static_cast<Index>(s));
+    }
+    return out;
+}
+
+std::vector<Index> randomSheets(const DualSheets& sheets, std::size_t count, std::uint64_t seed,
+                                const std::vector<Index>& exclude) {
+    std::vector<std::uint8_t> skip(sheets.count(), 0);
+    for (Index s : exclude)
+        if (s >= 0 && static_cast<std::size_t>(s) < skip.size()) skip[s] = 1;
+    std::vector<Index> pool;
+    for (std::size_t s = 0; s < sheets.count(); ++s)
+        if (!skip[s]) pool.push_back(static_cast<Index>(s));
+    std::mt19937_64 rng(seed);
+    // Fisher-Yates with our own index draw, so the sequence is the same on every platform.
+    for (std::size_t i = 0; i < pool.size() && i < count; ++i) {
+        const std::size_t j = i + static_cast<std::size_t>(rng() % (pool.size() - i));
+        std::swap(pool[i], pool[j]);
+    }
+    pool.resize(std::min(count, pool.size()));
+    return pool;
+}
+
+}  // namespace isohex

@@ -1,0 +1,239 @@
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Validate.hpp"
+#include "support/Blocks.hpp"
+
+using namespace isohex;
+using isohex::test::makeBlock;
+
+namespace {
+
+// Number of faces of each hex that lie on the given quad list.
+std::vector<int> facesOn(const HexMesh& m, const Topology& t, const std::vector<Index>& quads) {
+    std::vector<int> n(m.hexCount(), 0);
+    for (Index q : quads) {
+        ++n[t.quads[q].hex[0]];
+        if (t.quads[q].hex[1] != kNone) ++n[t.quads[q].hex[1]];
+    }
+    return n;
+}
+
+std::size_t invertedCount(const HexMesh& m) {
+    std::size_t n = 0;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) n += minCornerDeterminant(hexCoords(m, h)) <= 0;
+    return n;
+}
+
+HexMesh classifiedBlock(int a, int b, int c) {
+    HexMesh m = makeBlock(a, b, c);
+    classifyBoundaryNodes(m);
+    return m;
+}
+
+}  // namespace
+
+TEST(Pillow, WholeSolidGetsOneHexPerSurfaceQuad) {
+    HexMesh m = classifiedBlock(4, 3, 3);
+    const std::size_t quadsBefore = buildTopology(m).boundaryQuads.size();
+    const std::size_t hexesBefore = m.hexCount();
+    std::vector<Index> all(m.hexCount());
+    for (std::size_t h = 0; h < all.size(); ++h) all[h] = static_cast<Index>(h);
+    const PillowResult r = pillow(m, all);
+    EXPECT_EQ(m.hexCount() - hexesBefore, quadsBefore);
+    EXPECT_EQ(r.firstNewHex, static_cast<Index>(hexesBefore));
+    EXPECT_TRUE(validate(m).ok());
+    EXPECT_EQ(invertedCount(m), 0u);
+    EXPECT_EQ(r.invertedAtStart, 0u);
+}
+
+TEST(Pillow, EveryHexHasAtMostOneFaceOnTheSurfaceAfterwards) {
+    HexMesh m = classifiedBlock(3, 3, 3);
+    const Topology before = buildTopology(m);
+    const auto facesBefore = facesOn(m, before, before.boundaryQuads);
+    EXPECT_EQ(*std::max_element(facesBefore.begin(), facesBefore.end()), 3);  // block corners own 3
+    pillowAllMaterials(m);
+    const Topology after = buildTopology(m);
+    const auto n = facesOn(m, after, after.boundaryQuads);
+    EXPECT_EQ(*std::max_element(n.begin(), n.end()), 1);
+}
+
+TEST(Pillow, SurfaceNodesKeepTheirExactPositionsAndIndices) {
+    HexMesh m = classifiedBlock(3, 2, 2);
+    const HexMesh before = m;
+    pillowAllMaterials(m);
+    for (std::size_t v = 0; v < before.nodeCount(); ++v) {
+        EXPECT_EQ(m.nodes[v], before.nodes[v]) << v;  // bitwise
+        EXPECT_EQ(m.nodeClass[v], before.nodeClass[v]);
+    }
+    // the boundary surface is the same set of quads over the same nodes
+    auto quadSet = [](const HexMesh& x) {
+        const Topology t = buildTopology(x);
+        std::set<std::array<Index, 4>> s;
+        for (Index q : t.boundaryQuads) {
+            auto k = t.quads[q].nodes;
+            std::sort(k.begin(), k.end());
+            s.insert(k);
+        }
+        return s;
+    };
+    EXPECT_EQ(quadSet(m), quadSet(before));
+}
+
+TEST(Pillow, TwoMaterialsGiveTwoSheetsAtTheInterface) {
+    HexMesh m = makeBlock(4, 2, 2);
+    for (std::size_t h = 0; h < m.hexCount(); ++h) m.material[h] = (h % 4) < 2 ? 1 : 2;
+    classifyBoundaryNodes(m);
+    const std::size_t hexesBefore = m.hexCount();
+    const auto results = pillowAllMaterials(m);
+    ASSERT_EQ(results.size(), 2u);
+    EXPECT_TRUE(validate(m).ok());
+    EXPECT_EQ(invertedCount(m), 0u);
+    const Topology t = buildTopology(m);
+    // every interface quad now lies between two hexes that are both new (one per sheet)
+    ASSERT_EQ(t.interfaceQuads.size(), 4u);
+    for (Index q : t.interfaceQuads) {
+        EXPECT_GE(t.quads[q].hex[0], static_cast<Index>(hexesBefore));
+        EXPECT_GE(t.quads[q].hex[1], static_cast<Index>(hexesBefore));
+    }
+    // and two fundamental sheets were made
+    const DualSheets s = buildSheets(m, t);
+    EXPECT_GE(fundamentalSheets(m, t, s).size(), 2u);
+}
+
+TEST(Pillow, RefusesANonManifoldShrinkSetBoundary) {
+    // two cubes sharing only an edge: their union's boundary is pinched
+    HexMesh m = makeBlock(2, 2, 1);
+    m.hexes.erase(m.hexes.begin() + 1, m.hexes.begin() + 3);  // keep hexes 0 and 3 (diagonal)
+    m.material.resize(2);
+    const HexMesh before = m;
+    try {
+        pillow(m, {0, 1});
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("not a closed 2-manifold"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(m.hexes, before.hexes);
+    EXPECT_EQ(m.nodes, before.nodes);
+}
+
+TEST(Pillow, ASubsetGetsASheetAgainstTheRestOfTheMesh) {
+    HexMesh m = classifiedBlock(4, 4, 4);
+    std::vector<Index> inner;
+    for (int k = 1; k < 3; ++k)
+        for (int j = 1; j < 3; ++j)
+            for (int i = 1; i < 3; ++i) inner.push_back(static_cast<Index>((k * 4 + j) * 4 + i));
+    const std::size_t before = m.hexCount();
+    pillow(m, inner);
+    EXPECT_EQ(m.hexCount() - before, 24u);  // the 2x2x2 cube has 24 boundary quads
+    EXPECT_TRUE(validate(m).ok());
+    EXPECT_EQ(invertedCount(m), 0u);
+}
+
+TEST(Dice, MultipliesTheSheetsHexesByCopiesPlusOne) {
+    HexMesh m = classifiedBlock(4, 3, 2);
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const Index sheet = sheetThroughEdge(t, s, 0, 1);  // an x-edge: the layer i = 0
+    const std::size_t layer = s.sheetHexes.size(sheet);
+    EXPECT_EQ(layer, 6u);
+    const std::size_t added = dice(m, t, s, sheet, 2);
+    EXPECT_EQ(added, 2 * layer);
+    EXPECT_EQ(m.hexCount(), 24u + 12u);
+    EXPECT_TRUE(validate(m).ok());
+    EXPECT_EQ(invertedCount(m), 0u);
+    double vol = 0;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) vol += hexVolume(hexCoords(m, h));
+    EXPECT_NEAR(vol, 24.0, 1e-12);
+    // the diced layer is now three sheets of 6 hexes each
+    const Topology t2 = buildTopology(m);
+    const DualSheets s2 = buildSheets(m, t2);
+    EXPECT_EQ(s2.count(), s.count() + 2);
+}
+
+TEST(Dice, ThenExtractingTheCopiesRestoresCountsAndValidity) {
+    HexMesh m = classifiedBlock(3, 3, 3);
+    const std::size_t hexes = m.hexCount(), nodes = m.nodeCount();
+    {
+        const Topology t = buildTopology(m);
+        const DualSheets s = buildSheets(m, t);
+        dice(m, t, s, sheetThroughEdge(t, s, 0, 4 * 4), 2);  // a z-edge
+    }
+    EXPECT_EQ(m.hexCount(), hexes + 2 * 9);
+    for (int i = 0; i < 2; ++i) {
+        const Topology t = buildTopology(m);
+        const DualSheets s = buildSheets(m, t);
+        // a copy: a sheet whose edges all have a new (diced) node
+        Index copySheet = kNone;
+        for (std::size_t sh = 0; sh < s.count() && copySheet == kNone; ++sh) {
+            bool allNew = true;
+            for (const Index* e = s.sheetEdges.begin(sh); e != s.sheetEdges.end(sh); ++e)
+                allNew = allNew && t.edges[*e][1] >= static_cast<Index>(nodes);
+            if (allNew) copySheet = static_cast<Index>(sh);
+        }
+        ASSERT_NE(copySheet, kNone);
+        extract(m, t, s, copySheet);
+    }
+    EXPECT_EQ(m.hexCount(), hexes);
+    EXPECT_EQ(m.nodeCount(), nodes);
+    EXPECT_TRUE(validate(m).ok());
+    EXPECT_EQ(invertedCount(m), 0u);
+}
+
+TEST(Extract, RemovingThePillowRestoresTheOriginalMeshExactly) {
+    HexMesh m = classifiedBlock(3, 3, 2);
+    const HexMesh original = m;
+    const PillowResult r = pillowAllMaterials(m).front();
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const Index sheet = sheetThroughEdge(t, s, r.firstNewNode, r.copyOf[0]);
+    extract(m, t, s, sheet);
+    EXPECT_EQ(m.nodes, original.nodes);
+    EXPECT_EQ(m.nodeClass, original.nodeClass);
+    EXPECT_EQ(m.hexes, original.hexes);
+    EXPECT_EQ(m.material, original.material);
+}
+
+TEST(Extract, RefusesToCollapseASurfaceThroughTheSolid) {
+    // in a 1-hex-thick plate every z-edge joins the top and bottom surfaces
+    HexMesh m = classifiedBlock(3, 3, 1);
+    const HexMesh before = m;
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const Index sheet = sheetThroughEdge(t, s, 0, 16);  // a z-edge
+    EXPECT_THROW(extract(m, t, s, sheet), Error);
+    EXPECT_EQ(m.hexes, before.hexes);
+}
+
+TEST(SheetSelection, RandomSheetsAreDistinctReproducibleAndRespectExclusions) {
+    HexMesh m = makeBlock(6, 5, 4);
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const auto a = randomSheets(s, 5, 42, {0, 1});
+    const auto b = randomSheets(s, 5, 42, {0, 1});
+    EXPECT_EQ(a, b);
+    EXPECT_EQ(std::set<Index>(a.begin(), a.end()).size(), 5u);
+    for (Index x : a) EXPECT_GT(x, 1);
+    EXPECT_NE(randomSheets(s, 5, 43, {0, 1}), a);
+    EXPECT_EQ(randomSheets(s, 100, 1).size(), s.count());
+}
+
+TEST(SheetSelection, FundamentalSheetIsFoundAfterPillowing) {
+    HexMesh m = classifiedBlock(3, 3, 3);
+    {
+        const Topology t = buildTopology(m);
+        const DualSheets s = buildSheets(m, t);
+        EXPECT_TRUE(fundamentalSheets(m, t, s).empty());
+    }
+    pillowAllMaterials(m);
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const auto f = fundamentalSheets(m, t, s);
+    ASSERT_EQ(f.size(), 1u);
+    EXPECT_EQ(s.sheetHexes.size(f[0]), t.boundaryQuads.size());
+    EXPECT_EQ(sheetsTouchingSurfaces(t, s).size(), s.count());
+}
