@@ -33,7 +33,18 @@ struct WriteOptions {
     std::vector<std::pair<std::string, std::vector<double>>> cellFields;
 };
 
+// Checks the mesh (HexMesh::checkConsistent), then writes it in the format of
+// the extension. Every surface of surfacePatches() becomes a named group:
+// a side set + node set (Exodus), an element-based *SURFACE (Abaqus), a
+// physical surface of quads (MSH), referenced quadrilaterals (MEDIT).
 void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt = {});
+
+// Reads .vtu (hexahedra only; material from cell array "material", else 1;
+// node classes and surfaces when isohex wrote them) or .msh (8-node hexahedra
+// of every volume; material from the volume's physical group "material_<id>",
+// else the group's tag, else the volume's tag). Node and hex order follow the
+// file (MSH: by tag). Throws isohex::Error with one line naming the file for
+// missing, damaged, truncated or non-hexahedral files.
 HexMesh read(const std::string& path);
 
 }  // namespace isohex::io

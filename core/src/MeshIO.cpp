@@ -1,0 +1,196 @@
+// Format dispatch for mesh files, plus the small helpers the writers share.
+#include "isohex/core/MeshIO.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <filesystem>
+#include <system_error>
+
+#include "MeshIODetail.hpp"
+#include "isohex/core/AtomicFile.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/HexCell.hpp"
+#include "isohex/core/Quality.hpp"
+
+namespace isohex::io {
+
+namespace {
+
+struct Extension {
+    const char* ext;
+    Format format;
+};
+constexpr Extension kExtensions[] = {
+    {".vtu", Format::Vtu},       {".msh", Format::Msh},       {".exo", Format::Exodus}, {".e", Format::Exodus},
+    {".ex2", Format::Exodus},    {".inp", Format::Abaqus},    {".mesh", Format::Medit},
+};
+
+std::string joined(const std::vector<std::string>& items) {
+    std::string s;
+    for (const auto& i : items) s += (s.empty() ? "" : ", ") + i;
+    return s;
+}
+
+}  // namespace
+
+Format formatFromPath(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    for (const auto& e : kExtensions)
+        if (ext == e.ext) return e.format;
+    throw Error(path + ": unknown mesh file type '" + ext + "'; use one of " + joined(writableExtensions()));
+}
+
+bool canRead(Format f) { return f == Format::Vtu || f == Format::Msh; }
+
+std::vector<std::string> writableExtensions() {
+    std::vector<std::string> out;
+    for (const auto& e : kExtensions) out.emplace_back(e.ext);
+    return out;
+}
+
+std::vector<std::string> readableExtensions() {
+    std::vector<std::string> out;
+    for (const auto& e : kExtensions)
+        if (canRead(e.format)) out.emplace_back(e.ext);
+    return out;
+}
+
+void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt) {
+    const Format format = formatFromPath(path);
+    mesh.checkConsistent(path);
+    if (!opt.scaledJacobian.empty() && opt.scaledJacobian.size() != mesh.hexCount())
+        throw Error(path + ": " + std::to_string(opt.scaledJacobian.size()) +
+                    " scaled Jacobian values given for " + std::to_string(mesh.hexCount()) + " hexes");
+    for (std::size_t i = 0; i < opt.cellFields.size(); ++i) {
+        const auto& [name, values] = opt.cellFields[i];
+        if (name.empty() || name == "material" || name == "scaled_jacobian")
+            throw Error(path + ": cell field name '" + name + "' is empty or reserved");
+        for (std::size_t j = 0; j < i; ++j)
+            if (opt.cellFields[j].first == name) throw Error(path + ": cell field '" + name + "' given twice");
+        if (values.size() != mesh.hexCount())
+            throw Error(path + ": cell field '" + name + "' has " + std::to_string(values.size()) +
+                        " values for " + std::to_string(mesh.hexCount()) + " hexes");
+    }
+    writeAtomically(path, opt.overwrite, [&](const std::string& tmp) {
+        switch (format) {
+            case Format::Vtu:
+                if (opt.scaledJacobian.empty())
+                    detail::writeVtu(mesh, tmp, path, scaledJacobians(mesh), opt.cellFields);
+                else
+                    detail::writeVtu(mesh, tmp, path, opt.scaledJacobian, opt.cellFields);
+                break;
+            case Format::Msh: detail::writeMsh(mesh, tmp, path); break;
+            case Format::Exodus: detail::writeExodus(mesh, tmp, path); break;
+            case Format::Abaqus: detail::writeAbaqus(mesh, tmp, path); break;
+            case Format::Medit: detail::writeMedit(mesh, tmp, path); break;
+        }
+    });
+}
+
+HexMesh read(const std::string& path) {
+    const Format format = formatFromPath(path);
+    if (!canRead(format))
+        throw Error(path + ": isohex writes this format but cannot read it; read one of " +
+                    joined(readableExtensions()));
+    detail::requireReadableFile(path);
+    HexMesh mesh = format == Format::Vtu ? detail::readVtu(path) : detail::readMsh(path);
+    mesh.checkConsistent(path);
+    return mesh;
+}
+
+namespace detail {
+
+void requireReadableFile(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const auto st = fs::status(path, ec);
+    if (ec || !fs::exists(st)) throw Error(path + ": no such file");
+    if (fs::is_directory(st)) throw Error(path + ": is a folder, not a mesh file");
+    if (!fs::is_regular_file(st)) throw Error(path + ": is not a regular file");
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) throw Error(path + ": cannot open: " + std::strerror(errno));
+    std::fclose(f);
+}
+
+std::vector<std::int32_t> materialsOf(const HexMesh& mesh) {
+    std::vector<std::int32_t> mats(mesh.material);
+    std::sort(mats.begin(), mats.end());
+    mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
+    return mats;
+}
+
+std::vector<NamedPatch> namedSurfaces(const HexMesh& mesh) {
+    std::vector<NamedPatch> out;
+    if (mesh.hexes.empty()) return out;
+    for (SurfacePatch& p : surfacePatches(mesh, buildTopology(mesh))) {
+        std::string name = p.tag.name;
+        if (name.empty())
+            for (const SurfaceTag& s : mesh.surfaces)
+                if (s.inside == p.tag.inside && s.outside == p.tag.outside && !s.name.empty()) name = s.name;
+        if (name.empty()) name = surfaceName(p.tag);
+        out.push_back({std::move(name), std::move(p)});
+    }
+    return out;
+}
+
+std::array<Index, 4> faceNodes(const HexMesh& mesh, Index hex, int face) {
+    const Hex& h = mesh.hexes[hex];
+    const auto& f = hexcell::kFaces[face];
+    return {h[f[0]], h[f[1]], h[f[2]], h[f[3]]};
+}
+
+TextOut::TextOut(const std::string& tmpPath, const std::string& path) : path_(path) {
+    file_ = std::fopen(tmpPath.c_str(), "wb");
+    if (!file_) throw Error(path + ": cannot create the file: " + std::strerror(errno));
+    buffer_.reserve(1 << 20);
+}
+
+TextOut::~TextOut() {
+    if (file_) std::fclose(file_);
+}
+
+void TextOut::flush() {
+    if (buffer_.empty()) return;
+    if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_) != buffer_.size())
+        throw Error(path_ + ": write failed: " + std::strerror(errno));
+    buffer_.clear();
+}
+
+TextOut& TextOut::operator<<(std::string_view s) {
+    buffer_.append(s);
+    if (buffer_.size() >= (1 << 20)) flush();
+    return *this;
+}
+
+TextOut& TextOut::operator<<(char c) {
+    buffer_.push_back(c);
+    return *this;
+}
+
+TextOut& TextOut::operator<<(std::int64_t v) {
+    char buf[24];
+    auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return *this << std::string_view(buf, static_cast<std::size_t>(r.ptr - buf));
+}
+
+TextOut& TextOut::operator<<(double v) {
+    char buf[32];
+    auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return *this << std::string_view(buf, static_cast<std::size_t>(r.ptr - buf));
+}
+
+void TextOut::close() {
+    flush();
+    std::FILE* f = file_;
+    file_ = nullptr;
+    const bool bad = std::ferror(f) != 0;
+    if (std::fclose(f) != 0 || bad) throw Error(path_ + ": write failed: " + std::strerror(errno));
+}
+
+}  // namespace detail
+
+}  // namespace isohex::io

@@ -1,0 +1,291 @@
+// Gmsh MSH 4.1 (.msh) through the Gmsh C++ API.
+//
+// Layout written: one discrete volume per material (entity tag = position in
+// the ascending material list + 1) holding its hexes (type 5, tag = hex index
+// + 1), with a physical group named "material_<id>"; one discrete surface per
+// boundary/interface surface holding its quads (type 3, oriented out of the
+// `inside` material) with a physical group named after the surface. All nodes
+// (tag = node index + 1) sit on the first volume so the file lists them in
+// index order, which keeps numbering identical for readers that renumber by
+// file position.
+#include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include <gmsh.h>
+
+#include "MeshIODetail.hpp"
+#include "isohex/core/Error.hpp"
+
+namespace isohex::io::detail {
+
+namespace {
+
+constexpr int kGmshHex8 = 5;
+constexpr int kGmshQuad4 = 3;
+
+// Gmsh keeps one global model and must be initialised / finalised around
+// use; this guard does both and serialises callers (the API is not re-entrant).
+class GmshSession {
+public:
+    explicit GmshSession(const std::string& path) : lock_(mutex()), path_(path) {
+        try {
+            gmsh::initialize(0, nullptr, false);
+            gmsh::option::setNumber("General.Terminal", 0);
+            gmsh::option::setNumber("General.Verbosity", 0);
+        } catch (...) {
+            fail("could not start Gmsh");
+        }
+    }
+    ~GmshSession() {
+        try {
+            gmsh::finalize();
+        } catch (...) {
+        }
+    }
+    GmshSession(const GmshSession&) = delete;
+    GmshSession& operator=(const GmshSession&) = delete;
+
+    // Rethrows the exception being handled as an isohex::Error naming the file.
+    [[noreturn]] void fail(const std::string& doing) const {
+        std::string why;
+        try {
+            throw;
+        } catch (const Error&) {
+            throw;
+        } catch (const std::string& s) {
+            why = s;
+        } catch (const std::exception& e) {
+            why = e.what();
+        } catch (...) {
+        }
+        if (why.empty()) {
+            try {
+                gmsh::logger::getLastError(why);
+            } catch (...) {
+            }
+        }
+        for (char& c : why)
+            if (c == '\n' || c == '\r') c = ' ';
+        throw Error(path_ + ": " + doing + (why.empty() ? std::string() : ": " + why));
+    }
+
+private:
+    static std::mutex& mutex() {
+        static std::mutex m;
+        return m;
+    }
+    std::lock_guard<std::mutex> lock_;
+    std::string path_;
+};
+
+std::string materialGroupName(std::int32_t material) { return "material_" + std::to_string(material); }
+
+// "material_<n>" -> n, as written above; anything else -> false.
+bool parseMaterialName(const std::string& name, std::int32_t& out) {
+    const std::string prefix = "material_";
+    if (name.rfind(prefix, 0) != 0) return false;
+    const char* b = name.data() + prefix.size();
+    const char* e = name.data() + name.size();
+    auto r = std::from_chars(b, e, out);
+    return r.ec == std::errc() && r.ptr == e && b != e;
+}
+
+// Physical tags must be positive; materials <= 0 get the next unused ones.
+std::vector<int> physicalTagsFor(const std::vector<std::int32_t>& mats) {
+    std::vector<int> tags(mats.size());
+    int next = 1;
+    for (std::int32_t m : mats) next = std::max(next, m + 1);
+    for (std::size_t i = 0; i < mats.size(); ++i) tags[i] = mats[i] > 0 ? mats[i] : next++;
+    return tags;
+}
+
+}  // namespace
+
+void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string& path) {
+    const std::vector<std::int32_t> mats = materialsOf(mesh);
+    const std::vector<int> physTags = physicalTagsFor(mats);
+    const std::vector<NamedPatch> surfaces = namedSurfaces(mesh);
+
+    GmshSession gmshSession(path);
+    try {
+        gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
+        gmsh::option::setNumber("Mesh.Binary", 0);
+        gmsh::option::setNumber("Mesh.SaveAll", 0);
+        gmsh::model::add("isohex");
+
+        const int nodeEntity = 1;
+        for (std::size_t i = 0; i < std::max<std::size_t>(mats.size(), 1); ++i)
+            gmsh::model::addDiscreteEntity(3, static_cast<int>(i + 1));
+
+        std::vector<std::size_t> nodeTags(mesh.nodeCount());
+        std::iota(nodeTags.begin(), nodeTags.end(), std::size_t{1});
+        std::vector<double> coords(3 * mesh.nodeCount());
+        for (std::size_t i = 0; i < mesh.nodeCount(); ++i)
+            for (int k = 0; k < 3; ++k) coords[3 * i + k] = mesh.nodes[i][k];
+        gmsh::model::mesh::addNodes(3, nodeEntity, nodeTags, coords);
+        nodeTags = {};
+        coords = {};
+
+        for (std::size_t i = 0; i < mats.size(); ++i) {
+            std::vector<std::size_t> elemTags, conn;
+            for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+                if (mesh.material[h] != mats[i]) continue;
+                elemTags.push_back(h + 1);
+                for (Index v : mesh.hexes[h]) conn.push_back(static_cast<std::size_t>(v) + 1);
+            }
+            const int entity = static_cast<int>(i + 1);
+            gmsh::model::mesh::addElementsByType(entity, kGmshHex8, elemTags, conn);
+            gmsh::model::addPhysicalGroup(3, {entity}, physTags[i]);
+            gmsh::model::setPhysicalName(3, physTags[i], materialGroupName(mats[i]));
+        }
+        if (mats.empty()) {
+            // Nodes without hexes: keep them in the file through a group on their volume.
+            gmsh::model::addPhysicalGroup(3, {nodeEntity}, 1);
+            gmsh::model::setPhysicalName(3, 1, "nodes");
+        }
+
+        std::size_t nextElement = mesh.hexCount() + 1;
+        for (std::size_t s = 0; s < surfaces.size(); ++s) {
+            const int entity = static_cast<int>(s + 1);
+            gmsh::model::addDiscreteEntity(2, entity);
+            std::vector<std::size_t> elemTags, conn;
+            for (const auto& [hex, face] : surfaces[s].patch.hexFaces) {
+                elemTags.push_back(nextElement++);
+                for (Index v : faceNodes(mesh, hex, face)) conn.push_back(static_cast<std::size_t>(v) + 1);
+            }
+            gmsh::model::mesh::addElementsByType(entity, kGmshQuad4, elemTags, conn);
+            gmsh::model::addPhysicalGroup(2, {entity}, entity);
+            gmsh::model::setPhysicalName(2, entity, surfaces[s].name);
+        }
+        gmsh::write(tmpPath);
+    } catch (...) {
+        gmshSession.fail("could not write the Gmsh file");
+    }
+}
+
+namespace {
+
+// Gmsh falls back to its script parser for a file that does not start with
+// $MeshFormat, and reads a missing or binary-garbage file as an empty model;
+// refuse those before Gmsh sees them.
+void requireMshHeader(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    while (std::getline(in, line)) {
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
+        if (line.empty()) continue;
+        if (line == "$MeshFormat") return;
+        break;
+    }
+    throw Error(path + ": not a Gmsh mesh file (it does not start with $MeshFormat)");
+}
+
+}  // namespace
+
+HexMesh readMsh(const std::string& path) {
+    requireMshHeader(path);
+    HexMesh mesh;
+    GmshSession gmshSession(path);
+    try {
+        gmsh::open(path);
+    } catch (...) {
+        gmshSession.fail("damaged or truncated Gmsh file");
+    }
+    try {
+        std::vector<std::size_t> nodeTags;
+        std::vector<double> coords, param;
+        gmsh::model::mesh::getNodes(nodeTags, coords, param, -1, -1, false, false);
+        if (nodeTags.empty()) throw Error(path + ": the Gmsh file holds no nodes (empty, damaged or truncated)");
+        if (coords.size() != 3 * nodeTags.size()) throw Error(path + ": Gmsh returned inconsistent node data");
+        if (nodeTags.size() > 2147483647u) throw Error(path + ": too many nodes for 32-bit indices");
+
+        // Node index = rank of its tag, so tags 1..N (as isohex writes them) map to 0..N-1.
+        std::vector<std::size_t> order(nodeTags.size());
+        std::iota(order.begin(), order.end(), std::size_t{0});
+        std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nodeTags[a] < nodeTags[b]; });
+        std::unordered_map<std::size_t, Index> indexOfTag;
+        const bool dense = nodeTags[order.back()] == nodeTags.size() && nodeTags[order.front()] == 1;
+        if (!dense) indexOfTag.reserve(nodeTags.size());
+        mesh.nodes.resize(nodeTags.size());
+        mesh.nodeClass.resize(nodeTags.size());
+        for (std::size_t r = 0; r < order.size(); ++r) {
+            const std::size_t i = order[r];
+            if (r > 0 && nodeTags[order[r - 1]] == nodeTags[i])
+                throw Error(path + ": node tag " + std::to_string(nodeTags[i]) + " appears twice");
+            mesh.nodes[r] = {coords[3 * i], coords[3 * i + 1], coords[3 * i + 2]};
+            if (!dense) indexOfTag.emplace(nodeTags[i], static_cast<Index>(r));
+        }
+        auto nodeIndex = [&](std::size_t tag) -> Index {
+            if (dense) {
+                if (tag >= 1 && tag <= nodeTags.size()) return static_cast<Index>(tag - 1);
+            } else if (auto it = indexOfTag.find(tag); it != indexOfTag.end()) {
+                return it->second;
+            }
+            throw Error(path + ": an element refers to node " + std::to_string(tag) + ", which the file does not define");
+        };
+
+        struct Element {
+            std::size_t tag;
+            Hex hex;
+            std::int32_t material;
+        };
+        std::vector<Element> elements;
+        gmsh::vectorpair volumes;
+        gmsh::model::getEntities(volumes, 3);
+        for (const auto& [dim, entity] : volumes) {
+            std::vector<int> types;
+            std::vector<std::vector<std::size_t>> elemTags, conn;
+            gmsh::model::mesh::getElements(types, elemTags, conn, dim, entity);
+            for (std::size_t t = 0; t < types.size(); ++t) {
+                if (types[t] == kGmshHex8 || elemTags[t].empty()) continue;
+                std::string name;
+                int d, order, nn, npv;
+                std::vector<double> lc;
+                gmsh::model::mesh::getElementProperties(types[t], name, d, order, nn, lc, npv);
+                throw Error(path + ": volume " + std::to_string(entity) + " holds " + std::to_string(elemTags[t].size()) +
+                            " elements of type " + std::to_string(types[t]) + " (" + name +
+                            "); isohex reads only 8-node hexahedra (type 5)");
+            }
+            std::vector<int> groups;
+            gmsh::model::getPhysicalGroupsForEntity(dim, entity, groups);
+            std::int32_t material = entity;
+            if (!groups.empty()) {
+                std::string name;
+                gmsh::model::getPhysicalName(dim, groups.front(), name);
+                if (!parseMaterialName(name, material)) material = groups.front();
+            }
+            for (std::size_t t = 0; t < types.size(); ++t) {
+                if (types[t] != kGmshHex8) continue;
+                if (conn[t].size() != 8 * elemTags[t].size())
+                    throw Error(path + ": Gmsh returned inconsistent hexahedron data");
+                for (std::size_t e = 0; e < elemTags[t].size(); ++e) {
+                    Element el{elemTags[t][e], {}, material};
+                    for (int k = 0; k < 8; ++k) el.hex[k] = nodeIndex(conn[t][8 * e + k]);
+                    elements.push_back(el);
+                }
+            }
+        }
+        if (elements.empty())
+            throw Error(path + ": the Gmsh file holds no 8-node hexahedra (element type 5) in any volume");
+        if (elements.size() > 2147483647u) throw Error(path + ": too many hexahedra for 32-bit indices");
+        // Element tags give the order, so hex i written as tag i+1 comes back as hex i.
+        std::stable_sort(elements.begin(), elements.end(),
+                         [](const Element& a, const Element& b) { return a.tag < b.tag; });
+        mesh.hexes.reserve(elements.size());
+        mesh.material.reserve(elements.size());
+        for (const Element& e : elements) mesh.addHex(e.hex, e.material);
+    } catch (const Error&) {
+        throw;
+    } catch (...) {
+        gmshSession.fail("could not read the Gmsh file");
+    }
+    return mesh;
+}
+
+}  // namespace isohex::io::detail
