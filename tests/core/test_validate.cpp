@@ -104,6 +104,8 @@ TEST(Validate, JunctionOfThreeMaterialsIsValid) {
     EXPECT_TRUE(r.ok()) << toJson(r).dump();
 }
 
+TEST(Validate, EmptyMeshIsValid) { EXPECT_TRUE(validate(HexMesh{}).ok()); }
+
 // ------------------------------------------------------------ one defect each
 
 TEST(Validate, HexWithRepeatedNodeIsReported) {
@@ -242,6 +244,17 @@ TEST(Validate, NodeMovedThroughTheOppositeFaceInvertsItsHex) {
     EXPECT_EQ(keys(r), std::set<std::string>{"inverted_hex"}) << toJson(r).dump();
     EXPECT_EQ(defect(r, "inverted_hex").examples, Ids{1});
     EXPECT_EQ(defect(r, "inverted_hex").constraint, "N");
+}
+
+TEST(Validate, HexTwistedHalfATurnIsInvertedAtItsCentre) {
+    // Top face turned 180 degrees about the vertical axis: every corner keeps a
+    // positive determinant, but the xi and eta axes cancel at the centre.
+    HexMesh m = unitCube();
+    const Hex h = m.hexes[0];
+    m.hexes[0] = {h[0], h[1], h[2], h[3], h[6], h[7], h[4], h[5]};
+    const ValidityReport r = validate(m);
+    EXPECT_EQ(keys(r), std::set<std::string>{"inverted_hex"}) << toJson(r).dump();
+    EXPECT_EQ(defect(r, "inverted_hex").examples, Ids{0});
 }
 
 TEST(Validate, UnusedNodeIsReported) {
