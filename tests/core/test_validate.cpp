@@ -210,6 +210,25 @@ TEST(Validate, VertexWhereTwoCubesTouchIsAPinch) {
     EXPECT_EQ(defect(r, "nonmanifold_node").where[0], (Vec3{1, 1, 1}));
 }
 
+TEST(Validate, InterfaceEdgeInsideTheMeshIsCheckedPerSurface) {
+    // A 2x2x3 block of material 3 whose middle layer is a checkerboard of
+    // materials 1 and 2. The middle layer's vertical centre edge touches no
+    // exterior, yet the 1|2 interface has four quads on it: material 1 touches
+    // itself only along that edge. Its two end nodes are pinches of the 1|3 and
+    // 2|3 interfaces.
+    HexMesh m = makeBlock(2, 2, 3);
+    for (auto& mat : m.material) mat = 3;
+    m.material[4] = m.material[7] = 1;  // (0,0) and (1,1) of the middle layer
+    m.material[5] = m.material[6] = 2;
+    const ValidityReport r = validate(m);
+    EXPECT_EQ(keys(r), (std::set<std::string>{"nonmanifold_edge", "nonmanifold_node"})) << toJson(r).dump();
+    EXPECT_EQ(r.count("nonmanifold_edge"), 1u);
+    ASSERT_EQ(defect(r, "nonmanifold_edge").where.size(), 1u);
+    EXPECT_EQ(defect(r, "nonmanifold_edge").where[0], (Vec3{1, 1, 1.5}));
+    EXPECT_EQ(defect(r, "nonmanifold_node").examples,
+              (Ids{blockNode(2, 2, 1, 1, 1), blockNode(2, 2, 1, 1, 2)}));
+}
+
 TEST(Validate, FoldedNeighbourIsInconsistentlyOrientedButNotInverted) {
     // Orientation isolated from inversion: the second hex is a positive hex of
     // height 0.5 hanging from the first one's top face into the first one. Both
