@@ -1,0 +1,101 @@
+#pragma once
+// From a sampled solid to hexahedra (LBIE's uniform stage; Ju et al. 2002 for
+// dual contouring): label the grid points, make the labelled regions 2-manifold,
+// then one hex per labelled grid point whose corners are the dual vertices of
+// the 8 grid cells around it (QEF minimisers where the surface crosses a cell).
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/octree/Domain.hpp"
+
+namespace isohex::octree {
+
+using Progress = std::function<void(std::string_view stage, double fraction)>;
+
+// Material label per grid point (x fastest), 0 = background.
+struct Labels {
+    Grid grid;
+    std::vector<std::int32_t> material;
+};
+
+// Samples materialAt at every grid point (parallel). Points on the grid's
+// outer layer are forced to background so every region is closed, unless
+// `keepBorder` (used when the exterior itself is meshed out to the box).
+Labels sampleLabels(const Domain& domain, const Grid& grid, bool keepBorder = false);
+
+struct RepairReport {
+    std::size_t nonManifoldBefore = 0;   // 2x2x2 blocks whose regions were not manifold
+    std::size_t pointsAdded = 0;         // grid points given to a region
+    std::size_t pointsRemoved = 0;       // grid points taken from a region
+    int rounds = 0;
+};
+
+// Counts 2x2x2 blocks where some material's region (or its complement) is not
+// 6-connected inside the block: exactly the places where the boundary of the
+// union of the points' cubes has a non-manifold edge or vertex.
+std::size_t countNonManifoldBlocks(const Labels& labels);
+
+// Flips grid points until every material region is 2-manifold, choosing for
+// each bad block the flip closest to the surface (smallest |value|); iterates
+// to a fixpoint. Deterministic. Throws isohex::Error if no fixpoint is found.
+RepairReport repairNonManifold(Labels& labels, const Domain& domain);
+
+// Topology of each material region's boundary: connected components and
+// Euler characteristic (a closed surface of genus g per component has chi = 2 - 2g).
+struct RegionTopology {
+    std::int32_t material = 0;
+    std::size_t components = 0;
+    long long euler = 0;
+    std::size_t points = 0;              // grid points in the region
+    bool operator==(const RegionTopology&) const = default;
+};
+std::vector<RegionTopology> regionTopology(const Labels& labels);
+std::string describe(const std::vector<RegionTopology>& t);
+
+struct ExtractOptions {
+    bool meshExterior = false;   // also mesh background points (material 0) out to the grid box
+    double qefTruncation = 0.1;  // singular values below this fraction of the largest are dropped
+    double cellMargin = 0.02;    // QEF vertices are kept this fraction of a cell inside their cell
+    Progress progress;
+};
+
+struct ExtractStats {
+    std::size_t crossedCells = 0;
+    std::size_t clampedVertices = 0;  // QEF minimisers that fell outside their cell
+};
+
+// One hex per labelled point (also material-0 points with meshExterior), in
+// VTK order with positive orientation; boundary and interface nodes are
+// classified (classifyBoundaryNodes). The labels must be manifold.
+HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt = {},
+                         ExtractStats* stats = nullptr);
+
+// --- choosing the grid
+struct LevelChoice {
+    int level = 0;                        // grid step = 2^level base steps
+    Grid grid;
+    std::vector<RegionTopology> topology; // at the chosen level (after repair)
+    std::vector<RegionTopology> reference;// at level 0 (after repair)
+    double volumeChange = 0;              // relative change of labelled volume vs level 0
+    std::vector<std::string> notes;       // why finer / coarser levels were rejected
+};
+
+struct LevelOptions {
+    int maxLevel = 6;
+    double maxVolumeChange = 0.05;        // a coarser level must keep the labelled volume within this
+    std::size_t minPoints = 64;           // and keep at least this many labelled points per material
+};
+
+// The coarsest level whose repaired regions have the same components and Euler
+// characteristics as the finest (base) grid and whose labelled volume is
+// within maxVolumeChange: the LBIE starting level chosen by topology.
+LevelChoice chooseLevel(const Domain& domain, const Grid& base, const LevelOptions& opt = {});
+
+// The grid `level` steps coarser than `base` over the same box (same origin).
+Grid coarsen(const Grid& base, int level);
+
+}  // namespace isohex::octree

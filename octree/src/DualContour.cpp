@@ -1,0 +1,309 @@
+// Dual contouring: one hex per labelled grid point, corners at the dual
+// vertices of the 8 cells around it.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include <Eigen/Dense>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/octree/DualContour.hpp"
+
+namespace isohex::octree {
+
+namespace {
+
+Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+// Cells are indexed by (ci, cj, ck) in [0, n]: cell c spans grid points
+// c-1 .. c along each axis, so cells 0 and n stick out of the grid by half a
+// step and their outside corners count as background.
+struct CellGrid {
+    std::array<int, 3> n;  // grid dims; cell dims are n + 1
+    std::size_t index(int ci, int cj, int ck) const {
+        return (static_cast<std::size_t>(ck) * (n[1] + 1) + cj) * (n[0] + 1) + ci;
+    }
+    std::size_t size() const {
+        return static_cast<std::size_t>(n[0] + 1) * (n[1] + 1) * (n[2] + 1);
+    }
+};
+
+std::int32_t labelAt(const Labels& l, int i, int j, int k) {
+    const auto& d = l.grid.dims;
+    if (i < 0 || j < 0 || k < 0 || i >= d[0] || j >= d[1] || k >= d[2]) return 0;
+    return l.material[l.grid.index(i, j, k)];
+}
+
+// F = f_a - f_b (f_0 = 0): negative at a point of material a, positive at b.
+double edgeFunction(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& x, Vec3* grad) {
+    Vec3 ga{0, 0, 0}, gb{0, 0, 0};
+    double f = 0;
+    if (a != 0) f += dom.value(a, x, grad ? &ga : nullptr);
+    if (b != 0) f -= dom.value(b, x, grad ? &gb : nullptr);
+    if (grad) *grad = sub(ga, gb);
+    return f;
+}
+
+// Hermite datum on the segment p (material a) - q (material b).
+void crossing(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& p, const Vec3& q, Vec3& point,
+              Vec3& normal) {
+    const Vec3 d = sub(q, p);
+    double t0 = 0, t1 = 1;
+    double f0 = edgeFunction(dom, a, b, p, nullptr), f1 = edgeFunction(dom, a, b, q, nullptr);
+    double t = 0.5;
+    if (f0 < 0 && f1 > 0) {
+        // Illinois false position: superlinear, and it never leaves the bracket.
+        int side = 0;
+        for (int it = 0; it < 40; ++it) {
+            t = (t0 * f1 - t1 * f0) / (f1 - f0);
+            const Vec3 x{p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
+            const double f = edgeFunction(dom, a, b, x, nullptr);
+            if (std::abs(t1 - t0) < 1e-9 || f == 0) break;
+            if (f < 0) {
+                t0 = t;
+                f0 = f;
+                if (side == -1) f1 *= 0.5;
+                side = -1;
+            } else {
+                t1 = t;
+                f1 = f;
+                if (side == 1) f0 *= 0.5;
+                side = 1;
+            }
+        }
+    }
+    point = {p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
+    Vec3 g;
+    edgeFunction(dom, a, b, point, &g);
+    double len = std::sqrt(dot(g, g));
+    if (!(len > 0) || !std::isfinite(len)) {
+        g = d;
+        len = std::sqrt(dot(d, d));
+    }
+    normal = {g[0] / len, g[1] / len, g[2] / len};
+}
+
+}  // namespace
+
+HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt, ExtractStats* stats) {
+    const Grid& g = labels.grid;
+    const CellGrid cg{g.dims};
+    const auto [nx, ny, nz] = g.dims;
+    if (nx < 2 || ny < 2 || nz < 2) throw Error("the sampling grid is too small to mesh (fewer than 2 points per axis)");
+    auto hexed = [&](int i, int j, int k) {
+        const std::int32_t m = labelAt(labels, i, j, k);
+        return opt.meshExterior ? (i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz) : m != 0;
+    };
+
+    // 1. Which cells carry a node: those around a hexed point. Numbered in cell order.
+    std::vector<Index> node(cg.size(), kNone);
+    std::vector<std::size_t> perSlab(static_cast<std::size_t>(nz) + 2, 0);
+    tbb::parallel_for(0, nz + 1, [&](int ck) {
+        std::size_t count = 0;
+        for (int cj = 0; cj <= ny; ++cj)
+            for (int ci = 0; ci <= nx; ++ci) {
+                bool need = false;
+                for (int c = 0; c < 8 && !need; ++c) need = hexed(ci - 1 + (c & 1), cj - 1 + (c >> 1 & 1), ck - 1 + (c >> 2 & 1));
+                if (need) {
+                    node[cg.index(ci, cj, ck)] = 0;
+                    ++count;
+                }
+            }
+        perSlab[static_cast<std::size_t>(ck) + 1] = count;
+    });
+    for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
+    const std::size_t nodeCount = perSlab[static_cast<std::size_t>(nz) + 1];
+    if (nodeCount > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
+        throw Error("the mesh would have more than 2^31 nodes; use a larger --size");
+
+    HexMesh mesh;
+    mesh.nodes.resize(nodeCount);
+    mesh.nodeClass.resize(nodeCount);
+    std::atomic<std::size_t> crossed{0}, clamped{0};
+    Eigen::Matrix3d axes;
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
+    const Eigen::Matrix3d toCell = axes.inverse();
+
+    // 2. Node positions: QEF minimiser in crossed cells, centre elsewhere.
+    tbb::parallel_for(0, nz + 1, [&](int ck) {
+        Index next = static_cast<Index>(perSlab[static_cast<std::size_t>(ck)]);
+        std::size_t localCrossed = 0, localClamped = 0;
+        for (int cj = 0; cj <= ny; ++cj)
+            for (int ci = 0; ci <= nx; ++ci) {
+                Index& id = node[cg.index(ci, cj, ck)];
+                if (id == kNone) continue;
+                id = next++;
+                std::array<std::int32_t, 8> m;
+                std::array<Vec3, 8> p;
+                bool mixed = false;
+                for (int c = 0; c < 8; ++c) {
+                    const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
+                    m[c] = labelAt(labels, i, j, k);
+                    p[c] = g.point(i, j, k);
+                    mixed = mixed || m[c] != m[0];
+                }
+                const Vec3 centre = g.point(ci - 0.5, cj - 0.5, ck - 0.5);
+                if (!mixed) {
+                    mesh.nodes[id] = centre;
+                    continue;
+                }
+                ++localCrossed;
+                // Hermite data on the 12 cell edges whose ends differ.
+                Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+                Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();
+                std::array<std::pair<Vec3, Vec3>, 12> data;
+                int n = 0;
+                for (int c = 0; c < 8; ++c)
+                    for (int d = 0; d < 3; ++d) {
+                        const int e = c | (1 << d);
+                        if (e == c || m[c] == m[e]) continue;
+                        crossing(domain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
+                        mass += Eigen::Vector3d(data[n].first[0], data[n].first[1], data[n].first[2]);
+                        ++n;
+                    }
+                mass /= n;
+                for (int s = 0; s < n; ++s) {
+                    const Eigen::Vector3d nrm(data[s].second[0], data[s].second[1], data[s].second[2]);
+                    const Eigen::Vector3d pt(data[s].first[0], data[s].first[1], data[s].first[2]);
+                    ata += nrm * nrm.transpose();
+                    atb += nrm * nrm.dot(pt - mass);
+                }
+                // Minimise relative to the mass point with truncated pseudo-inverse
+                // so flat or degenerate configurations stay near the mass point.
+                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(ata);
+                const Eigen::Vector3d lambda = eig.eigenvalues();
+                const double cut = opt.qefTruncation * opt.qefTruncation * lambda.maxCoeff();
+                Eigen::Vector3d x = mass;
+                for (int s = 0; s < 3; ++s)
+                    if (lambda(s) > cut && lambda(s) > 0) {
+                        const Eigen::Vector3d v = eig.eigenvectors().col(s);
+                        x += v * (v.dot(atb) / lambda(s));
+                    }
+                // Keep the vertex inside its cell.
+                const Eigen::Vector3d lower(g.point(ci - 1, cj - 1, ck - 1)[0], g.point(ci - 1, cj - 1, ck - 1)[1],
+                                            g.point(ci - 1, cj - 1, ck - 1)[2]);
+                Eigen::Vector3d u = toCell * (x - lower);
+                bool clampedHere = false;
+                for (int a = 0; a < 3; ++a) {
+                    const double lo = opt.cellMargin, hi = 1.0 - opt.cellMargin;
+                    if (u(a) < lo || u(a) > hi) {
+                        u(a) = std::clamp(u(a), lo, hi);
+                        clampedHere = true;
+                    }
+                }
+                if (clampedHere) {
+                    ++localClamped;
+                    x = lower + axes * u;
+                }
+                mesh.nodes[id] = {x(0), x(1), x(2)};
+            }
+        crossed += localCrossed;
+        clamped += localClamped;
+    });
+
+    // 3. Hexes: one per hexed grid point, in point order.
+    std::vector<std::size_t> hexSlab(static_cast<std::size_t>(nz) + 1, 0);
+    tbb::parallel_for(0, nz, [&](int k) {
+        std::size_t c = 0;
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) c += hexed(i, j, k);
+        hexSlab[static_cast<std::size_t>(k) + 1] = c;
+    });
+    for (std::size_t s = 1; s < hexSlab.size(); ++s) hexSlab[s] += hexSlab[s - 1];
+    mesh.hexes.resize(hexSlab.back());
+    mesh.material.resize(hexSlab.back());
+    // VTK corner c sits at offset (x, y, z) below; a mirrored grid swaps two
+    // corner pairs so every hex keeps a positive Jacobian.
+    static constexpr int ref[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    const bool mirrored = g.determinant() < 0;
+    tbb::parallel_for(0, nz, [&](int k) {
+        std::size_t h = hexSlab[static_cast<std::size_t>(k)];
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                if (!hexed(i, j, k)) continue;
+                Hex hex;
+                for (int c = 0; c < 8; ++c) hex[c] = node[cg.index(i + ref[c][0], j + ref[c][1], k + ref[c][2])];
+                if (mirrored) {
+                    std::swap(hex[1], hex[3]);
+                    std::swap(hex[5], hex[7]);
+                }
+                mesh.hexes[h] = hex;
+                mesh.material[h] = labels.material[g.index(i, j, k)];
+                ++h;
+            }
+    });
+    if (stats) {
+        stats->crossedCells = crossed;
+        stats->clampedVertices = clamped;
+    }
+    classifyBoundaryNodes(mesh);
+    return mesh;
+}
+
+Grid coarsen(const Grid& base, int level) {
+    Grid g = base;
+    const int s = 1 << level;
+    for (int a = 0; a < 3; ++a) {
+        for (int c = 0; c < 3; ++c) g.axes[a][c] = base.axes[a][c] * s;
+        g.dims[a] = (base.dims[a] - 1 + s - 1) / s + 1;
+    }
+    return g;
+}
+
+LevelChoice chooseLevel(const Domain& domain, const Grid& base, const LevelOptions& opt) {
+    LevelChoice best;
+    double refVolume = 0;
+    for (int level = 0; level <= opt.maxLevel; ++level) {
+        const Grid grid = coarsen(base, level);
+        if (grid.dims[0] < 3 || grid.dims[1] < 3 || grid.dims[2] < 3) break;
+        Labels labels = sampleLabels(domain, grid);
+        repairNonManifold(labels, domain);
+        const auto topo = regionTopology(labels);
+        const double cellVolume = std::abs(grid.determinant());
+        double volume = 0;
+        for (const auto& t : topo) volume += static_cast<double>(t.points) * cellVolume;
+        if (level == 0) {
+            if (topo.empty()) throw Error("nothing to mesh: no grid point lies inside the selected material(s)");
+            best.level = 0;
+            best.grid = grid;
+            best.topology = topo;
+            best.reference = topo;
+            refVolume = volume;
+            continue;
+        }
+        const double change = refVolume > 0 ? std::abs(volume - refVolume) / refVolume : 0;
+        bool sameTopology = topo.size() == best.reference.size();
+        for (std::size_t i = 0; sameTopology && i < topo.size(); ++i)
+            sameTopology = topo[i].material == best.reference[i].material &&
+                           topo[i].components == best.reference[i].components &&
+                           topo[i].euler == best.reference[i].euler;
+        bool enoughPoints = true;
+        for (const auto& t : topo) enoughPoints = enoughPoints && t.points >= opt.minPoints;
+        if (!sameTopology) {
+            best.notes.push_back("level " + std::to_string(level) + " changes the topology (" + describe(topo) + ")");
+            break;
+        }
+        if (change > opt.maxVolumeChange) {
+            best.notes.push_back("level " + std::to_string(level) + " changes the volume by " +
+                                 std::to_string(100 * change) + "%");
+            break;
+        }
+        if (!enoughPoints) {
+            best.notes.push_back("level " + std::to_string(level) + " leaves fewer than " +
+                                 std::to_string(opt.minPoints) + " grid points in a material");
+            break;
+        }
+        best.level = level;
+        best.grid = grid;
+        best.topology = topo;
+        best.volumeChange = change;
+    }
+    return best;
+}
+
+}  // namespace isohex::octree

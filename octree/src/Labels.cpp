@@ -1,0 +1,348 @@
+// Grid labelling, non-manifold repair and region topology.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "isohex/core/Error.hpp"
+#include "isohex/octree/DualContour.hpp"
+
+namespace isohex::octree {
+
+std::array<double, 3> Grid::spacing() const {
+    std::array<double, 3> s;
+    for (int a = 0; a < 3; ++a)
+        s[a] = std::sqrt(axes[a][0] * axes[a][0] + axes[a][1] * axes[a][1] + axes[a][2] * axes[a][2]);
+    return s;
+}
+
+double Grid::determinant() const {
+    const auto& a = axes[0];
+    const auto& b = axes[1];
+    const auto& c = axes[2];
+    return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+}
+
+Labels sampleLabels(const Domain& domain, const Grid& grid, bool keepBorder) {
+    Labels l;
+    l.grid = grid;
+    l.material.assign(grid.size(), 0);
+    const auto [nx, ny, nz] = grid.dims;
+    tbb::parallel_for(tbb::blocked_range<int>(0, nz), [&](const auto& r) {
+        for (int k = r.begin(); k != r.end(); ++k)
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i) {
+                    const bool border = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1;
+                    if (border && !keepBorder) continue;
+                    l.material[grid.index(i, j, k)] = domain.materialAt(grid.point(i, j, k));
+                }
+    });
+    return l;
+}
+
+namespace {
+
+// Corner b of a 2x2x2 block is offset (b & 1, b >> 1 & 1, b >> 2 & 1).
+// kManifold[p]: the corners in bit set p, and those not in it, are each empty
+// or 6-connected inside the block (corners adjacent when they differ in one bit).
+struct ManifoldTable {
+    std::array<bool, 256> ok{};
+    ManifoldTable() {
+        auto connected = [](unsigned set) {
+            if (set == 0) return true;
+            unsigned seen = set & (~set + 1), frontier = seen;
+            while (frontier) {
+                unsigned next = 0;
+                for (int b = 0; b < 8; ++b)
+                    if (frontier >> b & 1)
+                        for (int d = 0; d < 3; ++d) {
+                            const unsigned nb = 1u << (b ^ (1 << d));
+                            if ((set & nb) && !(seen & nb)) next |= nb;
+                        }
+                seen |= next;
+                frontier = next;
+            }
+            return seen == set;
+        };
+        for (unsigned p = 0; p < 256; ++p) ok[p] = connected(p) && connected(~p & 0xFFu);
+    }
+};
+const ManifoldTable kTable;
+
+struct BlockView {
+    std::array<std::size_t, 8> point;
+    std::array<std::int32_t, 8> mat;
+};
+
+BlockView block(const Labels& l, int i, int j, int k) {
+    BlockView b;
+    for (int c = 0; c < 8; ++c) {
+        b.point[c] = l.grid.index(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1));
+        b.mat[c] = l.material[b.point[c]];
+    }
+    return b;
+}
+
+bool blockManifold(const std::array<std::int32_t, 8>& mat) {
+    for (int c = 0; c < 8; ++c) {
+        bool first = true;
+        for (int d = 0; d < c; ++d)
+            if (mat[d] == mat[c]) first = false;
+        if (!first) continue;
+        unsigned p = 0;
+        for (int d = 0; d < 8; ++d)
+            if (mat[d] == mat[c]) p |= 1u << d;
+        if (!kTable.ok[p]) return false;
+    }
+    return true;
+}
+
+int badMaterials(const std::array<std::int32_t, 8>& mat) {
+    int bad = 0;
+    for (int c = 0; c < 8; ++c) {
+        bool first = true;
+        for (int d = 0; d < c; ++d)
+            if (mat[d] == mat[c]) first = false;
+        if (!first) continue;
+        unsigned p = 0;
+        for (int d = 0; d < 8; ++d)
+            if (mat[d] == mat[c]) p |= 1u << d;
+        bad += !kTable.ok[p];
+    }
+    return bad;
+}
+
+std::vector<std::size_t> badBlocks(const Labels& l) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    tbb::enumerable_thread_specific<std::vector<std::size_t>> local;
+    if (nx < 2 || ny < 2 || nz < 2) return {};
+    tbb::parallel_for(tbb::blocked_range<int>(0, nz - 1), [&](const auto& r) {
+        auto& out = local.local();
+        for (int k = r.begin(); k != r.end(); ++k)
+            for (int j = 0; j < ny - 1; ++j)
+                for (int i = 0; i < nx - 1; ++i) {
+                    const BlockView b = block(l, i, j, k);
+                    if (!blockManifold(b.mat)) out.push_back(l.grid.index(i, j, k));
+                }
+    });
+    std::vector<std::size_t> all;
+    for (auto& v : local) all.insert(all.end(), v.begin(), v.end());
+    std::sort(all.begin(), all.end());
+    return all;
+}
+
+}  // namespace
+
+std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labels).size(); }
+
+RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
+    RepairReport rep;
+    const Grid& g = labels.grid;
+    const auto [nx, ny, nz] = g.dims;
+    std::vector<std::uint8_t> flips(labels.material.size(), 0);
+    constexpr int kMaxRounds = 200;
+    constexpr int kMaxFlipsPerPoint = 4;
+    for (int round = 0;; ++round) {
+        const std::vector<std::size_t> bad = badBlocks(labels);
+        if (round == 0) rep.nonManifoldBefore = bad.size();
+        if (bad.empty()) {
+            rep.rounds = round;
+            return rep;
+        }
+        if (round == kMaxRounds)
+            throw Error("non-manifold repair found no fixpoint after " + std::to_string(kMaxRounds) + " rounds (" +
+                        std::to_string(bad.size()) + " bad places left); try a different --size or --iso");
+        std::set<std::size_t> touched;  // points changed this round; their blocks wait for the next round
+        for (std::size_t b : bad) {
+            const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+            BlockView v = block(labels, i, j, k);
+            bool stale = false;
+            for (std::size_t p : v.point) stale = stale || touched.count(p);
+            if (stale) continue;
+            const int badNow = badMaterials(v.mat);
+            // Candidates: give one corner to another material present in the block (or background).
+            std::vector<std::int32_t> present(v.mat.begin(), v.mat.end());
+            present.push_back(0);
+            std::sort(present.begin(), present.end());
+            present.erase(std::unique(present.begin(), present.end()), present.end());
+            double bestCost = 0;
+            int bestCorner = -1, bestScore = 1 << 30;
+            std::int32_t bestMat = 0;
+            for (int c = 0; c < 8; ++c) {
+                const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
+                const bool border = pi == 0 || pj == 0 || pk == 0 || pi == nx - 1 || pj == ny - 1 || pk == nz - 1;
+                if (flips[v.point[c]] >= kMaxFlipsPerPoint) continue;
+                const Vec3 x = g.point(pi, pj, pk);
+                for (std::int32_t t : present) {
+                    if (t == v.mat[c] || (border && t != 0)) continue;
+                    auto trial = v.mat;
+                    trial[c] = t;
+                    const int score = badMaterials(trial);
+                    if (score >= badNow) continue;
+                    const std::int32_t judged = t != 0 ? t : v.mat[c];
+                    const double cost = std::abs(domain.value(judged, x));
+                    if (score < bestScore || (score == bestScore && cost < bestCost)) {
+                        bestScore = score;
+                        bestCost = cost;
+                        bestCorner = c;
+                        bestMat = t;
+                    }
+                }
+            }
+            if (bestCorner < 0) {
+                // No single flip makes this block better (e.g. a checkerboard):
+                // grow the first bad material by its cheapest neighbour point.
+                // Growing is monotone, so repeated rounds cannot cycle.
+                std::int32_t grow = 0;
+                for (int c = 0; c < 8 && grow == 0; ++c) {
+                    unsigned p = 0;
+                    for (int d = 0; d < 8; ++d)
+                        if (v.mat[d] == v.mat[c]) p |= 1u << d;
+                    if (v.mat[c] != 0 && !kTable.ok[p]) grow = v.mat[c];
+                }
+                if (grow == 0) continue;
+                for (int c = 0; c < 8; ++c) {
+                    if (v.mat[c] == grow) continue;
+                    const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
+                    if (pi == 0 || pj == 0 || pk == 0 || pi == nx - 1 || pj == ny - 1 || pk == nz - 1) continue;
+                    const double cost = std::abs(domain.value(grow, g.point(pi, pj, pk)));
+                    if (bestCorner < 0 || cost < bestCost) {
+                        bestCorner = c;
+                        bestCost = cost;
+                        bestMat = grow;
+                    }
+                }
+                if (bestCorner < 0) continue;
+            }
+            const std::size_t p = v.point[bestCorner];
+            if (labels.material[p] == 0) ++rep.pointsAdded;
+            else if (bestMat == 0) ++rep.pointsRemoved;
+            else ++rep.pointsAdded;
+            labels.material[p] = bestMat;
+            ++flips[p];
+            touched.insert(p);
+        }
+        if (touched.empty())
+            throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +
+                        " places where regions touch along an edge or at a point cannot be fixed by flipping grid "
+                        "points; try a different --size");
+    }
+}
+
+std::vector<RegionTopology> regionTopology(const Labels& l) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    std::map<std::int32_t, RegionTopology> out;
+    for (std::int32_t m : l.material)
+        if (m != 0) {
+            auto& t = out[m];
+            t.material = m;
+            ++t.points;
+        }
+    // faces: 6-neighbour pairs with different labels
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::int32_t a = l.material[l.grid.index(i, j, k)];
+                const int nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
+                for (const auto& n : nb) {
+                    if (n[0] >= nx || n[1] >= ny || n[2] >= nz) continue;
+                    const std::int32_t b = l.material[l.grid.index(n[0], n[1], n[2])];
+                    if (a == b) continue;
+                    if (a != 0) ++out[a].euler;
+                    if (b != 0) ++out[b].euler;
+                }
+            }
+    // edges: 2x2 squares where a material is present but not everywhere
+    auto squareMinus = [&](std::array<std::size_t, 4> p) {
+        std::array<std::int32_t, 4> m;
+        for (int c = 0; c < 4; ++c) m[c] = l.material[p[c]];
+        for (int c = 0; c < 4; ++c) {
+            if (m[c] == 0) continue;
+            bool first = true, all = true;
+            for (int d = 0; d < c; ++d) first = first && m[d] != m[c];
+            for (int d = 0; d < 4; ++d) all = all && m[d] == m[c];
+            if (first && !all) --out[m[c]].euler;
+        }
+    };
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                if (i + 1 < nx && j + 1 < ny)
+                    squareMinus({l.grid.index(i, j, k), l.grid.index(i + 1, j, k), l.grid.index(i, j + 1, k),
+                                 l.grid.index(i + 1, j + 1, k)});
+                if (i + 1 < nx && k + 1 < nz)
+                    squareMinus({l.grid.index(i, j, k), l.grid.index(i + 1, j, k), l.grid.index(i, j, k + 1),
+                                 l.grid.index(i + 1, j, k + 1)});
+                if (j + 1 < ny && k + 1 < nz)
+                    squareMinus({l.grid.index(i, j, k), l.grid.index(i, j + 1, k), l.grid.index(i, j, k + 1),
+                                 l.grid.index(i, j + 1, k + 1)});
+            }
+    // vertices: mixed 2x2x2 blocks; components: blocks joined through mixed squares
+    std::vector<std::pair<std::int32_t, std::size_t>> mixed;  // (material, block)
+    for (int k = 0; k + 1 < nz; ++k)
+        for (int j = 0; j + 1 < ny; ++j)
+            for (int i = 0; i + 1 < nx; ++i) {
+                const BlockView b = block(l, i, j, k);
+                for (int c = 0; c < 8; ++c) {
+                    if (b.mat[c] == 0) continue;
+                    bool first = true, all = true;
+                    for (int d = 0; d < c; ++d) first = first && b.mat[d] != b.mat[c];
+                    for (int d = 0; d < 8; ++d) all = all && b.mat[d] == b.mat[c];
+                    if (first && !all) mixed.emplace_back(b.mat[c], l.grid.index(i, j, k));
+                }
+            }
+    std::sort(mixed.begin(), mixed.end());
+    std::vector<std::size_t> parent(mixed.size());
+    std::iota(parent.begin(), parent.end(), 0);
+    auto find = [&](std::size_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    for (std::size_t n = 0; n < mixed.size(); ++n) {
+        const auto [m, b] = mixed[n];
+        ++out[m].euler;
+        const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+        // neighbour block in +d shares the square of the block's far face in d
+        for (int d = 0; d < 3; ++d) {
+            const int ni = i + (d == 0), nj = j + (d == 1), nk = k + (d == 2);
+            if (ni + 1 >= nx || nj + 1 >= ny || nk + 1 >= nz) continue;
+            bool present = false, all = true;
+            for (int c = 0; c < 8; ++c) {
+                if (!(c >> d & 1)) continue;
+                const std::int32_t mm = l.material[l.grid.index(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))];
+                present = present || mm == m;
+                all = all && mm == m;
+            }
+            if (!present || all) continue;
+            const auto it = std::lower_bound(mixed.begin(), mixed.end(), std::make_pair(m, l.grid.index(ni, nj, nk)));
+            if (it == mixed.end() || it->first != m) continue;
+            const std::size_t other = static_cast<std::size_t>(it - mixed.begin());
+            const std::size_t ra = find(n), rb = find(other);
+            if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+        }
+    }
+    for (std::size_t n = 0; n < mixed.size(); ++n)
+        if (find(n) == n) ++out[mixed[n].first].components;
+    std::vector<RegionTopology> v;
+    for (auto& [m, t] : out) v.push_back(t);
+    return v;
+}
+
+std::string describe(const std::vector<RegionTopology>& t) {
+    std::ostringstream s;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        if (i) s << "; ";
+        s << "material " << t[i].material << ": " << t[i].components << " surface component"
+          << (t[i].components == 1 ? "" : "s") << ", Euler characteristic " << t[i].euler;
+    }
+    return s.str();
+}
+
+}  // namespace isohex::octree

@@ -1,0 +1,272 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+
+#include "AnalyticDomains.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/core/Validate.hpp"
+#include "isohex/octree/DualContour.hpp"
+
+using namespace isohex;
+using namespace isohex::octree;
+using namespace isohex::test;
+
+namespace {
+
+HexMesh mesh(const Domain& d, const Grid& g, ExtractOptions opt = {}, ExtractStats* st = nullptr) {
+    Labels l = sampleLabels(d, g);
+    repairNonManifold(l, d);
+    return dualContourHexes(l, d, opt, st);
+}
+
+double maxBoundaryDistance(const HexMesh& m, const Sdf& f) {
+    const Topology t = buildTopology(m);
+    double worst = 0;
+    for (Index v : t.boundaryNodes) worst = std::max(worst, std::abs(f(m.nodes[v])));
+    return worst;
+}
+
+// Dual contouring alone may leave inverted boundary hexes (the reason the
+// fundamental sheet is pillowed in afterwards); what it must deliver is a
+// topologically valid mesh: every defect kind but inversion is an error here.
+bool topologicallyValid(const HexMesh& m) {
+    ValidityReport v = validate(m);
+    v.defects.erase("inverted_hex");
+    if (!v.ok()) ADD_FAILURE() << toJson(v).dump();
+    return v.ok();
+}
+
+std::vector<std::int32_t> grid3(int n) { return std::vector<std::int32_t>(static_cast<std::size_t>(n) * n * n, 0); }
+void set(std::vector<std::int32_t>& v, int n, int i, int j, int k, std::int32_t m = 1) {
+    v[(static_cast<std::size_t>(k) * n + j) * n + i] = m;
+}
+
+}  // namespace
+
+TEST(DualContour, SphereIsValidClosedAndOnTheSurface) {
+    const Sdf s = sphere({10, 10, 10}, 6.3);
+    const AnalyticDomain d({s});
+    const HexMesh m = mesh(d, unitGrid(21));
+    EXPECT_GT(m.hexCount(), 700u);
+    EXPECT_TRUE(topologicallyValid(m));
+    // boundary nodes are QEF vertices on the sphere
+    EXPECT_LT(maxBoundaryDistance(m, s), 0.1);
+    const auto topo = regionTopology([&] {
+        Labels l = sampleLabels(d, unitGrid(21));
+        repairNonManifold(l, d);
+        return l;
+    }());
+    ASSERT_EQ(topo.size(), 1u);
+    EXPECT_EQ(topo[0].components, 1u);
+    EXPECT_EQ(topo[0].euler, 2);
+}
+
+TEST(DualContour, OneHexPerInsidePointAndVolumeNearTheSphere) {
+    const double r = 8.2;
+    const AnalyticDomain d({sphere({12, 12, 12}, r)});
+    Labels l = sampleLabels(d, unitGrid(25));
+    repairNonManifold(l, d);
+    std::size_t inside = 0;
+    for (auto m : l.material) inside += m != 0;
+    const HexMesh m = dualContourHexes(l, d);
+    EXPECT_EQ(m.hexCount(), inside);
+    double vol = 0;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) vol += hexVolume(hexCoords(m, h));
+    const double exact = 4.0 / 3.0 * M_PI * r * r * r;
+    EXPECT_NEAR(vol / exact, 1.0, 0.02);
+}
+
+TEST(DualContour, TorusKeepsGenusOne) {
+    const AnalyticDomain d({torus({12, 12, 12}, 7, 2.6)});
+    Labels l = sampleLabels(d, unitGrid(25));
+    repairNonManifold(l, d);
+    const auto topo = regionTopology(l);
+    ASSERT_EQ(topo.size(), 1u);
+    EXPECT_EQ(topo[0].components, 1u);
+    EXPECT_EQ(topo[0].euler, 0);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
+}
+
+TEST(DualContour, TwoSpheresAlmostTouchingStayManifold) {
+    const AnalyticDomain d({unite(sphere({7, 10, 10}, 4.45), sphere({16, 10, 10}, 4.45))});
+    Labels l = sampleLabels(d, unitGrid(23));
+    repairNonManifold(l, d);
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    const HexMesh m = dualContourHexes(l, d);
+    EXPECT_TRUE(topologicallyValid(m));
+}
+
+TEST(DualContour, ThinPlateGivesAValidMesh) {
+    const AnalyticDomain d({box({3, 3, 9.7}, {17, 17, 10.9})});
+    const HexMesh m = mesh(d, unitGrid(21));
+    EXPECT_GT(m.hexCount(), 0u);
+    EXPECT_TRUE(topologicallyValid(m));
+}
+
+TEST(NonManifoldRepair, TwoCubesSharingAnEdge) {
+    const int n = 6;
+    auto v = grid3(n);
+    set(v, n, 2, 2, 2);
+    set(v, n, 3, 3, 2);  // diagonal neighbour in a plane: touches along an edge
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    EXPECT_GT(countNonManifoldBlocks(l), 0u);
+    const RepairReport r = repairNonManifold(l, d);
+    EXPECT_GT(r.nonManifoldBefore, 0u);
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
+}
+
+TEST(NonManifoldRepair, TwoCubesSharingAVertex) {
+    const int n = 6;
+    auto v = grid3(n);
+    set(v, n, 2, 2, 2);
+    set(v, n, 3, 3, 3);
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    EXPECT_GT(countNonManifoldBlocks(l), 0u);
+    repairNonManifold(l, d);
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
+}
+
+TEST(NonManifoldRepair, CheckerboardIsRepaired) {
+    const int n = 8;
+    auto v = grid3(n);
+    for (int k = 1; k < n - 1; ++k)
+        for (int j = 1; j < n - 1; ++j)
+            for (int i = 1; i < n - 1; ++i)
+                if ((i + j + k) % 2 == 0) set(v, n, i, j, k);
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    EXPECT_GT(countNonManifoldBlocks(l), 10u);
+    repairNonManifold(l, d);
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    const HexMesh m = dualContourHexes(l, d);
+    EXPECT_TRUE(topologicallyValid(m));
+}
+
+TEST(NonManifoldRepair, OneVoxelThinSheetIsManifoldAlready) {
+    const int n = 8;
+    auto v = grid3(n);
+    for (int j = 2; j < 6; ++j)
+        for (int i = 2; i < 6; ++i) set(v, n, i, j, 4);
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    const HexMesh m = dualContourHexes(l, d);
+    EXPECT_EQ(m.hexCount(), 16u);
+    EXPECT_TRUE(topologicallyValid(m));
+}
+
+TEST(DualContour, AnisotropicObliqueGridGivesPositiveHexes) {
+    const Sdf s = sphere({0, 0, 0}, 5.0);
+    const AnalyticDomain d({s});
+    Grid g;
+    const double c = std::cos(0.4), sn = std::sin(0.4);
+    g.axes = {{{0.8 * c, 0.8 * sn, 0}, {-0.6 * sn, 0.6 * c, 0}, {0, 0, 0.9}}};
+    g.dims = {21, 27, 18};
+    g.origin = {0, 0, 0};
+    for (int a = 0; a < 3; ++a)
+        for (int cc = 0; cc < 3; ++cc) g.origin[cc] -= 0.5 * (g.dims[a] - 1) * g.axes[a][cc];
+    const HexMesh m = mesh(d, g);
+    EXPECT_TRUE(topologicallyValid(m));
+    EXPECT_LT(maxBoundaryDistance(m, s), 0.1 * 0.6);
+    // interior hexes are the grid's parallelepipeds: positive
+    const Topology t = buildTopology(m);
+    std::size_t positiveInterior = 0, interior = 0;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) {
+        bool touches = false;
+        for (Index v : m.hexes[h]) touches = touches || t.nodeOnBoundary[v];
+        if (touches) continue;
+        ++interior;
+        positiveInterior += minCornerDeterminant(hexCoords(m, h)) > 0;
+    }
+    EXPECT_GT(interior, 100u);
+    EXPECT_EQ(positiveInterior, interior);
+}
+
+TEST(DualContour, MirroredGridStillGivesPositiveHexes) {
+    const AnalyticDomain d({sphere({0, 0, 0}, 4.0)});
+    Grid g = unitGrid(13, 1.0, {6, -6, -6});
+    g.axes[0] = {-1, 0, 0};  // x runs backwards: a left-handed grid
+    ASSERT_LT(g.determinant(), 0);
+    const HexMesh m = mesh(d, g);
+    EXPECT_TRUE(topologicallyValid(m));
+    double vol = 0;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) vol += hexVolume(hexCoords(m, h));
+    EXPECT_GT(vol, 0);
+}
+
+TEST(DualContour, TwoMaterialsShareAnInterfaceOfClassifiedNodes) {
+    const AnalyticDomain d({box({3, 3, 3}, {9.5, 13, 13}), box({9.5, 3, 3}, {15, 13, 13})});
+    const HexMesh m = mesh(d, unitGrid(18));
+    EXPECT_TRUE(topologicallyValid(m));
+    const Topology t = buildTopology(m);
+    EXPECT_GT(t.interfaceQuads.size(), 50u);
+    const auto patches = surfacePatches(m, t);
+    ASSERT_EQ(patches.size(), 3u);  // boundary of 1, interface 1|2, boundary of 2
+    std::size_t curve = 0, surface = 0;
+    for (const auto& c : m.nodeClass) {
+        curve += c.kind == NodeKind::Curve;
+        surface += c.kind == NodeKind::Surface;
+    }
+    EXPECT_GT(curve, 0u);  // where the interface meets the outer boundary
+    EXPECT_GT(surface, 0u);
+}
+
+TEST(DualContour, MeshingTheExteriorFillsTheBoxConformally) {
+    const AnalyticDomain d({sphere({8, 8, 8}, 4.2)});
+    Labels l = sampleLabels(d, unitGrid(17));
+    repairNonManifold(l, d);
+    ExtractOptions opt;
+    opt.meshExterior = true;
+    const HexMesh m = dualContourHexes(l, d, opt);
+    EXPECT_EQ(m.hexCount(), 17u * 17u * 17u);
+    EXPECT_TRUE(topologicallyValid(m));
+    const Topology t = buildTopology(m);
+    const auto patches = surfacePatches(m, t);
+    ASSERT_EQ(patches.size(), 2u);  // the box (material 0's boundary) and the 0|1 interface
+    // only hexes touching the sphere may be inverted; the grid hexes away from it are cubes
+    for (std::size_t h = 0; h < m.hexCount(); ++h) {
+        if (minCornerDeterminant(hexCoords(m, h)) > 0) continue;
+        bool touches = false;
+        for (Index v : m.hexes[h]) touches = touches || m.nodeClass[v].kind != NodeKind::Interior;
+        EXPECT_TRUE(touches) << "hex " << h;
+    }
+}
+
+TEST(ChooseLevel, CoarsensASphereButNotBeyondItsTopology) {
+    const AnalyticDomain d({sphere({32, 32, 32}, 20)});
+    const LevelChoice c = chooseLevel(d, unitGrid(65));
+    EXPECT_GE(c.level, 1);
+    ASSERT_EQ(c.topology.size(), 1u);
+    EXPECT_EQ(c.topology[0].euler, 2);
+    EXPECT_LE(c.volumeChange, 0.05);
+}
+
+TEST(ChooseLevel, ThinTorusForcesAFinerLevelThanAFatOne) {
+    const AnalyticDomain thin({torus({32, 32, 32}, 18, 2.2)});
+    const AnalyticDomain fat({torus({32, 32, 32}, 18, 9)});
+    const LevelChoice a = chooseLevel(thin, unitGrid(65));
+    const LevelChoice b = chooseLevel(fat, unitGrid(65));
+    EXPECT_LT(a.level, b.level);
+    EXPECT_EQ(a.topology[0].euler, 0);
+    EXPECT_EQ(b.topology[0].euler, 0);
+}
+
+TEST(DualContour, SameMeshForAnyThreadCount) {
+    const AnalyticDomain d({torus({12, 12, 12}, 7, 3.1)});
+    HexMesh one;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        one = mesh(d, unitGrid(25));
+    }
+    const HexMesh many = mesh(d, unitGrid(25));
+    EXPECT_EQ(one.hexes, many.hexes);
+    EXPECT_EQ(one.nodes, many.nodes);
+}
