@@ -206,7 +206,7 @@ std::vector<PillowResult> pillowAllMaterials(HexMesh& mesh, int layers, const Pi
         if (layers > 1) {
             const Topology topo = buildTopology(mesh);
             const DualSheets sheets = buildSheets(mesh, topo);
-            const Index s = sheetThroughEdge(topo, sheets, r.firstNewNode, r.copyOf[0]);
+            const Index s = sheetThroughEdge(mesh, topo, sheets, r.firstNewNode, r.copyOf[0]);
             dice(mesh, topo, sheets, s, layers - 1);
         }
         out.push_back(std::move(r));
@@ -437,12 +437,10 @@ std::size_t extract(HexMesh& mesh, const Topology& topo, const DualSheets& sheet
 
 // ----------------------------------------------------------------- selection
 
-Index sheetThroughEdge(const Topology& topo, const DualSheets& sheets, Index a, Index b) {
-    const Index lo = std::min(a, b), hi = std::max(a, b);
-    const auto it = std::lower_bound(topo.edges.begin(), topo.edges.end(), std::array<Index, 2>{lo, hi});
-    if (it == topo.edges.end() || (*it)[0] != lo || (*it)[1] != hi)
-        throw Error("no mesh edge joins nodes " + std::to_string(a) + " and " + std::to_string(b));
-    return sheets.edgeSheet[static_cast<std::size_t>(it - topo.edges.begin())];
+Index sheetThroughEdge(const HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index a, Index b) {
+    const Index e = edgeBetween(mesh, topo, a, b);
+    if (e == kNone) throw Error("no mesh edge joins nodes " + std::to_string(a) + " and " + std::to_string(b));
+    return sheets.edgeSheet[static_cast<std::size_t>(e)];
 }
 
 std::vector<Index> sheetsTouchingSurfaces(const Topology& topo, const DualSheets& sheets) {

@@ -18,12 +18,6 @@ namespace {
 
 using detail::bucketItems;
 
-std::array<Index, 4> sortedFace(const Hex& h, int f) {
-    std::array<Index, 4> k;
-    for (int i = 0; i < 4; ++i) k[i] = h[hexcell::kFaces[f][i]];
-    std::sort(k.begin(), k.end());
-    return k;
-}
 
 void checkIndices(const HexMesh& mesh) {
     const auto n = static_cast<Index>(mesh.nodes.size());
@@ -40,30 +34,80 @@ void checkIndices(const HexMesh& mesh) {
                             ", which does not exist (the mesh has " + std::to_string(n) + " nodes)");
 }
 
-// Groups the rows of `c` (items sorted by id) by a key per item and calls
-// emit(row, firstPos, endPos, groupIndexInRow) for each group of equal keys.
-// Rows are reordered in place: by key, ties by item id.
-template <class KeyOf>
-std::vector<Index> groupRows(Csr& c, KeyOf keyOf) {
-    using Key = decltype(keyOf(Index{}));
-    std::vector<Index> groups(c.rows() + 1, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, c.rows(), 512), [&](const auto& r) {
-        std::vector<std::pair<Key, Index>> buf;
-        for (std::size_t b = r.begin(); b != r.end(); ++b) {
-            const Index lo = c.offsets[b], hi = c.offsets[b + 1];
-            buf.clear();
-            for (Index p = lo; p < hi; ++p) buf.emplace_back(keyOf(c.items[p]), c.items[p]);
-            std::sort(buf.begin(), buf.end());
-            Index count = 0;
-            for (std::size_t i = 0; i < buf.size(); ++i) {
-                c.items[lo + static_cast<Index>(i)] = buf[i].second;
-                if (i == 0 || buf[i].first != buf[i - 1].first) ++count;
-            }
-            groups[b + 1] = count;
+}  // namespace
+
+namespace {
+
+// Hexes in both sorted rows (a hex listed twice in a row counts once).
+template <std::size_t Cap>
+int intersectRows(const Csr& c, Index a, Index b, std::array<Index, Cap>& out) {
+    const Index *p = c.begin(a), *pe = c.end(a), *q = c.begin(b), *qe = c.end(b);
+    int n = 0;
+    while (p != pe && q != qe) {
+        if (*p < *q) ++p;
+        else if (*q < *p) ++q;
+        else {
+            if ((n == 0 || out[n - 1] != *p) && n < static_cast<int>(Cap)) out[n++] = *p;
+            ++p;
+            ++q;
         }
-    });
-    for (std::size_t b = 0; b < c.rows(); ++b) groups[b + 1] += groups[b];
-    return groups;  // groups[b] = id of the first group in row b
+    }
+    return n;
+}
+
+std::array<Index, 4> sortedFace(const Hex& h, int f) {
+    std::array<Index, 4> k;
+    for (int i = 0; i < 4; ++i) k[i] = h[hexcell::kFaces[f][i]];
+    std::sort(k.begin(), k.end());
+    return k;
+}
+
+// Local face of hex h made of exactly the nodes of face f of hex g, or -1.
+// Works through corner bit masks, no sorting.
+constexpr std::array<std::uint8_t, 6> faceMasks() {
+    std::array<std::uint8_t, 6> m{};
+    for (int f = 0; f < 6; ++f)
+        for (int c : hexcell::kFaces[f]) m[f] |= static_cast<std::uint8_t>(1u << c);
+    return m;
+}
+constexpr std::array<std::uint8_t, 6> kFaceMask = faceMasks();
+
+int matchingFace(const Hex& h, const Hex& g, int f) {
+    unsigned mask = 0;
+    for (int i = 0; i < 4; ++i) {
+        const Index v = g[hexcell::kFaces[f][i]];
+        unsigned bit = 0;
+        for (int c = 0; c < 8; ++c)
+            if (h[c] == v) {
+                bit = 1u << c;
+                break;
+            }
+        if (!bit) return -1;
+        mask |= bit;
+    }
+    for (int k = 0; k < 6; ++k)
+        if (kFaceMask[k] == mask) return k;
+    return -1;
+}
+
+int localEdgeWith(const Hex& h, Index a, Index b) {
+    for (int e = 0; e < 12; ++e) {
+        const Index x = h[hexcell::kEdges[e][0]], y = h[hexcell::kEdges[e][1]];
+        if ((x == a && y == b) || (x == b && y == a)) return e;
+    }
+    return -1;
+}
+
+constexpr std::size_t kMaxHolders = 64;
+
+// The smallest hex that has an edge from a to b (a hex holding both as a face
+// diagonal does not count).
+Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index a, Index b,
+                     std::array<Index, kMaxHolders>& cand) {
+    const int n = intersectRows(nodeHexes, a, b, cand);
+    for (int c = 0; c < n; ++c)
+        if (localEdgeWith(hexes[cand[c]], a, b) >= 0) return cand[c];
+    return kNone;
 }
 
 }  // namespace
@@ -74,80 +118,147 @@ Topology buildTopology(const HexMesh& mesh) {
     const std::size_t H = mesh.hexes.size();
     const std::size_t N = mesh.nodes.size();
     const auto& hexes = mesh.hexes;
+    using Range = tbb::blocked_range<std::size_t>;
 
-    // ---- quads: local face id = 6 * hex + f, bucketed under its smallest node
-    auto faceMin = [&](std::size_t i) { return sortedFace(hexes[i / 6], static_cast<int>(i % 6))[0]; };
-    Csr faces = bucketItems(N, H * 6, faceMin);
-    auto faceKey = [&](Index i) { return sortedFace(hexes[i / 6], i % 6); };
-    std::vector<Index> quadStart = groupRows(faces, faceKey);
-    const std::size_t Q = quadStart.back();
-    t.quads.resize(Q);
-    t.hexQuads.resize(H);
-    t.quadHexesAll.offsets.resize(Q + 1);
-    t.quadHexesAll.items.resize(faces.items.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 512), [&](const auto& r) {
-        for (std::size_t b = r.begin(); b != r.end(); ++b) {
-            Index q = quadStart[b] - 1;
-            std::array<Index, 4> prev{};
-            for (Index p = faces.offsets[b]; p < faces.offsets[b + 1]; ++p) {
-                const Index item = faces.items[p];
-                const Index h = item / 6;
-                const int f = item % 6;
-                const auto key = sortedFace(hexes[h], f);
-                t.quadHexesAll.items[p] = h;
-                if (p == faces.offsets[b] || key != prev) {
-                    ++q;
-                    prev = key;
-                    t.quadHexesAll.offsets[q] = p;
-                    Quad& quad = t.quads[q];
-                    for (int i = 0; i < 4; ++i) quad.nodes[i] = hexes[h][hexcell::kFaces[f][i]];
-                    quad.hex[0] = h;
-                    quad.localFace[0] = static_cast<std::int8_t>(f);
-                } else if (t.quads[q].hex[1] == kNone) {
-                    t.quads[q].hex[1] = h;
-                    t.quads[q].localFace[1] = static_cast<std::int8_t>(f);
-                }
-                t.hexQuads[h][f] = q;
-            }
-        }
-    });
-    t.quadHexesAll.offsets[Q] = static_cast<Index>(faces.items.size());
-    faces = Csr{};
-
-    // ---- edges: local edge id = 12 * hex + e, bucketed under the smaller node
-    auto edgeEnds = [&](std::size_t i) {
-        const Hex& h = hexes[i / 12];
-        const auto& e = hexcell::kEdges[i % 12];
-        const Index a = h[e[0]], b = h[e[1]];
-        return std::pair<Index, Index>(std::min(a, b), std::max(a, b));
-    };
-    Csr edgeItems = bucketItems(N, H * 12, [&](std::size_t i) { return edgeEnds(i).first; });
-    std::vector<Index> edgeStart = groupRows(edgeItems, [&](Index i) { return edgeEnds(i).second; });
-    const std::size_t E = edgeStart.back();
-    t.edges.resize(E);
-    t.hexEdges.resize(H);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 512), [&](const auto& r) {
-        for (std::size_t b = r.begin(); b != r.end(); ++b) {
-            Index e = edgeStart[b] - 1;
-            Index prev = kNone;
-            for (Index p = edgeItems.offsets[b]; p < edgeItems.offsets[b + 1]; ++p) {
-                const Index item = edgeItems.items[p];
-                const auto ends = edgeEnds(item);
-                if (ends.second != prev) {
-                    ++e;
-                    prev = ends.second;
-                    t.edges[e] = {ends.first, ends.second};
-                }
-                t.hexEdges[item / 12][item % 12] = e;
-            }
-        }
-    });
-    edgeItems = Csr{};
-
-    // ---- node -> hexes
+    // ---- node -> hexes (rows sorted)
     t.nodeHexes = bucketItems(N, H * 8, [&](std::size_t i) { return hexes[i / 8][i % 8]; });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, t.nodeHexes.items.size(), 8192), [&](const auto& r) {
+    tbb::parallel_for(Range(0, t.nodeHexes.items.size(), 8192), [&](const Range& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) t.nodeHexes.items[i] /= 8;
+    });
+
+    // ---- quads. The hexes holding a face are the hexes holding both ends of
+    // one of its diagonals (then checked against the full face). Each quad is
+    // owned by its smallest hex; numbering follows the owners' order, so it
+    // is independent of the thread count.
+    t.hexQuads.resize(H);
+    // Per hex face: how many hexes hold it, and the smallest other holder
+    // with its local face (the owner when it is smaller than this hex).
+    struct FaceLink {
+        std::array<Index, 6> other;
+        std::array<std::int8_t, 6> otherFace;
+        std::array<std::uint8_t, 6> holders;
+    };
+    std::vector<FaceLink> link(H);
+    std::vector<Index> quadBase(H + 1, 0);
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        std::array<Index, kMaxHolders> cand;
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            Index owned = 0;
+            FaceLink& L = link[h];
+            bool repeats = false;
+            for (int a = 0; a < 8; ++a)
+                for (int b = a + 1; b < 8; ++b) repeats = repeats || hexes[h][a] == hexes[h][b];
+            for (int f = 0; f < 6; ++f) {
+                const auto& lf = hexcell::kFaces[f];
+                const int n = intersectRows(t.nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
+                L.other[f] = kNone;
+                L.otherFace[f] = -1;
+                unsigned holders = 1;  // this hex
+                for (int c = 0; c < n; ++c) {
+                    if (cand[c] == static_cast<Index>(h)) continue;
+                    const int g = matchingFace(hexes[cand[c]], hexes[h], f);
+                    if (g < 0) continue;
+                    ++holders;
+                    if (L.other[f] == kNone) {
+                        L.other[f] = cand[c];
+                        L.otherFace[f] = static_cast<std::int8_t>(g);
+                    }
+                }
+                // a hex listing the same node set on two of its faces holds it twice
+                if (repeats)
+                    for (int g = 0; g < 6; ++g)
+                        if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++holders;
+                L.holders[f] = static_cast<std::uint8_t>(std::min(holders, 255u));
+                if (L.other[f] == kNone || L.other[f] > static_cast<Index>(h)) ++owned;
+            }
+            quadBase[h + 1] = owned;
+        }
+    });
+    for (std::size_t h = 0; h < H; ++h) quadBase[h + 1] += quadBase[h];
+    const std::size_t Q = quadBase[H];
+    t.quads.resize(Q);
+    std::vector<Index> holderCount(Q + 1, 0);
+    auto owns = [&](std::size_t h, int f) { return link[h].other[f] == kNone || link[h].other[f] > static_cast<Index>(h); };
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            Index q = quadBase[h];
+            for (int f = 0; f < 6; ++f) {
+                if (!owns(h, f)) continue;
+                const auto& lf = hexcell::kFaces[f];
+                Quad& quad = t.quads[q];
+                for (int i = 0; i < 4; ++i) quad.nodes[i] = hexes[h][lf[i]];
+                quad.hex[0] = static_cast<Index>(h);
+                quad.localFace[0] = static_cast<std::int8_t>(f);
+                quad.hex[1] = link[h].other[f];
+                quad.localFace[1] = link[h].otherFace[f];
+                holderCount[q + 1] = link[h].holders[f];
+                t.hexQuads[h][f] = q++;
+            }
+        }
+    });
+    // Faces a hex does not own take the id of the owner's face.
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h)
+            for (int f = 0; f < 6; ++f)
+                if (!owns(h, f)) t.hexQuads[h][f] = t.hexQuads[link[h].other[f]][link[h].otherFace[f]];
+    });
+    link = {};
+    for (std::size_t q = 0; q < Q; ++q) holderCount[q + 1] += holderCount[q];
+    t.quadHexesAll.offsets = std::move(holderCount);
+    t.quadHexesAll.items.assign(static_cast<std::size_t>(t.quadHexesAll.offsets[Q]), kNone);
+    {
+        std::vector<Index> fill(t.quadHexesAll.offsets.begin(), t.quadHexesAll.offsets.end() - 1);
+        for (std::size_t h = 0; h < H; ++h)  // hex order: each row comes out sorted
+            for (int f = 0; f < 6; ++f) {
+                const Index q = t.hexQuads[h][f];
+                if (fill[q] < t.quadHexesAll.offsets[q + 1]) t.quadHexesAll.items[fill[q]++] = static_cast<Index>(h);
+            }
+    }
+
+    // ---- edges: held by the hexes holding both ends; owned by the smallest.
+    t.hexEdges.resize(H);
+    std::vector<std::uint16_t> ownedEdges(H, 0);
+    std::vector<Index> edgeBase(H + 1, 0);
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        std::array<Index, kMaxHolders> cand;
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            std::uint16_t bits = 0;
+            Index owned = 0;
+            for (int e = 0; e < 12; ++e) {
+                const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
+                // the smallest holder, and within it the first local edge with these ends
+                const Index first = smallestHolder(t.nodeHexes, hexes, a, b, cand);
+                if (first == static_cast<Index>(h) && localEdgeWith(hexes[h], a, b) == e) {
+                    bits |= static_cast<std::uint16_t>(1u << e);
+                    ++owned;
+                }
+            }
+            ownedEdges[h] = bits;
+            edgeBase[h + 1] = owned;
+        }
+    });
+    for (std::size_t h = 0; h < H; ++h) edgeBase[h + 1] += edgeBase[h];
+    t.edges.resize(edgeBase[H]);
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            Index id = edgeBase[h];
+            for (int e = 0; e < 12; ++e)
+                if (ownedEdges[h] >> e & 1) {
+                    const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
+                    t.edges[id] = {std::min(a, b), std::max(a, b)};
+                    t.hexEdges[h][e] = id++;
+                }
+        }
+    });
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        std::array<Index, kMaxHolders> cand;
+        for (std::size_t h = r.begin(); h != r.end(); ++h)
+            for (int e = 0; e < 12; ++e) {
+                if (ownedEdges[h] >> e & 1) continue;
+                const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
+                const Index owner = smallestHolder(t.nodeHexes, hexes, a, b, cand);
+                t.hexEdges[h][e] = t.hexEdges[owner][localEdgeWith(hexes[owner], a, b)];
+            }
     });
 
     // ---- boundary, interfaces, invalid quads
@@ -159,7 +270,7 @@ Topology buildTopology(const HexMesh& mesh) {
             t.boundaryQuads.push_back(static_cast<Index>(q));
             for (Index v : quad.nodes) t.nodeOnBoundary[v] = 1;
         } else if (n == 2) {
-            if (mesh.material[quad.hex[0]] != mesh.material[quad.hex[1]])
+            if (quad.hex[1] != kNone && mesh.material[quad.hex[0]] != mesh.material[quad.hex[1]])
                 t.interfaceQuads.push_back(static_cast<Index>(q));
         } else {
             t.overfullQuads.push_back(static_cast<Index>(q));
@@ -168,6 +279,17 @@ Topology buildTopology(const HexMesh& mesh) {
     for (std::size_t v = 0; v < N; ++v)
         if (t.nodeOnBoundary[v]) t.boundaryNodes.push_back(static_cast<Index>(v));
     return t;
+}
+
+Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b) {
+    if (a < 0 || b < 0 || static_cast<std::size_t>(std::max(a, b)) >= topo.nodeHexes.rows()) return kNone;
+    std::array<Index, kMaxHolders> cand;
+    const int n = intersectRows(topo.nodeHexes, a, b, cand);
+    for (int c = 0; c < n; ++c) {
+        const int e = localEdgeWith(mesh.hexes[cand[c]], a, b);
+        if (e >= 0) return topo.hexEdges[cand[c]][e];
+    }
+    return kNone;
 }
 
 std::vector<SurfacePatch> surfacePatches(const HexMesh& mesh, const Topology& topo) {

@@ -138,7 +138,7 @@ TEST(Dice, MultipliesTheSheetsHexesByCopiesPlusOne) {
     HexMesh m = classifiedBlock(4, 3, 2);
     const Topology t = buildTopology(m);
     const DualSheets s = buildSheets(m, t);
-    const Index sheet = sheetThroughEdge(t, s, 0, 1);  // an x-edge: the layer i = 0
+    const Index sheet = sheetThroughEdge(m, t, s, 0, 1);  // an x-edge: the layer i = 0
     const std::size_t layer = s.sheetHexes.size(sheet);
     EXPECT_EQ(layer, 6u);
     const std::size_t added = dice(m, t, s, sheet, 2);
@@ -161,7 +161,7 @@ TEST(Dice, ThenExtractingTheCopiesRestoresCountsAndValidity) {
     {
         const Topology t = buildTopology(m);
         const DualSheets s = buildSheets(m, t);
-        dice(m, t, s, sheetThroughEdge(t, s, 0, 4 * 4), 2);  // a z-edge
+        dice(m, t, s, sheetThroughEdge(m, t, s, 0, 4 * 4), 2);  // a z-edge
     }
     EXPECT_EQ(m.hexCount(), hexes + 2 * 9);
     for (int i = 0; i < 2; ++i) {
@@ -190,7 +190,7 @@ TEST(Extract, RemovingThePillowRestoresTheOriginalMeshExactly) {
     const PillowResult r = pillowAllMaterials(m).front();
     const Topology t = buildTopology(m);
     const DualSheets s = buildSheets(m, t);
-    const Index sheet = sheetThroughEdge(t, s, r.firstNewNode, r.copyOf[0]);
+    const Index sheet = sheetThroughEdge(m, t, s, r.firstNewNode, r.copyOf[0]);
     extract(m, t, s, sheet);
     EXPECT_EQ(m.nodes, original.nodes);
     EXPECT_EQ(m.nodeClass, original.nodeClass);
@@ -204,7 +204,7 @@ TEST(Extract, RefusesToCollapseASurfaceThroughTheSolid) {
     const HexMesh before = m;
     const Topology t = buildTopology(m);
     const DualSheets s = buildSheets(m, t);
-    const Index sheet = sheetThroughEdge(t, s, 0, 16);  // a z-edge
+    const Index sheet = sheetThroughEdge(m, t, s, 0, 16);  // a z-edge
     EXPECT_THROW(extract(m, t, s, sheet), Error);
     EXPECT_EQ(m.hexes, before.hexes);
 }

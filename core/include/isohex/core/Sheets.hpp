@@ -57,7 +57,7 @@ std::size_t extract(HexMesh& mesh, const Topology& topo, const DualSheets& sheet
 
 // --- choosing sheets
 // The sheet through the edge joining nodes a and b (throws if no such edge).
-Index sheetThroughEdge(const Topology& topo, const DualSheets& sheets, Index a, Index b);
+Index sheetThroughEdge(const HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index a, Index b);
 // Sheets that have an edge with a node on a boundary or interface surface.
 std::vector<Index> sheetsTouchingSurfaces(const Topology& topo, const DualSheets& sheets);
 // Sheets whose edges each join a surface node to an interior node and whose

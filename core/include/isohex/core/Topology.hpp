@@ -1,10 +1,11 @@
 #pragma once
 // Derived topology of a HexMesh, built in linear time and in parallel.
 //
-// Faces and edges are matched by bucketing every hex-local face/edge under its
-// smallest node (a counting sort, O(n)), then matching inside each small
-// bucket; numbering is by (smallest node, sorted key) so the result is the
-// same for any thread count.
+// Node-to-hex adjacency is a counting sort (O(n)). A face's hexes are then
+// found by intersecting the adjacency rows of the ends of one of its
+// diagonals, an edge's from the rows of its two ends (constant work each).
+// Every quad and edge is owned by its smallest hex and numbered in owner
+// order, so ids are the same for any thread count.
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -51,6 +52,9 @@ struct Topology {
 // Builds every field of Topology. Hexes with repeated nodes still get their
 // faces and edges (validate() reports them); indices out of range throw.
 Topology buildTopology(const HexMesh& mesh);
+
+// The id of the edge joining nodes a and b, or kNone if no hex has that edge.
+Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b);
 
 // The surfaces a mesh exposes: boundary quads grouped by (material inside,
 // -1), and interface quads grouped by (smaller material, larger material).
