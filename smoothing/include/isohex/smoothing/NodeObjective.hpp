@@ -1,0 +1,146 @@
+#pragma once
+// The objective seen by one free node: a corner metric summed over every
+// corner of the node's hexes that the node belongs to (as the corner or as
+// one of its three neighbours; 4 corners per hex). Corners the node is not part
+// of do not change when it moves, so they are left out.
+//
+// The corner frames are gathered once per visit into a caller-owned buffer;
+// after that, evaluating at a trial displacement touches no mesh memory.
+#include <array>
+#include <cstddef>
+#include <limits>
+
+#include "isohex/core/HexCell.hpp"
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/CornerMetrics.hpp"
+
+namespace isohex::smoothing {
+
+struct CornerTerm {
+    Matrix3 A;  // the corner's Jacobian at the node's current (base) position
+    int role;   // 0..2: the node is column `role`; kCornerRole: the node is the corner
+};
+
+namespace detail {
+struct LocalCorner {
+    int corner, role;
+};
+// For each local node of the reference hex, the four corners it belongs to.
+constexpr std::array<std::array<LocalCorner, 4>, 8> makeNodeCorners() {
+    std::array<std::array<LocalCorner, 4>, 8> t{};
+    for (int v = 0; v < 8; ++v) {
+        int n = 0;
+        t[v][n++] = {v, kCornerRole};
+        for (int k = 0; k < 8; ++k)
+            for (int j = 0; j < 3; ++j)
+                if (hexcell::kCornerNeighbours[k][j] == v) t[v][n++] = {k, j};
+    }
+    return t;
+}
+inline constexpr auto kNodeCorners = makeNodeCorners();
+}  // namespace detail
+
+// Upper bound on the terms gatherCornerTerms writes for a node in `hexCount` hexes.
+inline constexpr std::size_t termsPerHex = 4;
+
+// Writes the corner terms of node v into `out` (room for termsPerHex x the
+// node's hex count) and returns how many were written. The node must occur
+// once in each of its hexes.
+inline std::size_t gatherCornerTerms(const HexMesh& mesh, const Csr& nodeHexes, Index v, CornerTerm* out) {
+    std::size_t n = 0;
+    for (const Index* h = nodeHexes.begin(static_cast<std::size_t>(v)); h != nodeHexes.end(static_cast<std::size_t>(v)); ++h) {
+        const Hex& hex = mesh.hexes[static_cast<std::size_t>(*h)];
+        int local = 0;
+        while (local < 8 && hex[local] != v) ++local;
+        if (local == 8) continue;
+        for (const detail::LocalCorner& lc : detail::kNodeCorners[local]) {
+            const auto& nb = hexcell::kCornerNeighbours[lc.corner];
+            const Vec3& xk = mesh.nodes[static_cast<std::size_t>(hex[lc.corner])];
+            CornerTerm& t = out[n++];
+            for (int j = 0; j < 3; ++j) {
+                const Vec3& xj = mesh.nodes[static_cast<std::size_t>(hex[nb[j]])];
+                t.A.col(j) = Vector3(xj[0] - xk[0], xj[1] - xk[1], xj[2] - xk[2]);
+            }
+            t.role = lc.role;
+        }
+    }
+    return n;
+}
+
+// Mean length of the edges leaving the node: the length scale for step sizes
+// and tolerances (mesh units differ: millimetres, voxels, metres).
+inline double localEdgeLength(const CornerTerm* terms, std::size_t count) {
+    double sum = 0;
+    int edges = 0;
+    for (std::size_t i = 0; i < count; ++i)
+        if (terms[i].role == kCornerRole) {
+            sum += terms[i].A.col(0).norm() + terms[i].A.col(1).norm() + terms[i].A.col(2).norm();
+            edges += 3;
+        }
+    return edges ? sum / edges : 0.0;
+}
+
+template <class Metric>
+class NodeObjective {
+public:
+    NodeObjective(const Metric& metric, CornerTerm* terms, std::size_t count)
+        : metric_(metric), terms_(terms), count_(count) {}
+
+    std::size_t size() const { return count_; }
+
+    // The objective with the node displaced by d from its base position; +inf
+    // if any corner is infeasible for a barrier metric.
+    double value(const Vector3& d) const {
+        double sum = 0;
+        for (std::size_t i = 0; i < count_; ++i) {
+            Matrix3 A = terms_[i].A;
+            displaceFrame(A, terms_[i].role, d);
+            const double v = metric_.value(A);
+            if constexpr (Metric::kBarrier)
+                if (v == std::numeric_limits<double>::infinity()) return v;
+            sum += v;
+        }
+        return sum;
+    }
+
+    // Value, gradient and Hessian at the base position; value +inf (and the
+    // derivatives meaningless) if a barrier corner is infeasible.
+    double derivatives(Vector3& g, Matrix3& H) const {
+        double sum = 0;
+        g.setZero();
+        H.setZero();
+        CornerDerivatives cd;
+        for (std::size_t i = 0; i < count_; ++i) {
+            if (!metric_.nodeDerivatives(terms_[i].A, terms_[i].role, cd)) return std::numeric_limits<double>::infinity();
+            sum += cd.value;
+            g += cd.gradient;
+            H += cd.hessian;
+        }
+        return sum;
+    }
+
+    // Moves the base position by d (the node was moved).
+    void shift(const Vector3& d) {
+        for (std::size_t i = 0; i < count_; ++i) displaceFrame(terms_[i].A, terms_[i].role, d);
+    }
+
+    // Smallest corner determinant with the node displaced by d.
+    double minDeterminant(const Vector3& d) const {
+        double m = std::numeric_limits<double>::infinity();
+        for (std::size_t i = 0; i < count_; ++i) {
+            Matrix3 A = terms_[i].A;
+            displaceFrame(A, terms_[i].role, d);
+            const double t = cornerDeterminant(A);
+            if (t < m) m = t;
+        }
+        return m;
+    }
+
+private:
+    Metric metric_;
+    CornerTerm* terms_;
+    std::size_t count_;
+};
+
+}  // namespace isohex::smoothing

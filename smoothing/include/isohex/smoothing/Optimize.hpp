@@ -1,0 +1,114 @@
+#pragma once
+// Whole-mesh smoothing: untangle inverted hexes, then minimise the summed
+// inverse mean ratio node by node (nonlinear Gauss-Seidel over a graph
+// colouring, each colour one parallel loop), sliding surface nodes along their
+// surface by centroidal-area smoothing.
+//
+// Cost per sweep: O(active nodes x their hexes); only nodes near poor hexes,
+// or next to a node that moved, are visited, so a grid mesh whose interior is
+// cubes pays for its boundary layer only. Memory: O(nodes + hexes) besides the
+// topology. Results are bit-identical for any number of threads.
+#include <cstdint>
+#include <functional>
+#include <string_view>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/smoothing/NodeOptimizer.hpp"
+#include "isohex/smoothing/SurfaceProjector.hpp"
+
+namespace isohex::smoothing {
+
+// stage is "untangle" or "optimize"; fraction in [0, 1] (an estimate: sweeps
+// done over the sweep limit). Called from the calling thread only.
+using Progress = std::function<void(std::string_view stage, double fraction)>;
+
+struct SmoothingOptions {
+    // --- which nodes move
+    // Keep every non-interior node where it is (the seed's comparison
+    // protocol: only interior nodes move). Otherwise Surface nodes slide on
+    // their surface (needs a projector); Curve and Fixed nodes never move.
+    bool fixBoundary = false;
+
+    // --- untangling
+    bool untangle = true;
+    int maxUntangleSweeps = 60;
+    // Knupp's beta as a fraction of the cubed local edge length: untangling
+    // aims for every corner determinant >= beta, not just > 0.
+    double untangleBeta = 0.02;
+    // The region around inverted hexes grows by one ring of nodes (at most this
+    // many times) when untangling stalls.
+    int maxUntangleGrowth = 4;
+
+    // --- mean-ratio optimisation
+    int maxSweeps = 100;
+    // Stop when one sweep lowers the objective's excess over its ideal value
+    // (1 per corner) by less than this fraction. Measuring the excess rather
+    // than the total keeps perfect interior cubes from hiding the poor layer.
+    double relativeTolerance = 1e-4;
+    // A node is revisited when it or a node sharing a hex moved more than this
+    // fraction of its local edge length in the previous visit.
+    double moveTolerance = 1e-5;
+    // Nodes of hexes whose inverse mean ratio is at most 1 + this start out
+    // inactive (cubes are already optimal).
+    double activeThreshold = 1e-6;
+    // Newton stops at a node when |gradient| x edge length <= this x corners.
+    double gradientTolerance = 1e-7;
+    NewtonOptions newton;
+
+    // --- surface nodes
+    // Fraction of the tangential move towards the area-weighted centroid of the
+    // surrounding surface quads tried first; it is halved up to
+    // surfaceHalvings times if the move is rejected.
+    double surfaceRelaxation = 1.0;
+    int surfaceHalvings = 3;
+    // Reject a surface move that raises the node's mean-ratio objective (it is
+    // always rejected if it would invert a hex), so the objective never rises.
+    bool surfaceMustNotWorsen = true;
+};
+
+// A hex left with a non-positive corner Jacobian.
+struct TangledHex {
+    Index hex = kNone;
+    Vec3 centroid{};             // mean of its 8 nodes
+    double minDeterminant = 0;   // smallest corner Jacobian determinant
+};
+
+struct SmoothingResult {
+    int untangleSweeps = 0;
+    int sweeps = 0;                       // mean-ratio sweeps
+    std::size_t nodesMoved = 0;           // distinct nodes whose position changed
+    std::size_t nodeUpdates = 0;          // accepted node moves, all sweeps
+    // Mean over hexes of the (8-corner averaged) inverse mean ratio, counting
+    // only hexes with all corner determinants > 0 (it is infinite for others).
+    double objectiveBefore = 0;
+    double objectiveAfterUntangle = 0;
+    double objectiveAfter = 0;
+    std::vector<double> objectiveHistory;  // after each mean-ratio sweep, same measure
+    std::size_t invertedBefore = 0;        // hexes with a corner determinant <= 0
+    std::size_t invertedAfter = 0;
+    std::vector<TangledHex> untangleFailures;  // the hexes still inverted at the end
+    std::size_t movableNodes = 0;
+    int colours = 0;
+    bool converged = false;                // stopped on the tolerance, not on maxSweeps
+    double untangleSeconds = 0;
+    double seconds = 0;                    // whole call, set-up included
+};
+
+// Untangles and optimises `mesh` in place. `projector` may be null, in which
+// case Surface nodes stay fixed. Nodes on the mesh boundary that are
+// classified Interior never move (classify them with classifyBoundaryNodes to
+// let them slide). Throws isohex::Error if mesh arrays disagree or a Surface
+// node names a surface the mesh does not have.
+SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options = {},
+                             const Progress& progress = {});
+
+// Only the untangling stage of optimizeMesh (no mean-ratio sweeps).
+SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options = {}, const Progress& progress = {});
+
+// Inverse mean ratio averaged over a hex's 8 corners, averaged over the hexes
+// where it is finite, with a deterministic parallel sum; `inverted` (if not
+// null) gets the number of hexes with a corner determinant <= 0.
+double meanObjective(const HexMesh& mesh, std::size_t* inverted = nullptr);
+
+}  // namespace isohex::smoothing

@@ -1,0 +1,456 @@
+#include "isohex/smoothing/Optimize.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <cmath>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/Colouring.hpp"
+#include "isohex/smoothing/NodeObjective.hpp"
+
+namespace isohex::smoothing {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+enum class Mode : std::uint8_t { Frozen, Interior, Surface };
+
+// Fixed-size blocks summed in parallel, block sums added in block order: the
+// same floating-point result for any thread count.
+constexpr std::size_t kBlock = 4096;
+
+struct ObjectiveSum {
+    double sum = 0;           // sum of per-hex inverse mean ratios over finite hexes
+    std::size_t finite = 0;   // hexes with all corner determinants > 0
+};
+
+ObjectiveSum objectiveSum(const HexMesh& mesh) {
+    const std::size_t H = mesh.hexCount();
+    const std::size_t blocks = (H + kBlock - 1) / kBlock;
+    std::vector<ObjectiveSum> part(blocks);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks), [&](const auto& r) {
+        for (std::size_t b = r.begin(); b != r.end(); ++b) {
+            ObjectiveSum s;
+            for (std::size_t h = b * kBlock, e = std::min(H, h + kBlock); h < e; ++h) {
+                const double q = inverseMeanRatio(hexCoords(mesh, static_cast<Index>(h)));
+                if (std::isfinite(q)) {
+                    s.sum += q;
+                    ++s.finite;
+                }
+            }
+            part[b] = s;
+        }
+    });
+    ObjectiveSum total;
+    for (const ObjectiveSum& s : part) {
+        total.sum += s.sum;
+        total.finite += s.finite;
+    }
+    return total;
+}
+
+double meanOf(const ObjectiveSum& s) { return s.finite ? s.sum / static_cast<double>(s.finite) : 0.0; }
+
+// Per hex: 1 if some corner determinant is <= 0 (or not a number).
+std::vector<std::uint8_t> invertedFlags(const HexMesh& mesh, std::size_t& count) {
+    std::vector<std::uint8_t> flags(mesh.hexCount());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, flags.size(), kBlock), [&](const auto& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h)
+            flags[h] = !(minCornerDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0);
+    });
+    count = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), std::uint8_t{1}));
+    return flags;
+}
+
+inline void raise(std::uint8_t& flag) { std::atomic_ref<std::uint8_t>(flag).store(1, std::memory_order_relaxed); }
+
+class Smoother {
+public:
+    Smoother(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& opt, const Progress& progress)
+        : mesh_(mesh), projector_(projector), opt_(opt), progress_(progress) {}
+
+    SmoothingResult run(bool meanRatio);
+
+private:
+    void setUp();
+    void untanglePhase();
+    void meanRatioPhase();
+    // One visit of a node: how it moved and where it ends up.
+    struct Visit {
+        NodeMove move;
+        double length = 0;  // local edge length
+        Vec3 position{};    // the new position when move.steps > 0
+    };
+    Visit interiorStep(Index v, std::vector<CornerTerm>& buf) const;
+    Visit surfaceStep(Index v, std::vector<CornerTerm>& buf) const;
+    Visit untangleStep(Index v, std::vector<CornerTerm>& buf) const;
+    static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
+    void report(std::string_view stage, double fraction) const {
+        if (progress_) progress_(stage, std::clamp(fraction, 0.0, 1.0));
+    }
+    template <class Visit>
+    void sweepColours(const std::vector<std::vector<Index>>& lists, Visit visit) {
+        for (const auto& list : lists)
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, list.size(), 16), [&](const auto& r) {
+                for (std::size_t i = r.begin(); i != r.end(); ++i) visit(list[i]);
+            });
+    }
+    void markNeighbours(Index v, std::vector<std::uint8_t>& a, std::vector<std::uint8_t>& b) {
+        for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+            for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)]) {
+                raise(a[static_cast<std::size_t>(u)]);
+                raise(b[static_cast<std::size_t>(u)]);
+            }
+    }
+
+    HexMesh& mesh_;
+    const SurfaceProjector* projector_;
+    const SmoothingOptions& opt_;
+    const Progress& progress_;
+
+    Topology topo_;
+    std::vector<Mode> mode_;
+    NodeColouring colouring_;
+    Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
+    std::size_t maxTerms_ = 0;
+    std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
+    std::vector<std::uint8_t> everMoved_;
+    SmoothingResult result_;
+};
+
+void Smoother::setUp() {
+    mesh_.checkConsistent("mesh to smooth");
+    const std::size_t N = mesh_.nodeCount();
+    topo_ = buildTopology(mesh_);
+
+    mode_.assign(N, Mode::Frozen);
+    bool anySurface = false;
+    for (std::size_t v = 0; v < N; ++v) {
+        if (topo_.nodeHexes.size(v) == 0) continue;
+        const NodeClass& c = mesh_.nodeClass[v];
+        switch (c.kind) {
+            case NodeKind::Interior:
+                // An unclassified boundary node would let the mesh shrink: keep it.
+                if (!topo_.nodeOnBoundary[v]) mode_[v] = Mode::Interior;
+                break;
+            case NodeKind::Surface:
+                if (c.id < 0 || static_cast<std::size_t>(c.id) >= mesh_.surfaces.size())
+                    throw Error("smoothing: node " + std::to_string(v) + " is on surface " + std::to_string(c.id) +
+                                " but the mesh has " + std::to_string(mesh_.surfaces.size()) +
+                                " surfaces; classify the boundary (classifyBoundaryNodes) before smoothing");
+                if (!opt_.fixBoundary && projector_) {
+                    mode_[v] = Mode::Surface;
+                    anySurface = true;
+                }
+                break;
+            default: break;
+        }
+    }
+    // A hex that repeats a node is degenerate; none of its nodes can be moved
+    // with the one-node-per-corner-slot model, so they stay put (and the hex is
+    // reported if it stays inverted).
+    for (const Hex& h : mesh_.hexes)
+        for (int i = 0; i < 8; ++i)
+            for (int j = i + 1; j < 8; ++j)
+                if (h[i] == h[j]) {
+                    for (Index u : h) mode_[static_cast<std::size_t>(u)] = Mode::Frozen;
+                    i = j = 8;
+                }
+
+    std::vector<std::uint8_t> movable(N);
+    for (std::size_t v = 0; v < N; ++v) {
+        movable[v] = mode_[v] != Mode::Frozen;
+        if (movable[v]) {
+            ++result_.movableNodes;
+            maxTerms_ = std::max(maxTerms_, termsPerHex * topo_.nodeHexes.size(v));
+        }
+    }
+    colouring_ = colourNodes(mesh_, topo_.nodeHexes, movable);
+    result_.colours = static_cast<int>(colouring_.classes.size());
+
+    if (anySurface) {
+        // Which of mesh.surfaces each boundary/interface quad belongs to.
+        std::vector<std::int32_t> quadSurface(topo_.quads.size(), -1);
+        for (const SurfacePatch& p : surfacePatches(mesh_, topo_)) {
+            std::int32_t id = -1;
+            for (std::size_t s = 0; s < mesh_.surfaces.size(); ++s)
+                if (mesh_.surfaces[s].inside == p.tag.inside && mesh_.surfaces[s].outside == p.tag.outside)
+                    id = static_cast<std::int32_t>(s);
+            for (Index q : p.quads) quadSurface[static_cast<std::size_t>(q)] = id;
+        }
+        auto& c = nodeSurfaceQuads_;
+        c.offsets.assign(N + 1, 0);
+        auto uses = [&](std::size_t q, Index v) {
+            return mode_[static_cast<std::size_t>(v)] == Mode::Surface && quadSurface[q] >= 0 &&
+                   quadSurface[q] == mesh_.nodeClass[static_cast<std::size_t>(v)].id;
+        };
+        for (std::size_t q = 0; q < topo_.quads.size(); ++q)
+            for (Index v : topo_.quads[q].nodes)
+                if (uses(q, v)) ++c.offsets[static_cast<std::size_t>(v) + 1];
+        for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
+        c.items.resize(static_cast<std::size_t>(c.offsets[N]));
+        std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+        for (std::size_t q = 0; q < topo_.quads.size(); ++q)
+            for (Index v : topo_.quads[q].nodes)
+                if (uses(q, v)) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(q);
+    }
+
+    buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
+        [n = maxTerms_] { return std::vector<CornerTerm>(n); });
+    everMoved_.assign(N, 0);
+}
+
+Smoother::Visit Smoother::interiorStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    r.length = localEdgeLength(buf.data(), n);
+    NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+    r.move = newtonDescent(objective, r.length, opt_.gradientTolerance * static_cast<double>(n) / r.length, opt_.newton);
+    r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
+    return r;
+}
+
+Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double L = r.length = localEdgeLength(buf.data(), n);
+    const double beta = opt_.untangleBeta * L * L * L;
+    UntangleBeta metric{beta, 0.5 * beta};
+    NodeObjective<UntangleBeta> objective(metric, buf.data(), n);
+    // Nothing to do where Knupp's measure is already zero.
+    if (objective.minDeterminant(Vector3::Zero()) >= beta) return r;
+    NewtonOptions newton = opt_.newton;
+    newton.maxIterations = 10;
+    r.move = newtonDescent(objective, L, 1e-9 * static_cast<double>(n) * beta / L, newton);
+    r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
+    return r;
+}
+
+// Centroidal-area smoothing restricted to the tangent plane, then projection
+// back onto the surface; a move is taken only if every adjacent corner stays
+// positive (and, by default, the node's mean-ratio objective does not rise).
+Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    NodeMove& move = r.move;
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double L = r.length = localEdgeLength(buf.data(), n);
+    NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+    const double f0 = objective.value(Vector3::Zero());
+    move.before = move.after = f0;
+    if (!std::isfinite(f0)) return r;
+
+    const auto sv = static_cast<std::size_t>(v);
+    const Vec3& xv = mesh_.nodes[sv];
+    const Vector3 x(xv[0], xv[1], xv[2]);
+    Vector3 centroid = Vector3::Zero(), normal = Vector3::Zero(), firstNormal = Vector3::Zero();
+    double area = 0;
+    for (const Index* q = nodeSurfaceQuads_.begin(sv); q != nodeSurfaceQuads_.end(sv); ++q) {
+        const auto& qn = topo_.quads[static_cast<std::size_t>(*q)].nodes;
+        Vector3 p[4];
+        for (int i = 0; i < 4; ++i) {
+            const Vec3& y = mesh_.nodes[static_cast<std::size_t>(qn[i])];
+            p[i] = Vector3(y[0], y[1], y[2]);
+        }
+        Vector3 an = (p[2] - p[0]).cross(p[3] - p[1]);  // twice the area vector of the quad
+        const double a = 0.5 * an.norm();
+        if (firstNormal.isZero()) firstNormal = an;
+        else if (an.dot(firstNormal) < 0) an = -an;  // interface quads may face either way
+        centroid += a * 0.25 * (p[0] + p[1] + p[2] + p[3]);
+        normal += an;
+        area += a;
+    }
+    if (!(area > 0) || !(normal.norm() > 0)) return r;
+    normal.normalize();
+    Vector3 delta = centroid / area - x;
+    delta -= delta.dot(normal) * normal;
+    if (!(delta.norm() > opt_.moveTolerance * L)) return r;
+
+    const std::int32_t surface = mesh_.nodeClass[sv].id;
+    double omega = opt_.surfaceRelaxation;
+    for (int k = 0; k <= opt_.surfaceHalvings; ++k, omega *= 0.5) {
+        const Vector3 trial = x + omega * delta;
+        const Vec3 y = projector_->project(surface, Vec3{trial[0], trial[1], trial[2]});
+        const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+        if (!d.allFinite()) continue;
+        const double f = objective.value(d);
+        if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+        move.displacement = d;
+        move.after = f;
+        move.steps = 1;
+        r.position = y;  // exactly the projector's point
+        break;
+    }
+    return r;
+}
+
+void Smoother::untanglePhase() {
+    const auto t0 = Clock::now();
+    const std::size_t N = mesh_.nodeCount();
+    std::size_t count = 0;
+    std::vector<std::uint8_t> inverted = invertedFlags(mesh_, count);
+    std::vector<std::uint8_t> region(N, 0);
+    std::vector<std::vector<Index>> lists;
+    auto addInvertedToRegion = [&] {
+        for (std::size_t h = 0; h < inverted.size(); ++h)
+            if (inverted[h])
+                for (Index u : mesh_.hexes[h])
+                    if (mode_[static_cast<std::size_t>(u)] == Mode::Interior) region[static_cast<std::size_t>(u)] = 1;
+    };
+    auto rebuildLists = [&] {
+        lists.assign(colouring_.classes.size(), {});
+        for (std::size_t c = 0; c < colouring_.classes.size(); ++c)
+            for (Index v : colouring_.classes[c])
+                if (region[static_cast<std::size_t>(v)]) lists[c].push_back(v);
+    };
+    addInvertedToRegion();
+    rebuildLists();
+
+    std::size_t best = count;
+    int stall = 0, growth = 0;
+    for (int sweep = 0; sweep < opt_.maxUntangleSweeps && count > 0; ++sweep) {
+        sweepColours(lists, [&](Index v) {
+            const Visit r = untangleStep(v, buffers_->local());
+            if (r.move.steps > 0) {
+                mesh_.nodes[static_cast<std::size_t>(v)] = r.position;
+                everMoved_[static_cast<std::size_t>(v)] = 1;
+            }
+        });
+        ++result_.untangleSweeps;
+        inverted = invertedFlags(mesh_, count);
+        report("untangle", static_cast<double>(sweep + 1) / opt_.maxUntangleSweeps);
+        if (count == 0) break;
+        if (count < best) {
+            best = count;
+            stall = 0;
+        } else if (++stall >= 2) {
+            if (growth >= opt_.maxUntangleGrowth) break;
+            // Stuck: give the inverted hexes more room by freeing one more ring.
+            std::vector<std::uint8_t> grown = region;
+            for (std::size_t v = 0; v < N; ++v)
+                if (region[v])
+                    for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+                        for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)])
+                            if (mode_[static_cast<std::size_t>(u)] == Mode::Interior) grown[static_cast<std::size_t>(u)] = 1;
+            region.swap(grown);
+            ++growth;
+            stall = 0;
+        }
+        addInvertedToRegion();
+        rebuildLists();
+    }
+    report("untangle", 1.0);
+    result_.untangleSeconds = secondsSince(t0);
+}
+
+void Smoother::meanRatioPhase() {
+    const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
+    std::vector<std::uint8_t> active(N, 0), next(N, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, kBlock), [&](const auto& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h)
+            if (!(inverseMeanRatio(hexCoords(mesh_, static_cast<Index>(h))) <= 1.0 + opt_.activeThreshold))
+                for (Index u : mesh_.hexes[h]) raise(active[static_cast<std::size_t>(u)]);
+    });
+
+    const ObjectiveSum start = objectiveSum(mesh_);
+    double total = 8.0 * start.sum;                        // corner sum, the optimised objective
+    const double ideal = 8.0 * static_cast<double>(start.finite);  // every corner perfect
+    std::vector<double> gain(N, 0.0);
+    result_.converged = false;
+
+    for (int sweep = 0; sweep < opt_.maxSweeps; ++sweep) {
+        std::fill(gain.begin(), gain.end(), 0.0);
+        std::fill(next.begin(), next.end(), std::uint8_t{0});
+        std::atomic<std::size_t> updates{0};
+        sweepColours(colouring_.classes, [&](Index v) {
+            const auto sv = static_cast<std::size_t>(v);
+            if (!active[sv]) return;
+            auto& buf = buffers_->local();
+            const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf) : interiorStep(v, buf);
+            if (r.move.steps == 0) return;
+            mesh_.nodes[sv] = r.position;
+            gain[sv] = r.move.before - r.move.after;
+            everMoved_[sv] = 1;
+            updates.fetch_add(1, std::memory_order_relaxed);
+            if (r.move.displacement.norm() > opt_.moveTolerance * r.length) markNeighbours(v, active, next);
+        });
+        active.swap(next);
+        double improvement = 0;
+        for (double g : gain) improvement += g;
+        const double excess = total - ideal;
+        total -= improvement;
+        ++result_.sweeps;
+        result_.nodeUpdates += updates.load();
+        result_.objectiveHistory.push_back(start.finite ? total / ideal : 0.0);
+        report("optimize", static_cast<double>(sweep + 1) / opt_.maxSweeps);
+        if (!(improvement > opt_.relativeTolerance * excess) ||
+            std::find(active.begin(), active.end(), std::uint8_t{1}) == active.end()) {
+            result_.converged = true;
+            break;
+        }
+    }
+    report("optimize", 1.0);
+}
+
+SmoothingResult Smoother::run(bool meanRatio) {
+    const auto t0 = Clock::now();
+    setUp();
+    {
+        const ObjectiveSum s = objectiveSum(mesh_);
+        result_.objectiveBefore = meanOf(s);
+        result_.invertedBefore = mesh_.hexCount() - s.finite;
+    }
+    if (result_.invertedBefore > 0 && opt_.untangle) untanglePhase();
+    result_.objectiveAfterUntangle = meanOf(objectiveSum(mesh_));
+    if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase();
+    else result_.converged = true;
+
+    const ObjectiveSum s = objectiveSum(mesh_);
+    result_.objectiveAfter = meanOf(s);
+    std::size_t count = 0;
+    const std::vector<std::uint8_t> inverted = invertedFlags(mesh_, count);
+    result_.invertedAfter = count;
+    for (std::size_t h = 0; h < inverted.size(); ++h) {
+        if (!inverted[h]) continue;
+        const HexCoords x = hexCoords(mesh_, static_cast<Index>(h));
+        TangledHex t;
+        t.hex = static_cast<Index>(h);
+        for (const Vec3& p : x)
+            for (int i = 0; i < 3; ++i) t.centroid[i] += p[i] / 8.0;
+        t.minDeterminant = minCornerDeterminant(x);
+        result_.untangleFailures.push_back(t);
+    }
+    result_.nodesMoved = static_cast<std::size_t>(std::count(everMoved_.begin(), everMoved_.end(), std::uint8_t{1}));
+    result_.seconds = secondsSince(t0);
+    return result_;
+}
+
+}  // namespace
+
+SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options,
+                             const Progress& progress) {
+    return Smoother(mesh, projector, options, progress).run(true);
+}
+
+SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options, const Progress& progress) {
+    return Smoother(mesh, nullptr, options, progress).run(false);
+}
+
+double meanObjective(const HexMesh& mesh, std::size_t* inverted) {
+    const ObjectiveSum s = objectiveSum(mesh);
+    if (inverted) *inverted = mesh.hexCount() - s.finite;
+    return meanOf(s);
+}
+
+}  // namespace isohex::smoothing

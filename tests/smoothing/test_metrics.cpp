@@ -1,0 +1,145 @@
+// The corner metrics' analytic derivatives against finite differences, and
+// the cube as the minimum of the node objective.
+#include <random>
+
+#include <Eigen/Eigenvalues>
+#include <gtest/gtest.h>
+
+#include "isohex/smoothing/CornerMetrics.hpp"
+#include "isohex/smoothing/NodeObjective.hpp"
+#include "support/Blocks.hpp"
+
+using namespace isohex;
+using namespace isohex::smoothing;
+
+namespace {
+
+// A random corner frame with a clearly positive determinant.
+Matrix3 randomFrame(std::mt19937_64& rng) {
+    std::uniform_real_distribution<double> u(-0.4, 0.4);
+    for (;;) {
+        Matrix3 A = Matrix3::Identity();
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) A(i, j) += u(rng);
+        if (cornerDeterminant(A) > 0.3) return A;
+    }
+}
+
+template <class Metric>
+double valueAt(const Metric& m, Matrix3 A, int role, const Vector3& d) {
+    displaceFrame(A, role, d);
+    return m.value(A);
+}
+
+template <class Metric>
+void expectDerivativesMatchFiniteDifferences(const Metric& metric, const Matrix3& A, double tol) {
+    const double h = 1e-5;
+    for (int role = 0; role < 4; ++role) {
+        CornerDerivatives cd;
+        ASSERT_TRUE(metric.nodeDerivatives(A, role, cd));
+        EXPECT_NEAR(cd.value, metric.value(A), 1e-14 * std::abs(cd.value) + 1e-300);
+        for (int i = 0; i < 3; ++i) {
+            const Vector3 e = Vector3::Unit(i) * h;
+            const double fd = (valueAt(metric, A, role, e) - valueAt(metric, A, role, -e)) / (2 * h);
+            EXPECT_NEAR(cd.gradient[i], fd, tol * (1 + std::abs(fd))) << "role " << role << " component " << i;
+            // Hessian column i from central differences of the analytic gradient.
+            Matrix3 Ap = A, Am = A;
+            displaceFrame(Ap, role, e);
+            displaceFrame(Am, role, -e);
+            CornerDerivatives cp, cm;
+            ASSERT_TRUE(metric.nodeDerivatives(Ap, role, cp));
+            ASSERT_TRUE(metric.nodeDerivatives(Am, role, cm));
+            const Vector3 col = (cp.gradient - cm.gradient) / (2 * h);
+            for (int j = 0; j < 3; ++j)
+                EXPECT_NEAR(cd.hessian(j, i), col[j], tol * (1 + std::abs(col[j])))
+                    << "role " << role << " entry " << j << "," << i;
+        }
+        EXPECT_LT((cd.hessian - cd.hessian.transpose()).norm(), 1e-12 * (1 + cd.hessian.norm()));
+    }
+}
+
+}  // namespace
+
+TEST(InverseMeanRatio, IsOneForAnOrthonormalCornerAndScaleInvariant) {
+    const InverseMeanRatio m;
+    EXPECT_DOUBLE_EQ(m.value(Matrix3::Identity()), 1.0);
+    EXPECT_NEAR(m.value(2.5 * Matrix3::Identity()), 1.0, 1e-15);
+    Matrix3 box = Matrix3::Identity();
+    box(0, 0) = 2;
+    EXPECT_GT(m.value(box), 1.0);
+}
+
+TEST(InverseMeanRatio, IsInfiniteForNonPositiveDeterminant) {
+    const InverseMeanRatio m;
+    Matrix3 flat = Matrix3::Identity();
+    flat(2, 2) = 0;
+    EXPECT_EQ(m.value(flat), std::numeric_limits<double>::infinity());
+    EXPECT_EQ(m.value(-Matrix3::Identity()), std::numeric_limits<double>::infinity());
+    CornerDerivatives cd;
+    EXPECT_FALSE(m.nodeDerivatives(flat, 0, cd));
+}
+
+TEST(InverseMeanRatio, GradientAndHessianMatchFiniteDifferences) {
+    std::mt19937_64 rng(7);
+    for (int trial = 0; trial < 20; ++trial) expectDerivativesMatchFiniteDifferences(InverseMeanRatio{}, randomFrame(rng), 1e-6);
+}
+
+TEST(InverseMeanRatio, OrthonormalCornerIsAStationaryPoint) {
+    for (int role = 0; role < 4; ++role) {
+        CornerDerivatives cd;
+        ASSERT_TRUE(InverseMeanRatio{}.nodeDerivatives(Matrix3::Identity(), role, cd));
+        EXPECT_LT(cd.gradient.norm(), 1e-15);
+        // and a minimum: the Hessian is positive semi-definite
+        const Eigen::SelfAdjointEigenSolver<Matrix3> es(cd.hessian);
+        EXPECT_GT(es.eigenvalues().minCoeff(), -1e-12);
+    }
+}
+
+TEST(UntangleBeta, IsKnuppsMeasureWithoutSmoothing) {
+    const UntangleBeta m{0.1, 0.0};
+    EXPECT_DOUBLE_EQ(m.value(Matrix3::Identity()), 0.0);             // det 1 >= beta
+    EXPECT_NEAR(m.value(-Matrix3::Identity()), 2 * (0.1 + 1.0), 1e-15);  // |t| - t with t = -1.1
+}
+
+TEST(UntangleBeta, GradientAndHessianMatchFiniteDifferences) {
+    std::mt19937_64 rng(11);
+    for (int trial = 0; trial < 20; ++trial) {
+        const Matrix3 A = randomFrame(rng);
+        const double t = cornerDeterminant(A);
+        // beta near the determinant so the smoothed kink is exercised
+        expectDerivativesMatchFiniteDifferences(UntangleBeta{t * 1.05, 0.2 * t}, A, 1e-6);
+        Matrix3 inverted = A;
+        inverted.col(0) = -inverted.col(0);
+        expectDerivativesMatchFiniteDifferences(UntangleBeta{0.1, 0.05}, inverted, 1e-6);
+    }
+}
+
+TEST(NodeObjective, InteriorNodeOfACubeGridHasZeroGradient) {
+    const HexMesh m = test::makeBlock(2, 2, 2, 0.7);
+    const Topology topo = buildTopology(m);
+    const Index centre = 13;  // (1,1,1)
+    std::vector<CornerTerm> terms(32);
+    const std::size_t n = gatherCornerTerms(m, topo.nodeHexes, centre, terms.data());
+    EXPECT_EQ(n, 32u);
+    NodeObjective<InverseMeanRatio> obj(InverseMeanRatio{}, terms.data(), n);
+    Vector3 g;
+    Matrix3 H;
+    EXPECT_NEAR(obj.derivatives(g, H), 32.0, 1e-12);
+    EXPECT_LT(g.norm(), 1e-12);
+    const Eigen::SelfAdjointEigenSolver<Matrix3> es(H);
+    EXPECT_GT(es.eigenvalues().minCoeff(), 0.0);  // a strict local minimum
+    // any small move makes it worse
+    for (int i = 0; i < 3; ++i) EXPECT_GT(obj.value(Vector3::Unit(i) * 0.01), 32.0);
+}
+
+TEST(NodeObjective, GatheredTermsReproduceTheNodeCorners) {
+    // Every term is a corner that contains the node; their number is 4 per hex.
+    const HexMesh m = test::makeBlock(3, 2, 1);
+    const Topology topo = buildTopology(m);
+    std::vector<CornerTerm> terms(64);
+    for (std::size_t v = 0; v < m.nodeCount(); ++v) {
+        const std::size_t n = gatherCornerTerms(m, topo.nodeHexes, static_cast<Index>(v), terms.data());
+        EXPECT_EQ(n, 4 * topo.nodeHexes.size(v));
+        for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(cornerDeterminant(terms[i].A), 1.0, 1e-15);
+    }
+}
