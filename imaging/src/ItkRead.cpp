@@ -1,0 +1,546 @@
+// Every ITK reader of the module lives in this one translation unit (ITK's
+// templates are expensive to compile). It turns a file or folder into a
+// RawVolume: a dense float or int32 array plus origin, spacing and direction.
+#include <algorithm>
+#include <cmath>
+#include <cctype>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <itkGDCMImageIO.h>
+#include <itkGDCMSeriesFileNames.h>
+#include <itkImage.h>
+#include <itkImageFileReader.h>
+#include <itkImageIOFactory.h>
+#include <itkImageSeriesReader.h>
+#include <itkTIFFImageIO.h>
+#include <itkVectorImage.h>
+#include <zlib.h>
+
+#include "RawVolume.hpp"
+#include "isohex/core/Error.hpp"
+
+namespace isohex::imaging::detail {
+namespace {
+
+using FloatImage3 = itk::Image<float, 3>;
+using VectorImage4 = itk::VectorImage<float, 4>;
+
+std::string formatName(const itk::ImageIOBase& io) {
+    const std::string n = io.GetNameOfClass();
+    if (n == "NiftiImageIO") return "NIfTI";
+    if (n == "NrrdImageIO") return "NRRD";
+    if (n == "MetaImageIO") return "MetaImage";
+    if (n == "TIFFImageIO") return "TIFF";
+    if (n == "GDCMImageIO") return "DICOM";
+    return n;
+}
+
+std::string componentName(itk::IOComponentEnum c) {
+    switch (c) {
+        case itk::IOComponentEnum::UCHAR: return "uint8";
+        case itk::IOComponentEnum::CHAR: return "int8";
+        case itk::IOComponentEnum::USHORT: return "uint16";
+        case itk::IOComponentEnum::SHORT: return "int16";
+        case itk::IOComponentEnum::UINT: return "uint32";
+        case itk::IOComponentEnum::INT: return "int32";
+        case itk::IOComponentEnum::ULONG: return "uint64";
+        case itk::IOComponentEnum::LONG: return "int64";
+        case itk::IOComponentEnum::ULONGLONG: return "uint64";
+        case itk::IOComponentEnum::LONGLONG: return "int64";
+        case itk::IOComponentEnum::FLOAT: return "float32";
+        case itk::IOComponentEnum::DOUBLE: return "float64";
+        default: return "unknown";
+    }
+}
+
+bool isIntegerComponent(itk::IOComponentEnum c) {
+    return c != itk::IOComponentEnum::FLOAT && c != itk::IOComponentEnum::DOUBLE &&
+           c != itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
+}
+
+std::string describe(const itk::ExceptionObject& e) {
+    std::string d = e.GetDescription();
+    while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
+    return d;
+}
+
+// Label maps travel as float through ITK (one read path for every format);
+// float holds every integer up to 2^24 exactly, which bounds the label values.
+void convertToLabels(RawVolume& raw, const std::string& file, bool integerFile) {
+    constexpr float kMaxExact = 16777216.0f;
+    std::int64_t bad = 0;
+    float example = 0.0f;
+    raw.labels.resize(raw.values.size());
+    for (std::size_t i = 0; i < raw.values.size(); ++i) {
+        const float v = raw.values[i];
+        if (!std::isfinite(v) || std::nearbyint(v) != v || std::fabs(v) > kMaxExact) {
+            if (bad++ == 0) example = v;
+            continue;
+        }
+        raw.labels[i] = static_cast<std::int32_t>(v);
+    }
+    if (bad > 0) {
+        std::ostringstream m;
+        m << file << ": cannot read as a label map: " << bad << " voxels are not integer labels"
+          << " (e.g. " << example << ")"
+          << (integerFile ? ", or exceed 16777216" : "; the image holds real-valued intensities")
+          << ". Read it as an intensity image (no labels option) and select by iso value instead.";
+        throw Error(m.str());
+    }
+    raw.values.clear();
+    raw.values.shrink_to_fit();
+}
+
+template <class ImageT>
+void copyGeometry(const ImageT& image, RawVolume& raw) {
+    const auto& o = image.GetOrigin();
+    const auto& s = image.GetSpacing();
+    const auto& d = image.GetDirection();
+    for (int a = 0; a < 3; ++a) {
+        raw.origin[a] = o[a];
+        raw.spacing[a] = s[a];
+        for (int b = 0; b < 3; ++b) raw.direction[3 * a + b] = d(a, b);
+    }
+}
+
+void checkGeometry(const RawVolume& raw, const std::string& file) {
+    for (int a = 0; a < 3; ++a) {
+        if (!(raw.spacing[a] > 0.0) || !std::isfinite(raw.spacing[a])) {
+            std::ostringstream m;
+            m << file << ": voxel spacing along axis " << a << " is " << raw.spacing[a]
+              << "; it must be a positive number. Fix the header (e.g. pixdim in NIfTI) and retry.";
+            throw Error(m.str());
+        }
+        if (!std::isfinite(raw.origin[a])) {
+            throw Error(file + ": the image origin is not a finite number; fix the header and retry.");
+        }
+    }
+    const auto& D = raw.direction;
+    const double det = D[0] * (D[4] * D[8] - D[5] * D[7]) - D[1] * (D[3] * D[8] - D[5] * D[6]) +
+                       D[2] * (D[3] * D[7] - D[4] * D[6]);
+    if (!(std::fabs(det) > 1e-6)) {
+        throw Error(file + ": the direction cosines are singular (determinant " +
+                    std::to_string(det) + "); fix the orientation in the header and retry.");
+    }
+}
+
+// NIfTI's reader zero-fills missing voxel bytes of an uncompressed .nii with
+// only a debug message, so check the size against the header ourselves.
+void checkNiftiSize(const std::string& file, std::uint64_t dataBytes) {
+    std::ifstream in(file, std::ios::binary);
+    unsigned char h[548] = {};
+    in.read(reinterpret_cast<char*>(h), sizeof h);
+    if (in.gcount() < 352) return;  // too short for a header; ITK has judged it already
+    auto u32 = [&](int at, bool swap) {
+        std::uint32_t v;
+        std::memcpy(&v, h + at, 4);
+        return swap ? __builtin_bswap32(v) : v;
+    };
+    double voxOffset = -1.0;
+    for (bool swap : {false, true}) {
+        if (u32(0, swap) == 348) {  // NIfTI-1: float vox_offset at byte 108
+            const std::uint32_t bits = u32(108, swap);
+            float f;
+            std::memcpy(&f, &bits, 4);
+            voxOffset = f;
+        } else if (u32(0, swap) == 540) {  // NIfTI-2: int64 vox_offset at byte 168
+            std::uint64_t v;
+            std::memcpy(&v, h + 168, 8);
+            voxOffset = double(swap ? __builtin_bswap64(v) : v);
+        }
+    }
+    if (voxOffset < 0) return;
+    const std::uint64_t need = std::uint64_t(voxOffset) + dataBytes;
+    const std::uint64_t have = std::filesystem::file_size(file);
+    if (have < need) {
+        throw Error(file + ": the voxel data is truncated: the header promises " + std::to_string(need) +
+                    " bytes but the file has " + std::to_string(have) +
+                    ". Copy or export the file again.");
+    }
+}
+
+[[noreturn]] void truncated(const std::string& file, std::uint64_t need, std::uint64_t have,
+                            const char* what) {
+    throw Error(file + ": the voxel data is truncated: the header promises " + std::to_string(need) +
+                " " + what + " but the file has " + std::to_string(have) +
+                ". Copy or export the file again.");
+}
+
+// Uncompressed bytes in a gzip file, reading it through to the end. A cut
+// gzip stream ends early, which the NIfTI reader would zero-fill silently.
+std::uint64_t gunzippedSize(const std::string& file) {
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return 0;
+    std::vector<char> chunk(1 << 20);
+    std::uint64_t total = 0;
+    for (int n; (n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0;) total += n;
+    gzclose(gz);
+    return total;
+}
+
+void checkGzipNiftiSize(const std::string& file, std::uint64_t dataBytes) {
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return;
+    unsigned char h[548] = {};
+    const int got = gzread(gz, h, sizeof h);
+    gzclose(gz);
+    if (got < 352) return;
+    std::uint32_t sizeofHdr;
+    std::memcpy(&sizeofHdr, h, 4);
+    const bool swap = sizeofHdr != 348 && sizeofHdr != 540;
+    if (swap) sizeofHdr = __builtin_bswap32(sizeofHdr);
+    double voxOffset;
+    if (sizeofHdr == 348) {
+        std::uint32_t bits;
+        std::memcpy(&bits, h + 108, 4);
+        if (swap) bits = __builtin_bswap32(bits);
+        float f;
+        std::memcpy(&f, &bits, 4);
+        voxOffset = f;
+    } else if (sizeofHdr == 540) {
+        std::uint64_t v;
+        std::memcpy(&v, h + 168, 8);
+        voxOffset = double(swap ? __builtin_bswap64(v) : v);
+    } else {
+        return;
+    }
+    const std::uint64_t need = std::uint64_t(std::max(voxOffset, 352.0)) + dataBytes;
+    const std::uint64_t have = gunzippedSize(file);
+    if (have < need) truncated(file, need, have, "uncompressed bytes");
+}
+
+// MetaImage: the data follows the header line "ElementDataFile = ..." (LOCAL)
+// or sits in the named file; MetaIO reads short data with only a warning.
+void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
+    std::ifstream in(file, std::ios::binary);
+    std::string line, dataFile;
+    std::uint64_t compressedSize = 0;
+    bool compressed = false;
+    while (std::getline(in, line)) {
+        const auto eq = line.find('=');
+        if (eq == std::string::npos) continue;
+        std::string key = line.substr(0, eq), value = line.substr(eq + 1);
+        auto trim = [](std::string& t) {
+            while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+            while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(0, 1);
+        };
+        trim(key);
+        trim(value);
+        if (key == "CompressedData") compressed = value == "True" || value == "true";
+        if (key == "CompressedDataSize") compressedSize = std::strtoull(value.c_str(), nullptr, 10);
+        if (key == "ElementDataFile") {
+            dataFile = value;
+            break;
+        }
+    }
+    if (dataFile.empty() || dataFile == "LIST" || dataFile.find('%') != std::string::npos) return;
+    std::uint64_t need = compressed ? compressedSize : dataBytes;
+    if (need == 0) return;
+    std::uint64_t have;
+    if (dataFile == "LOCAL") {
+        const auto headerEnd = static_cast<std::uint64_t>(in.tellg());
+        need += headerEnd;
+        have = std::filesystem::file_size(file);
+    } else {
+        const auto path = std::filesystem::path(file).parent_path() / dataFile;
+        std::error_code ec;
+        have = std::filesystem::file_size(path, ec);
+        if (ec) {
+            throw Error(file + ": its voxel data file '" + path.string() +
+                        "' is missing; keep the .mhd header and its data file together.");
+        }
+    }
+    if (have < need) truncated(file, need, have, "bytes");
+}
+
+}  // namespace
+
+RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
+    const std::string file = path.string();
+    itk::ImageIOBase::Pointer io =
+        itk::ImageIOFactory::CreateImageIO(file.c_str(), itk::IOFileModeEnum::ReadMode);
+    if (!io) {
+        throw Error(file + ": not a readable image: no reader recognises its header (damaged "
+                    "file, or a format other than NIfTI, NRRD, MetaImage, TIFF, DICOM, OpenVDB). "
+                    "Check that the file is complete and its extension matches its content.");
+    }
+    io->SetFileName(file);
+    try {
+        io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(file + ": the " + formatName(*io) + " header cannot be read (" + describe(e) +
+                    "). The file is damaged or not a " + formatName(*io) + " file; re-export it.");
+    }
+
+    RawHeader header;
+    header.dimensions = static_cast<int>(io->GetNumberOfDimensions());
+    header.components = static_cast<int>(io->GetNumberOfComponents());
+    header.bytesPerComponent = static_cast<int>(io->GetComponentSize());
+    for (int a = 0; a < std::min(header.dimensions, 4); ++a) header.size[a] = io->GetDimensions(a);
+
+    const auto pixel = io->GetPixelType();
+    const auto component = io->GetComponentType();
+    if (pixel == itk::IOPixelEnum::COMPLEX || component == itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE) {
+        throw Error(file + ": unsupported pixel type '" +
+                    itk::ImageIOBase::GetPixelTypeAsString(pixel) + "' of " +
+                    itk::ImageIOBase::GetComponentTypeAsString(component) +
+                    "; isohex reads real-valued scalar images (integer or float). Convert it to "
+                    "a scalar image first (e.g. the magnitude of complex data).");
+    }
+    if (header.dimensions < 3 || header.dimensions > 4) {
+        std::ostringstream m;
+        m << file << ": a " << header.dimensions
+          << "-D image; isohex needs a 3-D volume (or a 4-D image with the volume index option).";
+        if (header.dimensions == 2) m << " For a stack of 2-D slices pass the folder holding them.";
+        throw Error(m.str());
+    }
+    const std::int64_t frames = header.size[3];
+    const std::int64_t choices = frames * header.components;
+    if (choices > 1) {
+        std::ostringstream what;
+        if (frames > 1 && header.components > 1)
+            what << frames << " volumes of " << header.components << " components each";
+        else if (frames > 1)
+            what << "a 4-D image of " << frames << " volumes";
+        else
+            what << header.components << " components per voxel ("
+                 << itk::ImageIOBase::GetPixelTypeAsString(pixel) << ")";
+        if (options.volumeIndex < 0) {
+            throw Error(file + ": holds " + what.str() +
+                        "; isohex meshes one scalar volume. Choose one with the volume index "
+                        "option (0.." + std::to_string(choices - 1) + ").");
+        }
+        if (options.volumeIndex >= choices) {
+            throw Error(file + ": volume index " + std::to_string(options.volumeIndex) +
+                        " is out of range; the file holds " + what.str() + ", so use 0.." +
+                        std::to_string(choices - 1) + ".");
+        }
+    }
+    checkMemoryBudget(file, header, options.maxMemoryMB);
+    {
+        const auto bytes = static_cast<std::uint64_t>(io->GetImageSizeInBytes());
+        std::string name = path.filename().string();
+        for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        auto endsWith = [&](const char* e) {
+            const std::size_t n = std::strlen(e);
+            return name.size() >= n && name.compare(name.size() - n, n, e) == 0;
+        };
+        if (endsWith(".nii")) checkNiftiSize(file, bytes);
+        if (endsWith(".nii.gz")) checkGzipNiftiSize(file, bytes);
+        if (endsWith(".mha") || endsWith(".mhd")) checkMetaImageSize(file, bytes);
+    }
+
+    auto reader = itk::ImageFileReader<VectorImage4>::New();
+    reader->SetImageIO(io);
+    reader->SetFileName(file);
+    if (options.progress) options.progress("read", 0.0);
+    try {
+        reader->Update();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(file + ": the voxel data cannot be read (" + describe(e) +
+                    "). The file is probably truncated or damaged; copy or export it again.");
+    } catch (const std::bad_alloc&) {
+        throw Error(file + ": out of memory while reading the voxel data; use a machine with "
+                    "more memory or crop/downsample the scan first.");
+    }
+    if (options.progress) options.progress("read", 1.0);
+    VectorImage4::Pointer image = reader->GetOutput();
+    const auto size = image->GetLargestPossibleRegion().GetSize();
+
+    RawVolume raw;
+    raw.format = formatName(*io);
+    raw.pixelType = componentName(component);
+    for (int a = 0; a < 3; ++a) raw.dims[a] = static_cast<std::int64_t>(size[a]);
+    copyGeometry(*image, raw);
+
+    const std::int64_t n = raw.count();
+    const int comps = static_cast<int>(image->GetNumberOfComponentsPerPixel());
+    const std::int64_t pick = std::max(options.volumeIndex, 0);
+    const std::int64_t frame = choices > 1 ? pick / comps : 0;
+    const int comp = choices > 1 ? static_cast<int>(pick % comps) : 0;
+    const float* buffer = image->GetBufferPointer();
+    raw.values.resize(static_cast<std::size_t>(n));
+    const float* base = buffer + frame * n * comps + comp;
+    if (comps == 1) {
+        std::copy(base, base + n, raw.values.begin());
+    } else {
+        for (std::int64_t i = 0; i < n; ++i) raw.values[i] = base[i * comps];
+    }
+    image = nullptr;
+    reader = nullptr;
+
+    // TIFF carries no usable physical geometry; the caller supplies it.
+    if (raw.format == "TIFF") {
+        raw.spacing = options.sliceSpacing;
+        raw.origin = options.sliceOrigin;
+        raw.direction = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    }
+    checkGeometry(raw, file);
+    if (options.labels) convertToLabels(raw, file, isIntegerComponent(component));
+    return raw;
+}
+
+RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions& options) {
+    const std::string folder = dir.string();
+    auto names = itk::GDCMSeriesFileNames::New();
+    // Series details split series that share a UID but differ in orientation or
+    // size; it must be set before the directory is scanned.
+    names->SetUseSeriesDetails(true);
+    names->SetGlobalWarningDisplay(false);
+    std::vector<std::string> ids;
+    try {
+        names->SetDirectory(folder);
+        ids = names->GetSeriesUIDs();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(folder + ": scanning for DICOM files failed (" + describe(e) + ").");
+    }
+    if (ids.empty()) {
+        throw Error(folder + ": no DICOM series, .exr slices or .tif slices found in this folder. "
+                    "Pass a folder of DICOM files (one series), a folder of slices, or an image file.");
+    }
+    struct Series {
+        std::string id;
+        std::vector<std::string> files;
+    };
+    std::vector<Series> series;
+    for (const auto& id : ids) series.push_back({id, names->GetFileNames(id)});
+
+    auto listing = [&] {
+        std::ostringstream m;
+        for (const auto& s : series) m << "\n  " << s.id << "  (" << s.files.size() << " slices)";
+        return m.str();
+    };
+    const Series* chosen = nullptr;
+    if (!options.seriesUid.empty()) {
+        // With series details the ids are the SeriesInstanceUID followed by
+        // more fields; accept the plain UID as a prefix.
+        std::vector<const Series*> hits;
+        for (const auto& s : series)
+            if (s.id == options.seriesUid || s.id.rfind(options.seriesUid, 0) == 0) hits.push_back(&s);
+        if (hits.size() != 1) {
+            throw Error(folder + ": series '" + options.seriesUid + "' " +
+                        (hits.empty() ? "is not in this folder" : "matches several series") +
+                        ". The folder holds:" + listing() + "\nPass one of these as the series UID.");
+        }
+        chosen = hits.front();
+    } else {
+        std::size_t most = 0;
+        for (const auto& s : series) most = std::max(most, s.files.size());
+        std::vector<const Series*> largest;
+        for (const auto& s : series)
+            if (s.files.size() == most) largest.push_back(&s);
+        if (largest.size() > 1) {
+            throw Error(folder + ": holds " + std::to_string(series.size()) +
+                        " DICOM series and several have the most slices (" + std::to_string(most) +
+                        "), so which to mesh is ambiguous:" + listing() +
+                        "\nChoose one with the series UID option.");
+        }
+        chosen = largest.front();
+    }
+    if (chosen->files.size() < 2) {
+        throw Error(folder + ": DICOM series " + chosen->id + " has a single slice; isohex needs "
+                    "a 3-D volume (a series of at least two slices).");
+    }
+
+    auto io = itk::GDCMImageIO::New();
+    try {
+        io->SetFileName(chosen->files.front());
+        io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(chosen->files.front() + ": the DICOM header cannot be read (" + describe(e) +
+                    "); the file is damaged, remove or replace it.");
+    }
+    if (io->GetNumberOfComponents() != 1) {
+        throw Error(chosen->files.front() + ": DICOM images with " +
+                    std::to_string(io->GetNumberOfComponents()) +
+                    " components per pixel (colour) are not supported; isohex needs greyscale.");
+    }
+    RawHeader header;
+    header.size = {static_cast<std::int64_t>(io->GetDimensions(0)),
+                   static_cast<std::int64_t>(io->GetDimensions(1)),
+                   static_cast<std::int64_t>(chosen->files.size()), 1};
+    header.bytesPerComponent = 4;  // read as float after rescaling
+    checkMemoryBudget(folder, header, options.maxMemoryMB);
+
+    auto reader = itk::ImageSeriesReader<FloatImage3>::New();
+    reader->SetImageIO(io);
+    reader->SetFileNames(chosen->files);  // ordered along the slice normal
+    if (options.progress) options.progress("read", 0.0);
+    try {
+        reader->Update();  // GDCMImageIO applies rescale slope and intercept
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(folder + ": reading DICOM series " + chosen->id + " failed (" + describe(e) +
+                    "). A slice is probably truncated or damaged.");
+    }
+    if (options.progress) options.progress("read", 1.0);
+    FloatImage3::Pointer image = reader->GetOutput();
+    RawVolume raw;
+    raw.format = "DICOM";
+    raw.pixelType = componentName(io->GetInternalComponentType());
+    std::string uid;
+    if (itk::ExposeMetaData<std::string>(io->GetMetaDataDictionary(), "0020|000e", uid)) {
+        while (!uid.empty() && (uid.back() == ' ' || uid.back() == '\0')) uid.pop_back();
+        raw.seriesUid = uid;
+    } else {
+        raw.seriesUid = chosen->id;
+    }
+    const auto size = image->GetLargestPossibleRegion().GetSize();
+    for (int a = 0; a < 3; ++a) raw.dims[a] = static_cast<std::int64_t>(size[a]);
+    copyGeometry(*image, raw);
+    raw.values.assign(image->GetBufferPointer(), image->GetBufferPointer() + raw.count());
+    image = nullptr;
+    checkGeometry(raw, folder);
+    if (options.labels) convertToLabels(raw, folder, true);
+    return raw;
+}
+
+RawVolume readTiffSlicesItk(const std::vector<std::filesystem::path>& files,
+                            const LoadOptions& options) {
+    const std::string folder = files.front().parent_path().string();
+    auto io = itk::TIFFImageIO::New();
+    io->SetFileName(files.front().string());
+    try {
+        io->ReadImageInformation();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(files.front().string() + ": the TIFF header cannot be read (" + describe(e) + ").");
+    }
+    if (io->GetNumberOfComponents() != 1) {
+        throw Error(files.front().string() + ": TIFF slices with " +
+                    std::to_string(io->GetNumberOfComponents()) +
+                    " channels are not supported; save single-channel (greyscale) slices.");
+    }
+    RawHeader header;
+    header.size = {static_cast<std::int64_t>(io->GetDimensions(0)),
+                   static_cast<std::int64_t>(io->GetDimensions(1)),
+                   static_cast<std::int64_t>(files.size()), 1};
+    header.bytesPerComponent = 4;
+    checkMemoryBudget(folder, header, options.maxMemoryMB);
+
+    auto reader = itk::ImageSeriesReader<FloatImage3>::New();
+    reader->SetImageIO(io);
+    std::vector<std::string> names;
+    for (const auto& f : files) names.push_back(f.string());
+    reader->SetFileNames(names);
+    try {
+        reader->Update();
+    } catch (const itk::ExceptionObject& e) {
+        throw Error(folder + ": reading the TIFF slices failed (" + describe(e) +
+                    "). Check that all slices have the same size and none is damaged.");
+    }
+    FloatImage3::Pointer image = reader->GetOutput();
+    RawVolume raw;
+    raw.format = "TIFF";
+    raw.pixelType = componentName(io->GetComponentType());
+    const auto size = image->GetLargestPossibleRegion().GetSize();
+    for (int a = 0; a < 3; ++a) raw.dims[a] = static_cast<std::int64_t>(size[a]);
+    raw.values.assign(image->GetBufferPointer(), image->GetBufferPointer() + raw.count());
+    raw.spacing = options.sliceSpacing;
+    raw.origin = options.sliceOrigin;
+    checkGeometry(raw, folder);
+    if (options.labels) convertToLabels(raw, folder, isIntegerComponent(io->GetComponentType()));
+    return raw;
+}
+
+}  // namespace isohex::imaging::detail
