@@ -1,0 +1,314 @@
+// select(): from a loaded volume to one implicit field per material.
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include "DenseGrid.hpp"
+#include "RawVolume.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/imaging/Selection.hpp"
+
+namespace isohex::imaging {
+namespace {
+
+std::int64_t countBelowZero(const std::vector<float>& v) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, v.size(), 1 << 16), std::int64_t(0),
+        [&](const tbb::blocked_range<std::size_t>& r, std::int64_t n) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) n += v[i] < 0.0f;
+            return n;
+        },
+        std::plus<>());
+}
+
+std::string describeVolume(const Volume& v) {
+    return v.source.empty() ? std::string("the volume") : v.source;
+}
+
+Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
+    Selection sel;
+    const std::string src = describeVolume(vol);
+    if (o.progress) o.progress("select", 0.0);
+    std::vector<float> values = detail::gridToDense(*vol.intensity, vol.box);
+    bool insideBelow = o.insideBelow;
+
+    std::optional<double> iso = o.iso;
+    if (iso) {
+        if (!std::isfinite(*iso) || !(*iso > vol.minValue && *iso < vol.maxValue)) {
+            std::ostringstream m;
+            m.precision(7);
+            m << src << ": iso value " << *iso << " is outside the data range [" << vol.minValue
+              << ", " << vol.maxValue << "], so no surface crosses it. Choose an iso value "
+              << "strictly inside that range, or omit it to let Otsu's method choose.";
+            throw Error(m.str());
+        }
+    } else if (vol.levelSet) {
+        iso = 0.0;  // a signed distance: the zero set, negative inside
+        insideBelow = true;
+    } else {
+        if (vol.nonFiniteVoxels > 0) {
+            std::vector<float> finite;
+            finite.reserve(values.size());
+            for (float v : values)
+                if (std::isfinite(v)) finite.push_back(v);
+            iso = detail::otsuThresholdItk(finite);
+        } else {
+            iso = detail::otsuThresholdItk(values);
+        }
+        sel.isoFromOtsu = true;
+    }
+
+    // NaN / Inf voxels (kept only with nanAsOutside) become the most outside
+    // value so that neither smoothing nor interpolation turns them inside.
+    const float outsideValue = float(insideBelow ? vol.maxValue : vol.minValue);
+    if (vol.nonFiniteVoxels > 0) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size()), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i)
+                if (!std::isfinite(values[i])) values[i] = outsideValue;
+        });
+    }
+    if (o.smoothSigma > 0.0) gaussianSmooth(values, vol.box.dim(), vol.spacing, o.smoothSigma);
+
+    const float isoF = float(*iso);
+    const float sign = insideBelow ? 1.0f : -1.0f;  // field = sign * (v - iso) < 0 inside
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values.size()), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) values[i] = sign * (values[i] - isoF);
+    });
+    const std::int64_t inside = countBelowZero(values);
+    if (inside == 0) {
+        std::ostringstream m;
+        m << src << ": no voxel is " << (insideBelow ? "below" : "above") << " the iso value "
+          << *iso << (o.smoothSigma > 0 ? " after smoothing" : "")
+          << ", so the selection is empty. Choose another iso value"
+          << (o.smoothSigma > 0 ? " or less smoothing." : ".");
+        throw Error(m.str());
+    }
+    // Outside the scanned box the field keeps the value of the most outside voxel.
+    const float background = std::max(sign * (outsideValue - isoF), 1e-6f);
+    auto grid = detail::denseToGrid(values.data(), vol.box, background,
+                                    vol.intensity->transform().copy());
+    grid->setName("material_1");
+    sel.materials.push_back({1, inside, ImplicitField(grid, o.interpolation)});
+    sel.iso = iso;
+    sel.insideBelow = insideBelow;
+    if (o.progress) o.progress("select", 1.0);
+    return sel;
+}
+
+struct LabelStat {
+    std::int64_t voxels = 0;
+    openvdb::CoordBBox box;  // default-constructed = empty
+};
+using LabelStats = std::map<std::int32_t, LabelStat>;
+
+LabelStats labelStatistics(const openvdb::Int32Grid& grid) {
+    using TreeT = openvdb::Int32Tree;
+    openvdb::tree::LeafManager<const TreeT> leaves(grid.tree());
+    // Counts and boxes merge the same way in any order: thread-count independent.
+    struct Op {
+        LabelStats stats;
+        Op() = default;
+        Op(const Op&, tbb::split) {}
+        void operator()(const TreeT::LeafNodeType& leaf, std::size_t) {
+            for (auto it = leaf.cbeginValueOn(); it; ++it) {
+                auto& s = stats[*it];
+                ++s.voxels;
+                s.box.expand(it.getCoord());
+            }
+        }
+        void join(const Op& other) {
+            for (const auto& [label, s] : other.stats) {
+                auto& mine = stats[label];
+                mine.voxels += s.voxels;
+                mine.box.expand(s.box);
+            }
+        }
+    } op;
+    leaves.reduce(op);
+    // Active tiles (possible in a .vdb label grid) are counted whole.
+    for (auto it = grid.tree().cbeginValueOn(); it; ++it) {
+        if (it.isVoxelValue()) continue;
+        auto& s = op.stats[*it];
+        s.voxels += static_cast<std::int64_t>(it.getVoxelCount());
+        openvdb::CoordBBox b;
+        it.getBoundingBox(b);
+        s.box.expand(b);
+    }
+    return op.stats;
+}
+
+Selection selectLabels(const Volume& vol, const SelectOptions& o) {
+    Selection sel;
+    const std::string src = describeVolume(vol);
+    const LabelStats stats = labelStatistics(*vol.labels);
+    auto present = [&] {
+        std::ostringstream m;
+        int shown = 0;
+        for (const auto& [label, s] : stats) {
+            if (label == 0) continue;
+            if (shown++ == 40) {
+                m << " ...";
+                break;
+            }
+            m << (shown > 1 ? ", " : "") << label << " (" << s.voxels << " voxels)";
+        }
+        return shown ? m.str() : std::string("none");
+    };
+
+    std::vector<std::int32_t> wanted;
+    if (o.labels.empty()) {
+        for (const auto& [label, s] : stats)
+            if (label != 0) wanted.push_back(label);
+        if (wanted.empty()) {
+            throw Error(src + ": every voxel is label 0 (background), so there is nothing to mesh. "
+                        "Check that this is the right label map.");
+        }
+    } else {
+        std::vector<std::int32_t> missing;
+        for (std::int32_t l : o.labels) {
+            if (l == 0) {
+                throw Error(src + ": label 0 is the background and cannot be meshed as a material; "
+                            "remove it from the label list.");
+            }
+            if (!stats.count(l))
+                missing.push_back(l);
+            else if (std::find(wanted.begin(), wanted.end(), l) == wanted.end())
+                wanted.push_back(l);
+        }
+        if (!missing.empty()) {
+            std::ostringstream m;
+            m << src << ": label" << (missing.size() > 1 ? "s " : " ");
+            for (std::size_t i = 0; i < missing.size(); ++i) m << (i ? ", " : "") << missing[i];
+            m << (missing.size() > 1 ? " are" : " is") << " not in the label map"
+              << (wanted.empty() ? ", so the selection is empty" : "")
+              << ". Labels present: " << present() << ".";
+            throw Error(m.str());
+        }
+        std::sort(wanted.begin(), wanted.end());
+    }
+
+    std::vector<std::int32_t> kept;
+    for (std::int32_t l : wanted) {
+        const auto& s = stats.at(l);
+        if (s.voxels < o.minLabelVoxels)
+            sel.dropped.push_back({l, s.voxels});
+        else
+            kept.push_back(l);
+    }
+    if (kept.empty()) {
+        std::ostringstream m;
+        m << src << ": every selected label has fewer than " << o.minLabelVoxels
+          << " voxels (the min-label-voxels option), so the selection is empty:";
+        for (const auto& d : sel.dropped) m << " " << d.label << " (" << d.voxels << ")";
+        m << ". Lower min-label-voxels or select larger labels.";
+        throw Error(m.str());
+    }
+
+    const Vec3& sp = vol.spacing;
+    for (std::size_t n = 0; n < kept.size(); ++n) {
+        const std::int32_t label = kept[n];
+        if (o.progress) o.progress("select", double(n) / double(kept.size()));
+        // The label's box plus room for the blur and for the zero crossing.
+        openvdb::CoordBBox region = stats.at(label).box;
+        openvdb::Coord pad;
+        for (int a = 0; a < 3; ++a)
+            pad[a] = 2 + (o.smoothSigma > 0 ? int(std::ceil(3.0 * o.smoothSigma / sp[a])) : 0);
+        region.min() -= pad;
+        region.max() += pad;
+        const openvdb::Coord d = region.dim();
+        std::vector<float> indicator(static_cast<std::size_t>(region.volume()), 0.0f);
+        tbb::parallel_for(tbb::blocked_range<int>(0, d.z()), [&](const tbb::blocked_range<int>& r) {
+            // One read-only accessor per task; nothing is written through it.
+            openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(vol.labels->tree());
+            for (int z = r.begin(); z != r.end(); ++z)
+                for (int y = 0; y < d.y(); ++y) {
+                    std::size_t i = static_cast<std::size_t>(d.x()) * (y + std::size_t(d.y()) * z);
+                    for (int x = 0; x < d.x(); ++x, ++i) {
+                        const openvdb::Coord c = region.min().offsetBy(x, y, z);
+                        indicator[i] = acc.getValue(c) == label ? 1.0f : 0.0f;
+                    }
+                }
+        });
+        if (o.smoothSigma > 0.0) gaussianSmooth(indicator, d, sp, o.smoothSigma);
+        for (auto& v : indicator) v = 0.5f - v;
+        const std::int64_t inside = countBelowZero(indicator);
+        if (inside == 0) {
+            throw Error(src + ": label " + std::to_string(label) +
+                        " vanishes after Gaussian smoothing with sigma " +
+                        std::to_string(o.smoothSigma) + "; use less smoothing or drop the label.");
+        }
+        auto grid = detail::denseToGrid(indicator.data(), region, 0.5f,
+                                        vol.labels->transform().copy());
+        grid->setName("label_" + std::to_string(label));
+        sel.materials.push_back({label, stats.at(label).voxels, ImplicitField(grid, o.interpolation)});
+    }
+    if (o.progress) o.progress("select", 1.0);
+    return sel;
+}
+
+}  // namespace
+
+Selection select(const Volume& volume, const SelectOptions& options) {
+    if (options.smoothSigma < 0.0 || !std::isfinite(options.smoothSigma)) {
+        throw Error("smoothing sigma " + std::to_string(options.smoothSigma) +
+                    " is not valid; give a non-negative value in millimetres (0 = no smoothing).");
+    }
+    if (volume.kind == VolumeKind::Labels) {
+        if (options.iso) {
+            throw Error(describeVolume(volume) + ": an iso value was given but the volume was "
+                        "loaded as a label map; select labels instead, or load it without the "
+                        "labels option to threshold intensities.");
+        }
+        return selectLabels(volume, options);
+    }
+    if (!options.labels.empty()) {
+        throw Error(describeVolume(volume) + ": labels were selected but the volume was loaded "
+                    "as intensities; load it with the labels option.");
+    }
+    return selectIntensity(volume, options);
+}
+
+void gaussianSmooth(std::vector<float>& values, const openvdb::Coord& dims, const Vec3& spacing,
+                    double sigma) {
+    if (!(sigma > 0.0)) return;
+    const std::size_t n[3] = {std::size_t(dims.x()), std::size_t(dims.y()), std::size_t(dims.z())};
+    const std::size_t stride[3] = {1, n[0], n[0] * n[1]};
+    for (int axis = 0; axis < 3; ++axis) {
+        const double s = sigma / spacing[axis];  // in voxels along this axis
+        if (s < 0.05 || n[axis] < 2) continue;
+        const int radius = std::max(1, int(std::ceil(3.0 * s)));
+        std::vector<double> kernel(2 * radius + 1);
+        double sum = 0.0;
+        for (int k = -radius; k <= radius; ++k) sum += kernel[k + radius] = std::exp(-0.5 * k * k / (s * s));
+        for (auto& w : kernel) w /= sum;
+
+        const int other1 = (axis + 1) % 3, other2 = (axis + 2) % 3;
+        const std::size_t lines = n[other1] * n[other2];
+        const std::size_t len = n[axis];
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lines), [&](const auto& r) {
+            std::vector<float> line(len);
+            for (std::size_t l = r.begin(); l != r.end(); ++l) {
+                const std::size_t a = l % n[other1], b = l / n[other1];
+                const std::size_t base = a * stride[other1] + b * stride[other2];
+                for (std::size_t i = 0; i < len; ++i) line[i] = values[base + i * stride[axis]];
+                for (std::size_t i = 0; i < len; ++i) {
+                    double acc = 0.0;
+                    for (int k = -radius; k <= radius; ++k) {
+                        const std::ptrdiff_t j = std::clamp<std::ptrdiff_t>(
+                            std::ptrdiff_t(i) + k, 0, std::ptrdiff_t(len) - 1);
+                        acc += kernel[k + radius] * line[j];
+                    }
+                    values[base + i * stride[axis]] = float(acc);
+                }
+            }
+        });
+    }
+}
+
+}  // namespace isohex::imaging

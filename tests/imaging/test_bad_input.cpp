@@ -1,0 +1,219 @@
+// Bad input: each case throws one isohex::Error naming the file, the problem
+// and what to do about it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <limits>
+
+#include "TestSupport.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/imaging/Selection.hpp"
+#include "isohex/imaging/Volume.hpp"
+
+using namespace isohex::imaging;
+using namespace isohex::imaging::test;
+
+namespace {
+
+// Runs `f`, expects isohex::Error, and checks the message mentions every piece.
+std::string expectError(const std::function<void()>& f, const std::vector<std::string>& pieces) {
+    try {
+        f();
+    } catch (const isohex::Error& e) {
+        const std::string msg = e.what();
+        for (const auto& p : pieces) EXPECT_NE(msg.find(p), std::string::npos) << "'" << p << "' not in: " << msg;
+        return msg;
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << "threw a non-isohex exception: " << e.what();
+        return {};
+    }
+    ADD_FAILURE() << "no exception";
+    return {};
+}
+
+const Dims kDims{10, 9, 8};
+std::vector<float> ramp() {
+    std::vector<float> v(std::size_t(kDims[0]) * kDims[1] * kDims[2]);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(i % 97);
+    return v;
+}
+
+void writeBytes(const fs::path& p, const std::string& bytes) {
+    std::ofstream(p, std::ios::binary) << bytes;
+}
+
+}  // namespace
+
+TEST(BadInput, MissingFileNamesThePath) {
+    expectError([] { loadVolume("/nonexistent/scan.nii.gz"); },
+                {"/nonexistent/scan.nii.gz", "no such file"});
+}
+
+TEST(BadInput, EmptyFileIsReportedAsIncomplete) {
+    const auto dir = scratchDir("empty");
+    writeBytes(dir / "empty.nii", "");
+    expectError([&] { loadVolume(dir / "empty.nii"); }, {"empty.nii", "empty"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, CorruptHeaderIsReported) {
+    const auto dir = scratchDir("corrupt");
+    writeBytes(dir / "garbage.nii", std::string(400, '\x7f'));
+    expectError([&] { loadVolume(dir / "garbage.nii"); }, {"garbage.nii", "header"});
+    writeBytes(dir / "broken.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 x y\nElementType = MET_WHAT\n"
+                                   "ElementDataFile = LOCAL\n");
+    expectError([&] { loadVolume(dir / "broken.mha"); }, {"broken.mha"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, TruncatedVoxelDataIsReported) {
+    const auto dir = scratchDir("truncated");
+    for (bool compress : {false, true})
+        for (const char* name : {"scan.nrrd", "scan.nii", "scan.mha", "scan.nii.gz"}) {
+            SCOPED_TRACE(std::string(name) + (compress ? " compressed" : ""));
+            writeImage(dir / name, kDims, ramp(), Geometry{}, compress);
+            fs::resize_file(dir / name, fs::file_size(dir / name) * 2 / 3);
+            expectError([&] { loadVolume(dir / name); }, {name, "truncated"});
+        }
+    // A MetaImage header whose separate data file is short.
+    writeImage(dir / "split.mhd", kDims, ramp(), Geometry{});
+    fs::resize_file(dir / "split.raw", 100);
+    expectError([&] { loadVolume(dir / "split.mhd"); }, {"split.mhd", "truncated"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, ComplexPixelsAreUnsupported) {
+    const auto dir = scratchDir("complex");
+    writeComplexImage(dir / "kspace.nii", kDims);
+    expectError([&] { loadVolume(dir / "kspace.nii"); }, {"kspace.nii", "unsupported pixel type", "complex"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, FourDimensionalImageNeedsTheVolumeIndex) {
+    const auto dir = scratchDir("fourd");
+    write4DImage(dir / "fmri.nii.gz", kDims, 4);
+    expectError([&] { loadVolume(dir / "fmri.nii.gz"); }, {"fmri.nii.gz", "4 volumes", "volume index", "0..3"});
+    LoadOptions o;
+    o.volumeIndex = 2;
+    const Volume v = loadVolume(dir / "fmri.nii.gz", o);
+    EXPECT_EQ(v.dims(), openvdb::Coord(kDims[0], kDims[1], kDims[2]));
+    EXPECT_EQ(v.intensity->tree().getValue(openvdb::Coord(3, 4, 5)), 2.0f);
+    o.volumeIndex = 4;
+    expectError([&] { loadVolume(dir / "fmri.nii.gz", o); }, {"out of range", "0..3"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, MultiComponentImageNeedsTheVolumeIndex) {
+    const auto dir = scratchDir("vector");
+    writeVectorImage(dir / "field.mha", kDims, 3);
+    expectError([&] { loadVolume(dir / "field.mha"); }, {"field.mha", "3 components", "volume index"});
+    LoadOptions o;
+    o.volumeIndex = 1;
+    EXPECT_EQ(loadVolume(dir / "field.mha", o).intensity->tree().getValue(openvdb::Coord(1, 1, 1)), 1.0f);
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, NonFiniteVoxelsAreCountedAndCanBeTreatedAsOutside) {
+    const auto dir = scratchDir("nan");
+    auto v = ramp();
+    v[5] = std::numeric_limits<float>::quiet_NaN();
+    v[17] = std::numeric_limits<float>::infinity();
+    v[300] = std::numeric_limits<float>::quiet_NaN();
+    writeImage(dir / "nan.nrrd", kDims, v, Geometry{});
+    expectError([&] { loadVolume(dir / "nan.nrrd"); },
+                {"nan.nrrd", "3 of 720 voxels are NaN or infinite", "(5,0,0)", "nan-as-outside"});
+    LoadOptions o;
+    o.nanAsOutside = true;
+    const Volume vol = loadVolume(dir / "nan.nrrd", o);
+    EXPECT_EQ(vol.nonFiniteVoxels, 3);
+    EXPECT_EQ(vol.maxValue, 96.0);
+    SelectOptions s;
+    s.iso = 0.5;  // everything but the zero voxels would be inside
+    const Selection sel = select(vol, s);
+    const auto& f = sel.materials.at(0).field;
+    auto centre = [&](int i, int j, int k) {
+        const auto w = vol.transform().indexToWorld(openvdb::Coord(i, j, k));
+        return isohex::Vec3{w[0], w[1], w[2]};
+    };
+    EXPECT_GT(f.value(centre(5, 0, 0)), 0.0);     // NaN voxel: outside
+    EXPECT_GT(f.value(centre(7, 1, 0)), 0.0);     // the infinite one (index 17): outside
+    EXPECT_LT(f.value(centre(6, 0, 0)), 0.0);     // value 6: inside
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, IsoOutsideTheDataRangeStatesTheRange) {
+    const auto dir = scratchDir("iso");
+    writeImage(dir / "ramp.nrrd", kDims, ramp(), Geometry{});
+    const Volume vol = loadVolume(dir / "ramp.nrrd");
+    SelectOptions s;
+    s.iso = 500.0;
+    expectError([&] { select(vol, s); }, {"ramp.nrrd", "500", "[0, 96]", "Otsu"});
+    s.iso = 0.0;  // the minimum itself: nothing crosses
+    expectError([&] { select(vol, s); }, {"[0, 96]"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, EmptyLabelSelectionListsTheLabelsPresent) {
+    const auto dir = scratchDir("labels");
+    std::vector<std::uint8_t> l(std::size_t(kDims[0]) * kDims[1] * kDims[2], 0);
+    for (int i = 0; i < 50; ++i) l[100 + i] = 4;
+    l[600] = 6;  // a single voxel
+    writeImage(dir / "seg.nii.gz", kDims, l, Geometry{});
+    LoadOptions lo;
+    lo.labels = true;
+    const Volume vol = loadVolume(dir / "seg.nii.gz", lo);
+    SelectOptions s;
+    s.labels = {77};
+    expectError([&] { select(vol, s); }, {"seg.nii.gz", "77", "not in the label map", "selection is empty",
+                                          "4 (50 voxels)", "6 (1 voxels)"});
+    s.labels = {6};
+    expectError([&] { select(vol, s); }, {"fewer than 8 voxels", "6 (1)", "min-label-voxels"});
+    s.labels = {0};
+    expectError([&] { select(vol, s); }, {"label 0", "background"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, VolumeOverTheMemoryBudgetGivesTheEstimate) {
+    const auto dir = scratchDir("memory");
+    writeImage(dir / "scan.nrrd", kDims, ramp(), Geometry{});
+    LoadOptions o;
+    o.maxMemoryMB = 0.001;
+    const std::string msg = expectError([&] { loadVolume(dir / "scan.nrrd", o); },
+                                        {"scan.nrrd", "10x9x8", "MiB (estimate)", "max-memory"});
+    o.maxMemoryMB = 64;
+    EXPECT_NO_THROW(loadVolume(dir / "scan.nrrd", o));
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, FloatImageWithFractionsIsNotALabelMap) {
+    const auto dir = scratchDir("floatlabels");
+    auto v = ramp();
+    v[3] = 2.5f;
+    writeImage(dir / "real.nrrd", kDims, v, Geometry{});
+    LoadOptions o;
+    o.labels = true;
+    expectError([&] { loadVolume(dir / "real.nrrd", o); }, {"real.nrrd", "not integer labels", "2.5"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, AmbiguousDicomFolderListsTheSeries) {
+    const auto dir = scratchDir("ambiguous");
+    std::vector<std::int16_t> v(std::size_t(kDims[0]) * kDims[1] * kDims[2], 7);
+    const std::string a = "1.2.826.0.1.3680043.2.1125.99.31", b = "1.2.826.0.1.3680043.2.1125.99.32";
+    writeDicomSeries(dir, kDims, v, Geometry{}, a, 1, 0, "a");
+    writeDicomSeries(dir, kDims, v, Geometry{}, b, 1, 0, "b");
+    expectError([&] { loadVolume(dir); }, {"ambiguous", a, b, "(8 slices)", "series UID"});
+    LoadOptions o;
+    o.seriesUid = "1.2.3.4";
+    expectError([&] { loadVolume(dir, o); }, {"1.2.3.4", "not in this folder", a});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, FolderWithoutSlicesOrDicomIsReported) {
+    const auto dir = scratchDir("nothing");
+    writeBytes(dir / "notes.txt", "hello");
+    expectError([&] { loadVolume(dir); }, {"no DICOM series"});
+    fs::remove_all(dir);
+}
