@@ -1,7 +1,9 @@
 // Abaqus / CalculiX input (.inp), mesh part only: nodes, C3D8 elements in one
 // ELSET per material (MAT_<id>), and per surface an element-based *SURFACE
 // built from one ELSET per face number. The file is meant to be *INCLUDEd by
-// an analysis deck that adds materials, sections, loads and steps.
+// an analysis deck that adds materials, sections, loads and steps; it carries
+// the deck's *HEADING, so that deck must not have another (CalculiX stops on
+// a second one).
 //
 // C3D8 corner order equals VTK_HEXAHEDRON's. Abaqus/CalculiX face numbers of a
 // C3D8 (1-based corners): S1 = 1-2-3-4, S2 = 5-8-7-6, S3 = 1-5-6-2,

@@ -4,7 +4,7 @@
 // headers. Cell data: material (Int32), scaled_jacobian (Float64) and any
 // WriteOptions::cellFields (Float64). Point data:
 // node_class (Int32, NodeKind) and node_surface (Int32, NodeClass::id). Field
-// data surface_inside / surface_outside / surface_name keep HexMesh::surfaces,
+// data surface_inside / surface_outside / surface_names keep HexMesh::surfaces,
 // so a .vtu written by isohex reads back into the same HexMesh.
 #include <cmath>
 #include <mutex>
@@ -25,7 +25,7 @@
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
-#include <vtkStringArray.h>
+#include <vtkUnsignedCharArray.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <vtkXMLUnstructuredGridWriter.h>
@@ -202,13 +202,15 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
         const auto nSurf = static_cast<vtkIdType>(mesh.surfaces.size());
         auto inside = intArray("surface_inside", nSurf);
         auto outside = intArray("surface_outside", nSurf);
-        vtkNew<vtkStringArray> names;
-        names->SetName("surface_name");
-        names->SetNumberOfValues(nSurf);
+        // Names as one byte array, each name ended by '\n': a VTK string array
+        // would be an <Array> element, which meshio's raw-binary reader rejects.
+        vtkNew<vtkUnsignedCharArray> names;
+        names->SetName("surface_names");
         for (vtkIdType s = 0; s < nSurf; ++s) {
             inside->SetValue(s, mesh.surfaces[s].inside);
             outside->SetValue(s, mesh.surfaces[s].outside);
-            names->SetValue(s, mesh.surfaces[s].name);
+            for (char ch : mesh.surfaces[s].name) names->InsertNextValue(static_cast<unsigned char>(ch == '\n' ? ' ' : ch));
+            names->InsertNextValue('\n');
         }
         grid->GetFieldData()->AddArray(inside);
         grid->GetFieldData()->AddArray(outside);
@@ -310,14 +312,23 @@ HexMesh readVtu(const std::string& path) {
     vtkFieldData* fd = grid->GetFieldData();
     vtkDataArray* in = fd ? fd->GetArray("surface_inside") : nullptr;
     vtkDataArray* out = fd ? fd->GetArray("surface_outside") : nullptr;
-    auto* names = fd ? vtkStringArray::SafeDownCast(fd->GetAbstractArray("surface_name")) : nullptr;
+    vtkDataArray* names = fd ? fd->GetArray("surface_names") : nullptr;
     if (in && out && in->GetNumberOfTuples() == out->GetNumberOfTuples()) {
+        std::vector<std::string> nameList;
+        if (names && names->GetNumberOfComponents() == 1) {
+            std::string current;
+            for (vtkIdType i = 0; i < names->GetNumberOfTuples(); ++i) {
+                const auto ch = static_cast<char>(static_cast<int>(names->GetComponent(i, 0)));
+                if (ch == '\n') nameList.push_back(std::move(current)), current.clear();
+                else current.push_back(ch);
+            }
+        }
         const vtkIdType n = in->GetNumberOfTuples();
         for (vtkIdType s = 0; s < n; ++s) {
             SurfaceTag t;
             t.inside = integerValue(in, s, path, "surface_inside");
             t.outside = integerValue(out, s, path, "surface_outside");
-            if (names && s < names->GetNumberOfValues()) t.name = names->GetValue(s);
+            if (static_cast<std::size_t>(s) < nameList.size()) t.name = nameList[s];
             mesh.surfaces.push_back(std::move(t));
         }
     }
