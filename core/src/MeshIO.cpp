@@ -123,6 +123,15 @@ std::vector<std::int32_t> materialsOf(const HexMesh& mesh) {
     return mats;
 }
 
+std::vector<std::vector<Index>> hexesByMaterial(const HexMesh& mesh, const std::vector<std::int32_t>& mats) {
+    std::vector<std::vector<Index>> out(mats.size());
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+        const auto it = std::lower_bound(mats.begin(), mats.end(), mesh.material[h]);
+        out[static_cast<std::size_t>(it - mats.begin())].push_back(static_cast<Index>(h));
+    }
+    return out;
+}
+
 std::vector<NamedPatch> namedSurfaces(const HexMesh& mesh) {
     std::vector<NamedPatch> out;
     if (mesh.hexes.empty()) return out;

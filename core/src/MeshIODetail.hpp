@@ -33,6 +33,8 @@ void requireReadableFile(const std::string& path);
 
 // The distinct material ids of the mesh, ascending.
 std::vector<std::int32_t> materialsOf(const HexMesh& mesh);
+// The hexes of each material of `mats` (materialsOf(mesh)), ascending; one pass.
+std::vector<std::vector<Index>> hexesByMaterial(const HexMesh& mesh, const std::vector<std::int32_t>& mats);
 
 // The boundary and interface surfaces of the mesh with the name each gets in
 // files: SurfacePatch::tag.name if set, else the name of the matching entry of

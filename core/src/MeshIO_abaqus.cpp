@@ -58,11 +58,12 @@ void writeAbaqus(const HexMesh& mesh, const std::string& tmpPath, const std::str
         out << static_cast<std::int64_t>(i + 1) << ", " << p[0] << ", " << p[1] << ", " << p[2] << '\n';
     }
 
-    for (std::int32_t m : materialsOf(mesh)) {
-        out << "*ELEMENT, TYPE=C3D8, ELSET=" << materialLabel(m) << '\n';
-        for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
-            if (mesh.material[h] != m) continue;
-            out << static_cast<std::int64_t>(h + 1);
+    const std::vector<std::int32_t> mats = materialsOf(mesh);
+    const auto byMaterial = hexesByMaterial(mesh, mats);
+    for (std::size_t i = 0; i < mats.size(); ++i) {
+        out << "*ELEMENT, TYPE=C3D8, ELSET=" << materialLabel(mats[i]) << '\n';
+        for (Index h : byMaterial[i]) {
+            out << static_cast<std::int64_t>(h) + 1;
             for (Index v : mesh.hexes[h]) out << ", " << static_cast<std::int64_t>(v + 1);
             out << '\n';
         }

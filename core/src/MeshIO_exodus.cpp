@@ -105,13 +105,15 @@ void writeExodus(const HexMesh& mesh, const std::string& tmpPath, const std::str
     std::vector<int> idMap;
     idMap.reserve(mesh.hexCount());
     std::vector<std::vector<int>> blockConn(mats.size());
-    for (std::size_t b = 0; b < mats.size(); ++b)
-        for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
-            if (mesh.material[h] != mats[b]) continue;
-            idMap.push_back(static_cast<int>(h) + 1);
+    const auto byMaterial = hexesByMaterial(mesh, mats);
+    for (std::size_t b = 0; b < mats.size(); ++b) {
+        blockConn[b].reserve(8 * byMaterial[b].size());
+        for (Index h : byMaterial[b]) {
+            idMap.push_back(h + 1);
             exodusElement[h] = static_cast<int>(idMap.size());
             for (Index v : mesh.hexes[h]) blockConn[b].push_back(v + 1);
         }
+    }
 
     std::lock_guard<std::mutex> lock(exodusMutex());
     ex_opts(EX_DEFAULT);  // report errors through return codes only, never print or abort

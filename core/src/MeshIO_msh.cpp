@@ -132,11 +132,13 @@ void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string
         nodeTags = {};
         coords = {};
 
+        const auto byMaterial = hexesByMaterial(mesh, mats);
         for (std::size_t i = 0; i < mats.size(); ++i) {
             std::vector<std::size_t> elemTags, conn;
-            for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
-                if (mesh.material[h] != mats[i]) continue;
-                elemTags.push_back(h + 1);
+            elemTags.reserve(byMaterial[i].size());
+            conn.reserve(8 * byMaterial[i].size());
+            for (Index h : byMaterial[i]) {
+                elemTags.push_back(static_cast<std::size_t>(h) + 1);
                 for (Index v : mesh.hexes[h]) conn.push_back(static_cast<std::size_t>(v) + 1);
             }
             const int entity = static_cast<int>(i + 1);
