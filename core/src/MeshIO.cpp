@@ -62,6 +62,8 @@ std::vector<std::string> readableExtensions() {
 void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt) {
     const Format format = formatFromPath(path);
     mesh.checkConsistent(path);
+    if (mesh.hexes.empty())
+        throw Error(path + ": the mesh has no hexahedra; nothing to write (check the input and the selection)");
     if (!opt.scaledJacobian.empty() && opt.scaledJacobian.size() != mesh.hexCount())
         throw Error(path + ": " + std::to_string(opt.scaledJacobian.size()) +
                     " scaled Jacobian values given for " + std::to_string(mesh.hexCount()) + " hexes");

@@ -2,11 +2,13 @@
 // the write-to-temporary-then-rename guarantee.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "isohex/core/AtomicFile.hpp"
 #include "isohex/core/Error.hpp"
@@ -184,6 +186,28 @@ TEST_F(IoTest, WritesEveryFormat) {
     EXPECT_NE(medit.find("\nQuadrilaterals\n58\n"), std::string::npos);
 }
 
+TEST_F(IoTest, WritesAndReadsFromSeveralThreadsAtOnce) {
+    // VTK's output window, Gmsh's model and libexodusII's options are global
+    // state; the writers serialise around them.
+    const HexMesh mesh = sampleMesh();
+    std::vector<std::thread> threads;
+    std::atomic<int> failures{0};
+    for (int t = 0; t < 4; ++t)
+        threads.emplace_back([&, t] {
+            try {
+                for (const std::string& ext : io::writableExtensions()) {
+                    const std::string p = file("t" + std::to_string(t) + ext);
+                    io::write(mesh, p);
+                    if (io::canRead(io::formatFromPath(p)) && io::read(p).hexes != mesh.hexes) ++failures;
+                }
+            } catch (...) {
+                ++failures;
+            }
+        });
+    for (auto& th : threads) th.join();
+    EXPECT_EQ(failures.load(), 0);
+}
+
 TEST_F(IoTest, RefusesToClobberAnExistingFile) {
     const HexMesh mesh = sampleMesh();
     for (const std::string& ext : io::writableExtensions()) {
@@ -234,6 +258,20 @@ TEST_F(IoTest, FailedWriterKeepsTheOldFile) {
         EXPECT_EQ(slurp(p), "old contents") << ext;
     }
     EXPECT_EQ(listing().size(), io::writableExtensions().size());
+}
+
+TEST_F(IoTest, EmptyMeshIsRefusedInEveryFormat) {
+    HexMesh empty;
+    empty.addNode({0, 0, 0});
+    for (const std::string& ext : io::writableExtensions()) {
+        try {
+            io::write(empty, file("empty" + ext));
+            ADD_FAILURE() << ext << ": wrote a mesh without hexahedra";
+        } catch (const Error& e) {
+            expectOneLineNaming(e.what(), file("empty" + ext));
+        }
+    }
+    EXPECT_TRUE(listing().empty());
 }
 
 TEST_F(IoTest, WriteIntoMissingFolderIsAClearError) {

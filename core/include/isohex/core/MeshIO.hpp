@@ -33,8 +33,8 @@ struct WriteOptions {
     std::vector<std::pair<std::string, std::vector<double>>> cellFields;
 };
 
-// Checks the mesh (HexMesh::checkConsistent), then writes it in the format of
-// the extension. Every surface of surfacePatches() becomes a named group:
+// Checks the mesh (HexMesh::checkConsistent; a mesh without hexes is refused),
+// then writes it in the format of the extension. Every surface of surfacePatches() becomes a named group:
 // a side set + node set (Exodus), an element-based *SURFACE (Abaqus), a
 // physical surface of quads (MSH), referenced quadrilaterals (MEDIT).
 void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt = {});
