@@ -1,0 +1,248 @@
+// Triangle surfaces: Assimp reads every format; this file only welds, checks
+// and voxelises.
+#include "isohex/imaging/Surface.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <cctype>
+#include <fstream>
+#include <sstream>
+#include <unordered_map>
+
+#include <unistd.h>
+
+#include <assimp/Importer.hpp>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <openvdb/tools/MeshToVolume.h>
+
+#include "isohex/core/Error.hpp"
+
+namespace isohex::imaging {
+namespace {
+
+std::string at(const Vec3& p) {
+    std::ostringstream s;
+    s.precision(6);
+    s << "(" << p[0] << ", " << p[1] << ", " << p[2] << ")";
+    return s.str();
+}
+
+struct Vec3Hash {
+    std::size_t operator()(const Vec3& p) const {
+        std::size_t h = 0;
+        for (double c : p) h = h * 1000003u ^ std::hash<double>()(c == 0.0 ? 0.0 : c);  // -0 == +0
+        return h;
+    }
+};
+
+void appendNode(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
+                TriangleSurface& out, std::unordered_map<Vec3, std::int32_t, Vec3Hash>& weld) {
+    const aiMatrix4x4 m = parent * node.mTransformation;
+    for (unsigned k = 0; k < node.mNumMeshes; ++k) {
+        const aiMesh& mesh = *scene.mMeshes[node.mMeshes[k]];
+        std::vector<std::int32_t> ids(mesh.mNumVertices);
+        for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+            const aiVector3D p = m * mesh.mVertices[v];
+            const Vec3 q{double(p.x), double(p.y), double(p.z)};
+            auto [it, fresh] = weld.emplace(q, std::int32_t(out.vertices.size()));
+            if (fresh) out.vertices.push_back(q);
+            ids[v] = it->second;
+        }
+        for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+            const aiFace& face = mesh.mFaces[f];
+            if (face.mNumIndices != 3) continue;  // points and lines carry no volume
+            const std::array<std::int32_t, 3> t{ids[face.mIndices[0]], ids[face.mIndices[1]],
+                                                ids[face.mIndices[2]]};
+            if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+                ++out.droppedDegenerate;
+                continue;
+            }
+            out.triangles.push_back(t);
+        }
+    }
+    for (unsigned c = 0; c < node.mNumChildren; ++c) appendNode(scene, *node.mChildren[c], m, out, weld);
+}
+
+}  // namespace
+
+double TriangleSurface::volume() const {
+    double v = 0.0;
+    for (const auto& t : triangles) {
+        const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
+        v += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+             a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+    return v / 6.0;
+}
+
+double TriangleSurface::area() const {
+    double s = 0.0;
+    for (const auto& t : triangles) {
+        const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
+        const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        const Vec3 n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        s += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    }
+    return s;
+}
+
+void checkClosedManifold(TriangleSurface& s) {
+    const std::string src = s.source.empty() ? std::string("surface") : s.source;
+    if (s.triangles.empty()) {
+        throw Error(src + ": holds no triangles; isohex needs a closed triangle surface.");
+    }
+    // Per undirected edge: how often it is used, and the net direction
+    // (+1 for a->b with a<b, -1 for b->a). A closed, consistently oriented
+    // surface uses each edge twice, once in each direction.
+    struct Use {
+        int count = 0, net = 0;
+    };
+    std::unordered_map<std::uint64_t, Use> edges;
+    edges.reserve(s.triangles.size() * 2);
+    for (const auto& t : s.triangles)
+        for (int e = 0; e < 3; ++e) {
+            const std::uint32_t a = t[e], b = t[(e + 1) % 3];
+            const std::uint64_t key = (std::uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+            auto& u = edges[key];
+            ++u.count;
+            u.net += a < b ? 1 : -1;
+        }
+    std::int64_t open = 0, nonManifold = 0, flippedEdges = 0;
+    std::uint64_t openExample = 0, nmExample = 0, flipExample = 0;
+    for (const auto& [key, u] : edges) {
+        if (u.count == 1) {
+            if (open++ == 0 || key < openExample) openExample = key;
+        } else if (u.count > 2) {
+            if (nonManifold++ == 0 || key < nmExample) nmExample = key;
+        } else if (u.net != 0) {
+            if (flippedEdges++ == 0 || key < flipExample) flipExample = key;
+        }
+    }
+    auto edgeAt = [&](std::uint64_t key) {
+        return at(s.vertices[key >> 32]) + " - " + at(s.vertices[key & 0xffffffffu]);
+    };
+    if (open > 0) {
+        throw Error(src + ": the surface is open: " + std::to_string(open) +
+                    " edges belong to a single triangle (e.g. " + edgeAt(openExample) +
+                    "). isohex needs a closed (watertight) surface; fill the holes (e.g. MeshLab "
+                    "'Close Holes') and retry.");
+    }
+    if (nonManifold > 0) {
+        throw Error(src + ": the surface is not manifold: " + std::to_string(nonManifold) +
+                    " edges are shared by more than two triangles (e.g. " + edgeAt(nmExample) +
+                    "). Separate the touching parts or remove duplicate triangles, then retry.");
+    }
+    if (flippedEdges > 0) {
+        throw Error(src + ": triangle orientation is inconsistent: across " +
+                    std::to_string(flippedEdges) + " edges (e.g. " + edgeAt(flipExample) +
+                    ") neighbouring triangles face opposite ways. Re-orient the faces coherently "
+                    "(e.g. MeshLab 'Re-Orient all faces coherently') and retry.");
+    }
+    if (s.volume() < 0.0) {
+        for (auto& t : s.triangles) std::swap(t[1], t[2]);
+        s.flipped = true;
+    }
+}
+
+TriangleSurface loadSurface(const std::filesystem::path& path) {
+    const std::string file = path.string();
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+        throw Error(file + ": no such file. Check the path (relative paths start at " +
+                    std::filesystem::current_path().string() + ").");
+    }
+    Assimp::Importer importer;
+    // Normals and texture coordinates would keep coincident corners apart.
+    importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS,
+                                aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
+                                    aiComponent_COLORS | aiComponent_TEXCOORDS);
+    const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_JoinIdenticalVertices;
+    const aiScene* scene = nullptr;
+    std::string ext = path.extension().string();
+    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".off") {
+        // Assimp 5.2's OFF reader loses faces when '#' comment lines sit
+        // between the blocks (assimp issue 2228); the OFF format allows them,
+        // so hand Assimp the text without comments.
+        std::ifstream in(path, std::ios::binary);
+        std::string text, line;
+        while (std::getline(in, line)) {
+            if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
+            if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+            text += line;
+            text += '\n';
+        }
+        scene = importer.ReadFileFromMemory(text.data(), text.size(), flags, "off");
+    } else {
+        scene = importer.ReadFile(file, flags);
+    }
+    if (!scene || !scene->mRootNode) {
+        throw Error(file + ": cannot be read as a triangle surface (" + importer.GetErrorString() +
+                    "). Supported: .stl (ascii/binary), .obj, .ply, .off; check the file is complete.");
+    }
+    TriangleSurface s;
+    s.source = file;
+    std::unordered_map<Vec3, std::int32_t, Vec3Hash> weld;
+    appendNode(*scene, *scene->mRootNode, aiMatrix4x4(), s, weld);
+    checkClosedManifold(s);
+    return s;
+}
+
+SurfaceLevelSet surfaceToLevelSet(TriangleSurface surface, const LevelSetOptions& o) {
+    const std::string src = surface.source.empty() ? std::string("surface") : surface.source;
+    if (!(o.elementSize > 0.0) || !(o.voxelsPerElement > 0.0) || !(o.halfWidthVoxels >= 1.0)) {
+        throw Error(src + ": element size, voxels per element must be positive and the band at "
+                    "least one voxel wide.");
+    }
+    const double voxel = o.elementSize / o.voxelsPerElement;
+    Vec3 lo = surface.vertices.front(), hi = lo;
+    for (const auto& p : surface.vertices)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+    // Voxels stored: the band around the surface, or the whole inside too.
+    const double band = 2.0 * o.halfWidthVoxels * surface.area() / (voxel * voxel);
+    const double inside = o.fillInterior ? std::fabs(surface.volume()) / (voxel * voxel * voxel) : 0.0;
+    const double bytes = (band + inside) * 4.5 * 2.0;  // values + leaf overhead, built twice
+    double budget = o.maxMemoryMB * 1024.0 * 1024.0;
+    if (!(o.maxMemoryMB > 0.0)) budget = 0.8 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    if (bytes > budget) {
+        std::ostringstream m;
+        m.precision(3);
+        m << src << ": a level set with voxel size " << voxel << " (element size " << o.elementSize
+          << ") needs about " << bytes / (1024.0 * 1024.0) << " MiB (estimate), more than the budget of "
+          << budget / (1024.0 * 1024.0) << " MiB. Use a larger element size or raise max-memory.";
+        throw Error(m.str());
+    }
+
+    auto transform = openvdb::math::Transform::createLinearTransform(voxel);
+    std::vector<openvdb::Vec3s> points;
+    points.reserve(surface.vertices.size());
+    for (const auto& p : surface.vertices) {
+        // The adapter wants index-space points.
+        const openvdb::Vec3d i = transform->worldToIndex(openvdb::Vec3d(p[0], p[1], p[2]));
+        points.emplace_back(float(i[0]), float(i[1]), float(i[2]));
+    }
+    std::vector<openvdb::Vec3I> tris;
+    tris.reserve(surface.triangles.size());
+    for (const auto& t : surface.triangles) tris.emplace_back(t[0], t[1], t[2]);
+    std::vector<openvdb::Vec4I> quads;
+    openvdb::tools::QuadAndTriangleDataAdapter<openvdb::Vec3s, openvdb::Vec3I> mesh(points, tris);
+    const float interior = o.fillInterior ? std::numeric_limits<float>::max() : float(o.halfWidthVoxels);
+    auto grid = openvdb::tools::meshToVolume<openvdb::FloatGrid>(mesh, *transform,
+                                                                 float(o.halfWidthVoxels), interior);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(surface.source.empty() ? "surface" : std::filesystem::path(surface.source).stem().string());
+
+    SurfaceLevelSet out;
+    out.grid = grid;
+    out.voxelSize = voxel;
+    out.field = ImplicitField(grid, o.interpolation);
+    out.surface = std::move(surface);
+    return out;
+}
+
+}  // namespace isohex::imaging
