@@ -17,5 +17,8 @@ int& pendingExitCode();
 
 void addQualityCommand(CLI::App& app);
 void addConvertCommand(CLI::App& app);
+void addMeshCommand(CLI::App& app);
+// --threads N for the rest of the process (tbb::global_control)
+void applyThreads(int threads);
 
 }  // namespace isohex::cli

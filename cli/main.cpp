@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
     app.fallthrough();
     addQualityCommand(app);
     addConvertCommand(app);
+    addMeshCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -148,11 +148,11 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     mixed = mixed || m[c] != m[0];
                 }
                 const Vec3 centre = g.point(ci - 0.5, cj - 0.5, ck - 0.5);
-                if (!mixed) {
+                localCrossed += mixed;
+                if (!mixed || opt.cellCentres) {
                     mesh.nodes[id] = centre;
                     continue;
                 }
-                ++localCrossed;
                 // Hermite data on the 12 cell edges whose ends differ.
                 Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
                 Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();

@@ -60,6 +60,10 @@ struct ExtractOptions {
     bool meshExterior = false;   // also mesh background points (material 0) out to the grid box
     double qefTruncation = 0.1;  // singular values below this fraction of the largest are dropped
     double cellMargin = 0.02;    // QEF vertices are kept this fraction of a cell inside their cell
+    // Put every vertex at its cell centre instead of the QEF minimiser: the hexes
+    // are then the grid's own cubes around each labelled point (voxel meshing,
+    // the stair-stepped baseline of bone biomechanics).
+    bool cellCentres = false;
     Progress progress;
 };
 

@@ -1,0 +1,142 @@
+#include "Jobs.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "Report.hpp"
+#include "Svg.hpp"
+#include "Versions.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Validate.hpp"
+
+namespace isohex::cli {
+
+namespace fs = std::filesystem;
+
+std::string stemOf(const std::string& input) {
+    std::string name = fs::path(input).filename().string();
+    if (name.empty()) name = fs::path(input).parent_path().filename().string();  // a folder given with a slash
+    for (const char* ext : {".nii.gz", ".nii", ".nrrd", ".nhdr", ".mha", ".mhd", ".tiff", ".tif", ".vdb", ".stl",
+                            ".obj", ".ply", ".off", ".dcm"})
+        if (name.size() > std::strlen(ext) && name.compare(name.size() - std::strlen(ext), std::string::npos, ext) == 0)
+            return name.substr(0, name.size() - std::strlen(ext));
+    return name;
+}
+
+bool upToDate(const Job& job) {
+    std::error_code ec;
+    const auto inTime = fs::last_write_time(job.input, ec);
+    if (ec) return false;
+    std::vector<std::string> all = job.outputs;
+    if (!job.report.empty()) all.push_back(job.report);
+    if (!job.plot.empty()) all.push_back(job.plot);
+    for (const auto& o : all) {
+        const auto t = fs::last_write_time(o, ec);
+        if (ec || t < inTime) return false;
+    }
+    return !all.empty();
+}
+
+JobResult runJob(const Job& job, ProgressSink& sink) {
+    const auto t0 = std::chrono::steady_clock::now();
+    MeshArgs args = job.args;
+    args.finish();
+    // Refuse to clobber before spending minutes meshing.
+    if (!args.force)
+        for (const auto& o : job.outputs)
+            if (fs::exists(o)) throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");
+    for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
+    MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
+    const auto tq = std::chrono::steady_clock::now();
+    const HexQuality q = computeQuality(out.mesh);
+    const QualitySummary s = summarize(out.mesh, q);
+    const ValidityReport v = validate(out.mesh);
+    const double qualitySeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tq).count();
+    nlohmann::json report = out.report;
+    const nlohmann::json qj = toJson(s);
+    for (const auto& [k, val] : qj.items()) report[k] = val;
+    report["validity"] = toJson(v);
+    nlohmann::json timings;
+    for (const auto& [stage, secs] : sink.timings().items()) timings[stage] = secs;
+    timings["quality"] = qualitySeconds;
+    const auto tw = std::chrono::steady_clock::now();
+    io::WriteOptions w;
+    w.overwrite = args.force;
+    w.scaledJacobian = q.scaledJacobian;
+    for (const auto& o : job.outputs) {
+        sink.begin("write");
+        io::write(out.mesh, o, w);
+        sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count());
+    }
+    timings["write"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
+    timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    report["timings_s"] = timings;
+    report["peak_memory_mb"] = peakMemoryMb();
+    report["outputs"] = job.outputs;
+    report["versions"] = versionsJson();
+    if (!job.plot.empty())
+        writeHistogramSvg(job.plot, args.force, "Scaled Jacobian of " + stemOf(job.input),
+                          {{out.report["pillow"].value("enabled", false) ? "with fundamental sheet" : "without sheet",
+                            s.histogram, s.degenerate}});
+    if (!job.report.empty()) writeJsonFile(report, job.report, args.force);
+    JobResult r;
+    r.input = job.input;
+    r.status = "ok";
+    r.hexes = s.hexes;
+    r.minScaledJacobian = s.scaledJacobian.min;
+    r.meanScaledJacobian = s.scaledJacobian.mean;
+    r.inverted = s.inverted;
+    r.below02 = s.below02;
+    r.seconds = timings["total"];
+    if (!v.ok()) r.message = "validity defects: " + toJson(v)["defects"].dump();
+    return r;
+}
+
+std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode) {
+    std::vector<JobResult> results;
+    std::size_t failed = 0;
+    for (std::size_t i = 0; i < jobs.size(); ++i) {
+        const Job& job = jobs[i];
+        ProgressSink sink(mode, "[" + std::to_string(i + 1) + "/" + std::to_string(jobs.size()) + "] " + stemOf(job.input));
+        if (!force && !job.args.force && upToDate(job)) {
+            results.push_back({job.input, "skipped", "outputs are up to date (use --force to redo)"});
+            sink.event("job_skipped", {{"input", job.input}});
+            continue;
+        }
+        sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
+        try {
+            results.push_back(runJob(job, sink));
+            sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
+        } catch (const std::exception& e) {
+            ++failed;
+            results.push_back({job.input, "failed", e.what()});
+            sink.note("error", e.what());
+            sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", e.what()}});
+        }
+    }
+    std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", "input", "status", "hexes", "min SJ", "mean SJ", "<0.2",
+                "inverted", "seconds / message");
+    for (const auto& r : results) {
+        std::string name = r.input.size() > 40 ? "..." + r.input.substr(r.input.size() - 37) : r.input;
+        if (r.status == "ok")
+            std::printf("%-40s %-8s %10zu %8.3f %8.3f %8zu %8zu  %.1f%s%s\n", name.c_str(), r.status.c_str(), r.hexes,
+                        r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted, r.seconds,
+                        r.message.empty() ? "" : "  ", r.message.c_str());
+        else
+            std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", name.c_str(), r.status.c_str(), "-", "-", "-", "-", "-",
+                        r.message.c_str());
+    }
+    std::printf("%zu job(s): %zu ok, %zu skipped, %zu failed\n", results.size(),
+                static_cast<std::size_t>(std::count_if(results.begin(), results.end(), [](auto& r) { return r.status == "ok"; })),
+                static_cast<std::size_t>(std::count_if(results.begin(), results.end(), [](auto& r) { return r.status == "skipped"; })),
+                failed);
+    return failed;
+}
+
+}  // namespace isohex::cli

@@ -1,0 +1,44 @@
+#pragma once
+// One meshing job (input -> outputs + report) and running many of them:
+// continue past failures, skip up-to-date outputs, print a summary table.
+#include <string>
+#include <vector>
+
+#include "MeshOptions.hpp"
+
+namespace isohex::cli {
+
+struct Job {
+    std::string input;
+    std::vector<std::string> outputs;
+    std::string report;  // optional JSON report path
+    std::string plot;    // optional SVG histogram path
+    MeshArgs args;
+};
+
+struct JobResult {
+    std::string input;
+    std::string status;  // "ok", "failed", "skipped"
+    std::string message;
+    std::size_t hexes = 0;
+    double minScaledJacobian = 0;
+    double meanScaledJacobian = 0;
+    std::size_t inverted = 0;
+    std::size_t below02 = 0;
+    double seconds = 0;
+};
+
+// Runs the pipeline and writes the outputs. Throws isohex::Error on failure
+// (after which no output of the job is half-written: each file is atomic).
+JobResult runJob(const Job& job, ProgressSink& sink);
+
+// Outputs that exist and are newer than the input, so a rerun can skip the job.
+bool upToDate(const Job& job);
+// The file name of `input` without its extension(s): "ct.nii.gz" -> "ct".
+std::string stemOf(const std::string& input);
+
+// Runs every job (skipping up-to-date ones unless force), printing a summary
+// table to stdout; returns the number of failed jobs.
+std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode);
+
+}  // namespace isohex::cli

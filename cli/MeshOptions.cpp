@@ -1,0 +1,89 @@
+#include "MeshOptions.hpp"
+
+#include <sstream>
+
+#include "isohex/core/Error.hpp"
+
+namespace isohex::cli {
+
+void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
+    MeshSettings& s = a.settings;
+    auto* sel = "Selection";
+    cmd->add_option("--iso", s.select.iso, "Intensity of the surface (default: Otsu's threshold, reported)")->group(sel);
+    cmd->add_option("--inside", a.insideMode, "Which side of --iso is solid: above (bone in CT) or below (pores, air)")
+        ->check(CLI::IsMember({"above", "below"}))
+        ->group(sel);
+    cmd->add_flag("--labels", a.labels, "Read an integer image as a label map and mesh every label (0 = background)")
+        ->group(sel);
+    cmd->add_option("--label", a.labelList, "Mesh only these labels, e.g. 3 or 3,7 (implies --labels)")->group(sel);
+    cmd->add_option("--min-label-voxels", s.select.minLabelVoxels, "Drop (and report) labels with fewer voxels")
+        ->group(sel);
+    cmd->add_option("--smooth", s.select.smoothSigma, "Gaussian pre-smoothing, standard deviation in mm")->group(sel);
+    cmd->add_option("--interpolation", a.interpolation, "Field interpolation: trilinear or quadratic")
+        ->check(CLI::IsMember({"trilinear", "quadratic"}))
+        ->group(sel);
+    auto* in = "Input";
+    cmd->add_option("--series", s.load.seriesUid, "DICOM folder: the SeriesInstanceUID to read")->group(in);
+    cmd->add_option("--grid", s.load.gridName, ".vdb file: the grid to read")->group(in);
+    cmd->add_option("--volume-index", s.load.volumeIndex, "4-D or multi-component image: which volume/component")
+        ->group(in);
+    cmd->add_flag("--nan-as-outside", s.load.nanAsOutside, "Treat NaN/Inf voxels as outside instead of refusing")
+        ->group(in);
+    cmd->add_option("--max-memory", s.load.maxMemoryMB, "Refuse volumes needing more than this many MB to load")
+        ->group(in);
+    cmd->add_option("--slice-spacing", a.sliceSpacing, "Folder of 2-D slices: voxel spacing X Y Z in mm")
+        ->expected(3)
+        ->group(in);
+    auto* grid = "Mesh";
+    cmd->add_option("--size", s.size, "Element edge length in world units (mm); default: the coarsest grid level "
+                                      "that keeps the surface's topology")
+        ->group(grid);
+    cmd->add_option("--level", s.level, "Grid level: elements 2^level voxels wide (instead of --size)")->group(grid);
+    cmd->add_option("--method", s.method, "dual (dual contouring, default) or voxel (one cube per voxel, a baseline)")
+        ->check(CLI::IsMember({"dual", "voxel"}))
+        ->group(grid);
+    cmd->add_flag("!--no-pillow", s.pillow, "Do not insert the fundamental boundary sheet")->group(grid);
+    cmd->add_option("--boundary-layers", s.boundaryLayers, "Layers of hexes in the boundary sheet (default 1)")
+        ->check(CLI::Range(1, 16))
+        ->group(grid);
+    cmd->add_flag("--mesh-exterior", s.meshExterior, "Also mesh the background out to a box around the object")
+        ->group(grid);
+    cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
+        ->group(grid);
+    cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
+}
+
+void addRunOptions(CLI::App* cmd, MeshArgs& a) {
+    cmd->add_option("--threads", a.threads, "Worker threads (default: all cores); results do not depend on it")
+        ->check(CLI::Range(1, 1024));
+    cmd->add_flag("-q,--quiet", a.quiet, "No progress output (warnings and errors still print)");
+    cmd->add_flag("--log-json", a.logJson, "Progress and messages as one JSON object per line on stderr");
+    cmd->add_flag("--force", a.force, "Overwrite existing output files");
+}
+
+void MeshArgs::finish() {
+    settings.select.insideBelow = insideMode == "below";
+    settings.select.interpolation =
+        interpolation == "quadratic" ? imaging::Interpolation::Quadratic : imaging::Interpolation::Trilinear;
+    if (!labelList.empty()) {
+        labels = true;
+        std::stringstream ss(labelList);
+        std::string item;
+        while (std::getline(ss, item, ',')) {
+            try {
+                std::size_t used = 0;
+                const long v = std::stol(item, &used);
+                if (used != item.size()) throw std::invalid_argument(item);
+                settings.select.labels.push_back(static_cast<std::int32_t>(v));
+            } catch (const std::exception&) {
+                throw Error("--label expects integers separated by commas, e.g. --label 3,7 (got '" + labelList + "')");
+            }
+        }
+    }
+    settings.load.labels = labels;
+    if (!sliceSpacing.empty()) settings.load.sliceSpacing = {sliceSpacing[0], sliceSpacing[1], sliceSpacing[2]};
+    if (labels && settings.select.iso)
+        throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
+}
+
+}  // namespace isohex::cli

@@ -1,0 +1,480 @@
+#include "Pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include <openvdb/tools/VolumeToMesh.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+
+namespace isohex::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Times a stage and reports it to the sink.
+class Stage {
+public:
+    Stage(StageSink& sink, std::string name) : sink_(sink), name_(std::move(name)), start_(Clock::now()) {
+        sink_.begin(name_);
+    }
+    double finish() {
+        const double s = since(start_);
+        sink_.end(name_, s);
+        done_ = true;
+        return s;
+    }
+    ~Stage() {
+        if (!done_) sink_.end(name_, since(start_));
+    }
+
+private:
+    StageSink& sink_;
+    std::string name_;
+    Clock::time_point start_;
+    bool done_ = false;
+};
+
+// The scan as the octree sees it: the material at a point (a label lookup for
+// label maps, the sign of the field for intensity) and each material's field.
+class SelectionDomain : public octree::Domain {
+public:
+    SelectionDomain(std::shared_ptr<const imaging::Volume> v, std::shared_ptr<const imaging::Selection> s)
+        : volume_(std::move(v)), selection_(std::move(s)) {
+        for (std::size_t i = 0; i < selection_->materials.size(); ++i) slot_[selection_->materials[i].id] = i;
+    }
+    std::int32_t materialAt(const Vec3& x) const override {
+        if (volume_->kind == imaging::VolumeKind::Labels) {
+            const openvdb::Coord ijk = volume_->labels->transform().worldToIndexCellCentered(openvdb::Vec3d(x[0], x[1], x[2]));
+            openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
+            const std::int32_t label = acc.getValue(ijk);
+            return slot_.count(label) ? label : 0;
+        }
+        const auto& m = selection_->materials.front();
+        return m.field.value(x) < 0 ? m.id : 0;
+    }
+    double value(std::int32_t material, const Vec3& x, Vec3* gradient) const override {
+        const imaging::ImplicitField& f = field(material);
+        if (!gradient) return f.value(x);
+        return f.valueAndGradient(x, *gradient);
+    }
+    std::int32_t materialOtherThan(std::int32_t material, const Vec3& x) const override {
+        std::int32_t best = 0;
+        double bestValue = 0;
+        for (const auto& m : selection_->materials) {
+            if (m.id == material) continue;
+            const double v = m.field.value(x);
+            if (v < bestValue) {
+                bestValue = v;
+                best = m.id;
+            }
+        }
+        return best;
+    }
+    const imaging::ImplicitField& field(std::int32_t material) const {
+        const auto it = slot_.find(material);
+        if (it == slot_.end()) throw Error("internal: no field for material " + std::to_string(material));
+        return selection_->materials[it->second].field;
+    }
+
+private:
+    std::shared_ptr<const imaging::Volume> volume_;
+    std::shared_ptr<const imaging::Selection> selection_;
+    std::map<std::int32_t, std::size_t> slot_;
+};
+
+// Keeps surface nodes on their isosurface: the zero set of the inside
+// material's field against the exterior, of f_a - f_b between two materials.
+class FieldProjector : public smoothing::SurfaceProjector {
+public:
+    FieldProjector(const SelectionDomain& d, const HexMesh& mesh) : domain_(d), surfaces_(mesh.surfaces) {}
+    Vec3 project(std::int32_t surfaceId, const Vec3& x) const override {
+        const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
+        const std::int32_t a = s.inside, b = s.outside;
+        if (a > 0 && b <= 0) return domain_.field(a).project(x);
+        if (a <= 0 && b > 0) return domain_.field(b).project(x);
+        if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
+        return projectDifference(a, b, x);
+    }
+
+private:
+    // Newton steps on F = f_a - f_b along its gradient, each at most half a
+    // voxel, keeping the best point; enough for the small moves of smoothing.
+    Vec3 projectDifference(std::int32_t a, std::int32_t b, const Vec3& x0) const {
+        const imaging::ImplicitField& fa = domain_.field(a);
+        const imaging::ImplicitField& fb = domain_.field(b);
+        const double maxStep = 0.5 * fa.voxelSize();
+        Vec3 x = x0, best = x0;
+        double bestAbs = std::numeric_limits<double>::infinity();
+        for (int it = 0; it < 30; ++it) {
+            Vec3 ga, gb;
+            const double F = fa.valueAndGradient(x, ga) - fb.valueAndGradient(x, gb);
+            if (std::abs(F) < bestAbs) {
+                bestAbs = std::abs(F);
+                best = x;
+            }
+            const Vec3 g{ga[0] - gb[0], ga[1] - gb[1], ga[2] - gb[2]};
+            const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+            if (!(g2 > 0)) break;
+            double step = F / std::sqrt(g2);
+            if (std::abs(step) < 1e-6 * fa.voxelSize()) break;
+            step = std::clamp(step, -maxStep, maxStep);
+            const double inv = 1.0 / std::sqrt(g2);
+            for (int c = 0; c < 3; ++c) x[c] -= step * g[c] * inv;
+        }
+        return best;
+    }
+    const SelectionDomain& domain_;
+    std::vector<SurfaceTag> surfaces_;
+};
+
+// Index-space box of the voxels inside any selected material.
+openvdb::CoordBBox solidBox(const imaging::Volume& vol, const imaging::Selection& sel) {
+    const openvdb::CoordBBox box = vol.box;
+    const int z0 = box.min().z(), z1 = box.max().z();
+    auto join = [](openvdb::CoordBBox a, const openvdb::CoordBBox& b) {
+        if (b.empty()) return a;
+        if (a.empty()) return b;
+        a.expand(b);
+        return a;
+    };
+    return tbb::parallel_reduce(
+        tbb::blocked_range<int>(z0, z1 + 1), openvdb::CoordBBox(),
+        [&](const tbb::blocked_range<int>& r, openvdb::CoordBBox acc) {
+            for (int k = r.begin(); k != r.end(); ++k)
+                for (int j = box.min().y(); j <= box.max().y(); ++j)
+                    for (int i = box.min().x(); i <= box.max().x(); ++i) {
+                        const openvdb::Coord c(i, j, k);
+                        bool in = false;
+                        if (vol.kind == imaging::VolumeKind::Labels) {
+                            const std::int32_t l = vol.labels->tree().getValue(c);
+                            for (const auto& m : sel.materials) in = in || m.id == l;
+                        } else {
+                            in = sel.materials.front().field.grid().tree().getValue(c) < 0;
+                        }
+                        if (in) acc.expand(c);
+                    }
+            return acc;
+        },
+        join);
+}
+
+octree::Grid gridFor(const imaging::Volume& vol, const openvdb::CoordBBox& solid, const std::array<double, 3>& step,
+                     int pad) {
+    const openvdb::math::Transform& xf = vol.transform();
+    const openvdb::Vec3d o = xf.indexToWorld(openvdb::Vec3d(0, 0, 0));
+    octree::Grid g;
+    openvdb::Vec3d start;
+    for (int a = 0; a < 3; ++a) {
+        openvdb::Vec3d e(0, 0, 0);
+        e[a] = step[a];
+        const openvdb::Vec3d w = xf.indexToWorld(e) - o;
+        g.axes[a] = {w[0], w[1], w[2]};
+        const double extent = solid.max()[a] - solid.min()[a];
+        g.dims[a] = static_cast<int>(std::ceil(extent / step[a] - 1e-9)) + 1 + 2 * pad;
+        start[a] = solid.min()[a] - pad * step[a];
+    }
+    const openvdb::Vec3d w0 = xf.indexToWorld(start);
+    g.origin = {w0[0], w0[1], w0[2]};
+    return g;
+}
+
+nlohmann::json gridJson(const octree::Grid& g) {
+    const auto s = g.spacing();
+    return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
+}
+
+}  // namespace
+
+Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    Prepared p;
+    if (settings.size && settings.level)
+        throw Error("--size and --level both given; choose one (--size is the element edge length in world units)");
+    if (settings.size && !(*settings.size > 0))
+        throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
+    {
+        Stage st(sink, "load");
+        imaging::LoadOptions lo = settings.load;
+        lo.progress = [&](std::string_view, double f) { sink.progress(f); };
+        p.volume = std::make_shared<const imaging::Volume>(imaging::loadVolume(input, lo));
+        st.finish();
+    }
+    const imaging::Volume& vol = *p.volume;
+    {
+        Stage st(sink, "select");
+        imaging::SelectOptions so = settings.select;
+        so.progress = [&](std::string_view, double f) { sink.progress(f); };
+        p.selection = std::make_shared<const imaging::Selection>(imaging::select(vol, so));
+        st.finish();
+    }
+    const imaging::Selection& sel = *p.selection;
+    auto domain = std::make_shared<SelectionDomain>(p.volume, p.selection);
+    p.domain = domain;
+
+    nlohmann::json in;
+    in["path"] = input;
+    in["format"] = vol.format;
+    in["pixel_type"] = vol.pixelType;
+    in["kind"] = vol.kind == imaging::VolumeKind::Labels ? "labels" : "intensity";
+    in["dimensions"] = {vol.dims().x(), vol.dims().y(), vol.dims().z()};
+    in["spacing"] = vol.spacing;
+    in["origin"] = vol.origin;
+    in["direction"] = vol.direction;
+    in["data_range"] = {vol.minValue, vol.maxValue};
+    in["coordinates"] = "LPS (ITK physical space), world units of the scan (mm for medical images)";
+    if (!vol.seriesUid.empty()) in["dicom_series"] = vol.seriesUid;
+    nlohmann::json selJson;
+    if (sel.iso) {
+        selJson["iso"] = *sel.iso;
+        selJson["iso_from_otsu"] = sel.isoFromOtsu;
+        selJson["inside"] = sel.insideBelow ? "below" : "above";
+        if (sel.isoFromOtsu)
+            sink.note("info", "iso value " + std::to_string(*sel.iso) + " chosen by Otsu's method (set it with --iso)");
+    }
+    for (const auto& m : sel.materials) selJson["materials"].push_back({{"id", m.id}, {"voxels", m.voxels}});
+    for (const auto& d : sel.dropped) {
+        selJson["dropped_labels"].push_back({{"label", d.label}, {"voxels", d.voxels}});
+        p.warnings.push_back("label " + std::to_string(d.label) + " has only " + std::to_string(d.voxels) +
+                             " voxels and was dropped (--min-label-voxels)");
+    }
+    p.report["input"] = in;
+    p.report["selection"] = selJson;
+
+    Stage st(sink, "octree");
+    const openvdb::CoordBBox solid = solidBox(vol, sel);
+    if (solid.empty()) throw Error(input + ": the selection contains no voxel; nothing to mesh");
+    const int pad = settings.meshExterior ? 1 + settings.exteriorMargin : 2;
+    const double spacingMin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+    octree::LevelChoice choice;
+    std::array<double, 3> step{1, 1, 1};
+    nlohmann::json grid;
+    if (settings.size) {
+        for (int a = 0; a < 3; ++a) step[a] = *settings.size / vol.spacing[a];
+        if (*settings.size < 0.5 * spacingMin)
+            p.warnings.push_back("--size " + std::to_string(*settings.size) +
+                                 " is below half the voxel spacing; the mesh cannot resolve more than the scan");
+        grid["chosen_by"] = "size";
+    } else if (settings.level) {
+        if (*settings.level < 0 || *settings.level > 10)
+            throw Error("--level must be between 0 and 10 (got " + std::to_string(*settings.level) + ")");
+        step.fill(static_cast<double>(1 << *settings.level));
+        grid["chosen_by"] = "level";
+    } else {
+        const octree::Grid base = gridFor(vol, solid, step, pad);
+        choice = octree::chooseLevel(*domain, base);
+        step.fill(static_cast<double>(1 << choice.level));
+        grid["chosen_by"] = "topology";
+        grid["rejected"] = choice.notes;
+    }
+    const octree::Grid g = gridFor(vol, solid, step, pad);
+    p.labels = octree::sampleLabels(*domain, g);
+    sink.progress(0.5);
+    const octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain);
+    const auto topo = octree::regionTopology(p.labels);
+    grid["step_voxels"] = step;
+    grid["element_size"] = g.spacing();
+    if (!settings.size) grid["level"] = settings.level ? *settings.level : choice.level;
+    grid["grid"] = gridJson(g);
+    grid["repair"] = {{"nonmanifold_blocks_before", rep.nonManifoldBefore},
+                      {"points_added", rep.pointsAdded},
+                      {"points_removed", rep.pointsRemoved},
+                      {"rounds", rep.rounds}};
+    for (const auto& t : topo)
+        grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
+                                    {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+    // Compare with the voxel-resolution topology when the user forced the grid.
+    if ((settings.size || settings.level) && vol.voxelCount() <= 60'000'000) {
+        octree::Labels fine = octree::sampleLabels(*domain, gridFor(vol, solid, {1, 1, 1}, 2));
+        octree::repairNonManifold(fine, *domain);
+        const auto ref = octree::regionTopology(fine);
+        for (const auto& r : ref) {
+            const auto it = std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == r.material; });
+            if (it == topo.end())
+                p.warnings.push_back("material " + std::to_string(r.material) + " vanishes at this element size");
+            else if (it->components != r.components || it->euler != r.euler)
+                p.warnings.push_back("material " + std::to_string(r.material) + ": the element size changes the topology of its surface (voxel resolution: " +
+                                     std::to_string(r.components) + " component(s), Euler characteristic " + std::to_string(r.euler) +
+                                     "; this mesh: " + std::to_string(it->components) + " component(s), Euler characteristic " +
+                                     std::to_string(it->euler) + ")");
+        }
+    }
+    if (rep.nonManifoldBefore > 0)
+        sink.note("info", "repaired " + std::to_string(rep.nonManifoldBefore) + " non-manifold places (" +
+                              std::to_string(rep.pointsAdded) + " grid points added, " + std::to_string(rep.pointsRemoved) +
+                              " removed)");
+    p.report["grid"] = grid;
+    st.finish();
+    for (const auto& w : p.warnings) sink.note("warning", w);
+    return p;
+}
+
+HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink) {
+    Stage st(sink, "extract");
+    octree::ExtractOptions opt;
+    opt.meshExterior = settings.meshExterior;
+    if (settings.method == "voxel") opt.cellCentres = true;
+    else if (settings.method != "dual")
+        throw Error("--method must be 'dual' or 'voxel' (got '" + settings.method + "')");
+    HexMesh mesh = octree::dualContourHexes(p.labels, *p.domain, opt);
+    if (settings.meshExterior)  // the box around the exterior does not move
+        for (std::size_t s = 0; s < mesh.surfaces.size(); ++s)
+            if (mesh.surfaces[s].inside <= 0 && mesh.surfaces[s].outside <= 0)
+                for (auto& c : mesh.nodeClass)
+                    if (c.kind == NodeKind::Surface && c.id == static_cast<std::int32_t>(s)) c = {NodeKind::Fixed, -1};
+    st.finish();
+    return mesh;
+}
+
+nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink) {
+    nlohmann::json j;
+    j["enabled"] = settings.pillow;
+    if (!settings.pillow) return j;
+    Stage st(sink, "pillow");
+    const std::size_t before = mesh.hexCount();
+    PillowOptions opt;
+    const auto results = pillowAllMaterials(mesh, settings.boundaryLayers, opt);
+    j["layers"] = settings.boundaryLayers;
+    j["sheets"] = results.size();
+    j["hexes_added"] = mesh.hexCount() - before;
+    std::size_t inverted = 0;
+    for (const auto& r : results) inverted += r.invertedAtStart;
+    j["inverted_at_insertion"] = inverted;
+    st.finish();
+    return j;
+}
+
+nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink) {
+    nlohmann::json j;
+    j["enabled"] = settings.optimize;
+    if (!settings.optimize) return j;
+    Stage st(sink, "optimize");
+    smoothing::SmoothingOptions opt;
+    opt.fixBoundary = settings.fixBoundary;
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    FieldProjector projector(*domain, mesh);
+    const smoothing::SmoothingResult r =
+        smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt,
+                                [&](std::string_view, double f) { sink.progress(f); });
+    j["fix_boundary"] = settings.fixBoundary;
+    j["sweeps"] = r.sweeps;
+    j["untangle_sweeps"] = r.untangleSweeps;
+    j["nodes_moved"] = r.nodesMoved;
+    j["inverted_before"] = r.invertedBefore;
+    j["inverted_after"] = r.invertedAfter;
+    j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;
+    j["mean_inverse_mean_ratio_after"] = r.objectiveAfter;
+    j["converged"] = r.converged;
+    for (const auto& f : r.untangleFailures) {
+        j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
+        if (j["untangle_failures"].size() >= 20) break;
+    }
+    if (!r.untangleFailures.empty())
+        sink.note("warning", std::to_string(r.untangleFailures.size()) + " hex(es) could not be untangled; first at (" +
+                                 std::to_string(r.untangleFailures[0].centroid[0]) + ", " +
+                                 std::to_string(r.untangleFailures[0].centroid[1]) + ", " +
+                                 std::to_string(r.untangleFailures[0].centroid[2]) + ")");
+    st.finish();
+    return j;
+}
+
+nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    nlohmann::json j;
+    // Volume the isosurface encloses, from OpenVDB's own polygonisation of the
+    // field's zero set (divergence theorem over its polygons).
+    double isoTotal = 0, meshTotal = 0;
+    std::map<std::int32_t, double> meshVolume;
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) meshVolume[mesh.material[h]] += hexVolume(hexCoords(mesh, static_cast<Index>(h)));
+    for (const auto& m : p.selection->materials) {
+        std::vector<openvdb::Vec3s> pts;
+        std::vector<openvdb::Vec3I> tris;
+        std::vector<openvdb::Vec4I> quads;
+        openvdb::tools::volumeToMesh(m.field.grid(), pts, tris, quads, 0.0);
+        double v = 0;
+        auto add = [&](const openvdb::Vec3s& a, const openvdb::Vec3s& b, const openvdb::Vec3s& c) {
+            v += openvdb::Vec3d(a).dot(openvdb::Vec3d(b).cross(openvdb::Vec3d(c))) / 6.0;
+        };
+        for (const auto& t : tris) add(pts[t[0]], pts[t[1]], pts[t[2]]);
+        for (const auto& q : quads) {
+            add(pts[q[0]], pts[q[1]], pts[q[2]]);
+            add(pts[q[0]], pts[q[2]], pts[q[3]]);
+        }
+        v = std::abs(v);
+        const double mv = meshVolume.count(m.id) ? meshVolume[m.id] : 0.0;
+        isoTotal += v;
+        meshTotal += mv;
+        j["materials"].push_back({{"material", m.id},
+                                  {"volume_mesh", mv},
+                                  {"volume_isosurface", v},
+                                  {"volume_change_percent", v > 0 ? 100.0 * (mv - v) / v : 0.0}});
+    }
+    j["volume_mesh"] = meshTotal;
+    j["volume_isosurface"] = isoTotal;
+    j["volume_change_percent"] = isoTotal > 0 ? 100.0 * (meshTotal - isoTotal) / isoTotal : 0.0;
+    // Distance of surface nodes to their surface (projection distance).
+    FieldProjector proj(*domain, mesh);
+    std::vector<Index> nodes;
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+        if (mesh.nodeClass[v].kind == NodeKind::Surface) nodes.push_back(static_cast<Index>(v));
+    std::vector<double> dist(nodes.size(), 0.0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 512), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Vec3& x = mesh.nodes[nodes[i]];
+            const Vec3 y = proj.project(mesh.nodeClass[nodes[i]].id, x);
+            dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
+        }
+    });
+    double sum = 0, mx = 0;
+    for (double d : dist) {
+        sum += d;
+        mx = std::max(mx, d);
+    }
+    const double voxel = p.selection->materials.front().field.voxelSize();
+    j["boundary_nodes"] = nodes.size();
+    j["boundary_distance_mean"] = nodes.empty() ? 0.0 : sum / nodes.size();
+    j["boundary_distance_max"] = mx;
+    j["boundary_distance_mean_voxels"] = nodes.empty() ? 0.0 : sum / nodes.size() / voxel;
+    j["boundary_distance_max_voxels"] = mx / voxel;
+    j["units"] = "world units of the scan (mm for medical images)";
+    return j;
+}
+
+MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    const auto t0 = Clock::now();
+    Prepared p = prepare(input, settings, sink);
+    MeshOutcome out;
+    out.mesh = extract(p, settings, sink);
+    out.report = p.report;
+    out.report["method"] = settings.method;
+    out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
+    out.report["pillow"] = insertSheets(out.mesh, settings, sink);
+    out.report["optimization"] = optimize(out.mesh, p, settings, sink);
+    {
+        Stage st(sink, "fidelity");
+        out.report["fidelity"] = fidelity(out.mesh, p);
+        st.finish();
+    }
+    nlohmann::json perMaterial;
+    std::map<std::int32_t, std::size_t> hexes;
+    for (auto m : out.mesh.material) ++hexes[m];
+    for (auto [m, n] : hexes) perMaterial.push_back({{"material", m}, {"hexes", n}});
+    out.report["materials"] = perMaterial;
+    out.report["warnings"] = p.warnings;
+    out.report["pipeline_seconds"] = since(t0);
+    return out;
+}
+
+}  // namespace isohex::cli

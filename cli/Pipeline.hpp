@@ -1,0 +1,77 @@
+#pragma once
+// The whole meshing pipeline as one call: load -> select -> octree level and
+// labels -> dual contouring -> fundamental sheet -> optimisation. Writing the
+// files and printing are left to the commands.
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/imaging/Selection.hpp"
+#include "isohex/imaging/Volume.hpp"
+#include "isohex/octree/DualContour.hpp"
+
+namespace isohex::cli {
+
+struct MeshSettings {
+    imaging::LoadOptions load;
+    imaging::SelectOptions select;
+    std::optional<double> size;   // element edge length in world units
+    std::optional<int> level;     // grid step 2^level voxels (exclusive with size)
+    std::string method = "dual";  // "dual" (dual contouring) or "voxel" (one hex per voxel, the baseline)
+    bool pillow = true;
+    int boundaryLayers = 1;
+    bool meshExterior = false;
+    int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
+    bool optimize = true;
+    bool fixBoundary = false;
+    int randomSheetSeed = 1;
+};
+
+// Stage reporting: begin(name), fraction updates, end. The pipeline times
+// each stage through it.
+class StageSink {
+public:
+    virtual ~StageSink() = default;
+    virtual void begin(std::string_view stage) = 0;
+    virtual void progress(double fraction) = 0;
+    virtual void end(std::string_view stage, double seconds) = 0;
+    virtual void note(std::string_view level, const std::string& text) = 0;  // "info" or "warning"
+};
+
+// A scan loaded and selected, with the sampling grid chosen: everything the
+// variants of one input share (isohex compare meshes it several ways).
+struct Prepared {
+    std::shared_ptr<const imaging::Volume> volume;
+    std::shared_ptr<const imaging::Selection> selection;
+    std::shared_ptr<const octree::Domain> domain;
+    octree::Labels labels;          // repaired, ready for extraction
+    nlohmann::json report;          // input, selection, grid and repair facts
+    std::vector<std::string> warnings;
+};
+
+Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink);
+// Dual contouring (or voxel hexes) of the prepared labels.
+HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink);
+// Pillows the fundamental sheets (unless settings.pillow is off).
+nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
+// Untangling and mean-ratio optimisation with surface nodes kept on the isosurface.
+nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink);
+
+// Volume enclosed by each selected material's isosurface vs the mesh's, and
+// the distance of boundary and interface nodes to their surfaces.
+nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p);
+
+struct MeshOutcome {
+    HexMesh mesh;
+    nlohmann::json report;
+};
+// prepare + extract + insertSheets + optimize, with the report of each.
+MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink);
+
+}  // namespace isohex::cli

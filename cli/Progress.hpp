@@ -1,0 +1,39 @@
+#pragma once
+// Draws pipeline progress on stderr: a bar with elapsed time and ETA on a
+// terminal, plain periodic lines otherwise, one JSON object per event with
+// --log-json, nothing with --quiet (warnings still print).
+#include <chrono>
+#include <mutex>
+#include <string>
+
+#include "Pipeline.hpp"
+
+namespace isohex::cli {
+
+class ProgressSink : public StageSink {
+public:
+    enum class Mode { Auto, Quiet, Json };
+    explicit ProgressSink(Mode mode, std::string job = {});
+    void begin(std::string_view stage) override;
+    void progress(double fraction) override;
+    void end(std::string_view stage, double seconds) override;
+    void note(std::string_view level, const std::string& text) override;
+    void event(const std::string& name, const nlohmann::json& fields);  // JSON mode only
+    void setJob(std::string job) { job_ = std::move(job); }
+    // Seconds per finished stage (a stage run twice adds up).
+    const nlohmann::json& timings() const { return timings_; }
+
+private:
+    void drawBar(bool final);
+    using Clock = std::chrono::steady_clock;
+    Mode mode_;
+    bool terminal_ = false;
+    std::string job_;
+    std::string stage_;
+    double fraction_ = 0;
+    Clock::time_point stageStart_, lastDraw_;
+    std::mutex mutex_;
+    nlohmann::json timings_ = nlohmann::json::object();
+};
+
+}  // namespace isohex::cli

@@ -1,0 +1,86 @@
+// isohex mesh INPUT -o OUTPUT: the whole pipeline; several inputs with --out-dir.
+#include <filesystem>
+#include <memory>
+
+#include <tbb/global_control.h>
+
+#include "Commands.hpp"
+#include "Jobs.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/MeshIO.hpp"
+
+namespace isohex::cli {
+
+namespace {
+struct MeshCommand {
+    std::vector<std::string> inputs;
+    std::vector<std::string> outputs;
+    std::string outDir;
+    std::vector<std::string> formats{"vtu"};
+    std::string report;
+    std::string plot;
+    MeshArgs args;
+};
+}  // namespace
+
+std::unique_ptr<tbb::global_control>& threadLimit() {
+    static std::unique_ptr<tbb::global_control> limit;
+    return limit;
+}
+
+void applyThreads(int threads) {
+    if (threads > 0)
+        threadLimit() = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                              static_cast<std::size_t>(threads));
+}
+
+void addMeshCommand(CLI::App& app) {
+    auto c = std::make_shared<MeshCommand>();
+    CLI::App* cmd = app.add_subcommand("mesh", "Mesh a scan, label map or surface into all-hex elements");
+    cmd->add_option("input", c->inputs, "Scan(s): NIfTI, NRRD, MetaImage, TIFF, DICOM folder, OpenVDB, OpenEXR folder")
+        ->required();
+    cmd->add_option("-o,--output", c->outputs,
+                    "Output mesh file(s); the format follows the extension (.vtu .msh .exo .e .inp .mesh)");
+    cmd->add_option("--out-dir", c->outDir, "With several inputs: write <input name>.<format> files here");
+    cmd->add_option("--format", c->formats, "With --out-dir: output format(s) by extension, e.g. vtu,exo")
+        ->delimiter(',');
+    cmd->add_option("--report", c->report, "Write the JSON report here (with --out-dir: <name>.report.json always)");
+    cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian here");
+    addMeshOptions(cmd, c->args);
+    addRunOptions(cmd, c->args);
+    cmd->callback([c] {
+        applyThreads(c->args.threads);
+        std::vector<Job> jobs;
+        if (c->inputs.size() == 1 && c->outDir.empty()) {
+            if (c->outputs.empty())
+                throw Error("no output given: add -o mesh.vtu (or .msh .exo .e .inp .mesh), several -o for several formats");
+            jobs.push_back({c->inputs[0], c->outputs, c->report, c->plot, c->args});
+            ProgressSink sink(c->args.progressMode());
+            const JobResult r = runJob(jobs[0], sink);
+            std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu below 0.2, %zu inverted, %.1f s\n",
+                        c->inputs[0].c_str(), r.hexes, r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted,
+                        r.seconds);
+            for (const auto& o : c->outputs) std::printf("wrote %s\n", o.c_str());
+            if (!r.message.empty()) std::printf("warning: %s\n", r.message.c_str());
+            return;
+        }
+        if (c->outDir.empty()) throw Error("several inputs need --out-dir DIR (outputs are named after the inputs)");
+        if (!c->outputs.empty()) throw Error("-o names one output; with several inputs use --out-dir and --format");
+        if (!c->report.empty() || !c->plot.empty())
+            throw Error("--report/--plot name one file; with --out-dir every job writes <name>.report.json");
+        std::error_code ec;
+        std::filesystem::create_directories(c->outDir, ec);
+        if (ec) throw Error(c->outDir + ": cannot create the output folder: " + ec.message());
+        for (const auto& in : c->inputs) {
+            Job j{in, {}, {}, {}, c->args};
+            const std::string base = (std::filesystem::path(c->outDir) / stemOf(in)).string();
+            for (const auto& f : c->formats) j.outputs.push_back(base + "." + (f.front() == '.' ? f.substr(1) : f));
+            j.report = base + ".report.json";
+            jobs.push_back(std::move(j));
+        }
+        for (const auto& o : jobs.front().outputs) io::formatFromPath(o);
+        if (runJobs(jobs, c->args.force, c->args.progressMode()) > 0) pendingExitCode() = kExitError;
+    });
+}
+
+}  // namespace isohex::cli
