@@ -125,6 +125,24 @@ std::vector<std::int32_t> materialsOf(const HexMesh& mesh) {
     return mats;
 }
 
+std::vector<int> positiveIds(const std::vector<std::int32_t>& mats) {
+    std::vector<int> ids(mats.size());
+    std::vector<std::int32_t> used;
+    for (std::int32_t m : mats)
+        if (m > 0) used.push_back(m);
+    std::int32_t candidate = 1;
+    for (std::size_t i = 0; i < mats.size(); ++i) {
+        if (mats[i] > 0) {
+            ids[i] = mats[i];
+            continue;
+        }
+        while (std::binary_search(used.begin(), used.end(), candidate)) ++candidate;
+        ids[i] = candidate;
+        used.insert(std::lower_bound(used.begin(), used.end(), candidate), candidate);
+    }
+    return ids;
+}
+
 std::vector<std::vector<Index>> hexesByMaterial(const HexMesh& mesh, const std::vector<std::int32_t>& mats) {
     std::vector<std::vector<Index>> out(mats.size());
     for (std::size_t h = 0; h < mesh.hexCount(); ++h) {

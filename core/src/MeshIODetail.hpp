@@ -33,6 +33,10 @@ void requireReadableFile(const std::string& path);
 
 // The distinct material ids of the mesh, ascending.
 std::vector<std::int32_t> materialsOf(const HexMesh& mesh);
+// Ids for formats that need positive ones (Gmsh physical tags, Exodus block
+// ids): each material > 0 keeps its value, the others take the smallest
+// positive values no material uses. `mats` must be ascending (materialsOf).
+std::vector<int> positiveIds(const std::vector<std::int32_t>& mats);
 // The hexes of each material of `mats` (materialsOf(mesh)), ascending; one pass.
 std::vector<std::vector<Index>> hexesByMaterial(const HexMesh& mesh, const std::vector<std::int32_t>& mats);
 

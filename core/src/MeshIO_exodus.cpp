@@ -94,11 +94,7 @@ void writeExodus(const HexMesh& mesh, const std::string& tmpPath, const std::str
     const auto nNodes = static_cast<int>(mesh.nodeCount());
     const auto nHexes = static_cast<int>(mesh.hexCount());
 
-    // Block ids must be positive; materials <= 0 take the next unused ids.
-    std::vector<int> blockIds(mats.size());
-    int nextId = 1;
-    for (std::int32_t m : mats) nextId = std::max(nextId, m + 1);
-    for (std::size_t b = 0; b < mats.size(); ++b) blockIds[b] = mats[b] > 0 ? mats[b] : nextId++;
+    const std::vector<int> blockIds = positiveIds(mats);
 
     // Exodus numbers elements 1..n in block order.
     std::vector<int> exodusElement(mesh.hexCount());

@@ -96,20 +96,12 @@ bool parseMaterialName(const std::string& name, std::int32_t& out) {
     return r.ec == std::errc() && r.ptr == e && b != e;
 }
 
-// Physical tags must be positive; materials <= 0 get the next unused ones.
-std::vector<int> physicalTagsFor(const std::vector<std::int32_t>& mats) {
-    std::vector<int> tags(mats.size());
-    int next = 1;
-    for (std::int32_t m : mats) next = std::max(next, m + 1);
-    for (std::size_t i = 0; i < mats.size(); ++i) tags[i] = mats[i] > 0 ? mats[i] : next++;
-    return tags;
-}
 
 }  // namespace
 
 void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string& path) {
     const std::vector<std::int32_t> mats = materialsOf(mesh);
-    const std::vector<int> physTags = physicalTagsFor(mats);
+    const std::vector<int> physTags = positiveIds(mats);
     const std::vector<NamedPatch> surfaces = namedSurfaces(mesh);
 
     GmshSession gmshSession(path);
@@ -119,9 +111,8 @@ void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string
         gmsh::option::setNumber("Mesh.SaveAll", 0);
         gmsh::model::add("isohex");
 
-        const int nodeEntity = 1;
-        for (std::size_t i = 0; i < std::max<std::size_t>(mats.size(), 1); ++i)
-            gmsh::model::addDiscreteEntity(3, static_cast<int>(i + 1));
+        const int nodeEntity = 1;  // io::write refuses meshes without hexes, so it exists
+        for (std::size_t i = 0; i < mats.size(); ++i) gmsh::model::addDiscreteEntity(3, static_cast<int>(i + 1));
 
         std::vector<std::size_t> nodeTags(mesh.nodeCount());
         std::iota(nodeTags.begin(), nodeTags.end(), std::size_t{1});
@@ -145,11 +136,6 @@ void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string
             gmsh::model::mesh::addElementsByType(entity, kGmshHex8, elemTags, conn);
             gmsh::model::addPhysicalGroup(3, {entity}, physTags[i]);
             gmsh::model::setPhysicalName(3, physTags[i], materialGroupName(mats[i]));
-        }
-        if (mats.empty()) {
-            // Nodes without hexes: keep them in the file through a group on their volume.
-            gmsh::model::addPhysicalGroup(3, {nodeEntity}, 1);
-            gmsh::model::setPhysicalName(3, 1, "nodes");
         }
 
         std::size_t nextElement = mesh.hexCount() + 1;

@@ -6,7 +6,10 @@
 // node_class (Int32, NodeKind) and node_surface (Int32, NodeClass::id). Field
 // data surface_inside / surface_outside / surface_names keep HexMesh::surfaces,
 // so a .vtu written by isohex reads back into the same HexMesh.
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <fstream>
 #include <mutex>
 #include <string>
 
@@ -141,6 +144,23 @@ std::int32_t integerValue(vtkDataArray* a, vtkIdType i, const std::string& path,
     return static_cast<std::int32_t>(v);
 }
 
+// A complete VTK XML file ends with </VTKFile>. Checking that first turns the
+// common damage (an interrupted copy or write) into a precise message, and
+// keeps VTK from parsing a cut-off appended block, where VTK 9.1 sizes arrays
+// from values it never read.
+void requireCompleteXml(const std::string& path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    const std::streamoff size = in ? static_cast<std::streamoff>(in.tellg()) : 0;
+    const std::streamoff tail = std::min<std::streamoff>(size, 256);
+    std::string end(static_cast<std::size_t>(tail), '\0');
+    in.seekg(size - tail);
+    in.read(end.data(), tail);
+    while (!end.empty() && std::isspace(static_cast<unsigned char>(end.back()))) end.pop_back();
+    const std::string closing = "</VTKFile>";
+    if (end.size() < closing.size() || end.compare(end.size() - closing.size(), closing.size(), closing) != 0)
+        throw Error(path + ": truncated or not a VTK XML file (it does not end with " + closing + ")");
+}
+
 }  // namespace
 
 void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string& path,
@@ -236,6 +256,7 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
 }
 
 HexMesh readVtu(const std::string& path) {
+    requireCompleteXml(path);
     VtkMessageCapture capture;
     vtkNew<vtkXMLUnstructuredGridReader> reader;
     if (!reader->CanReadFile(path.c_str()))

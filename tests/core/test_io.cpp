@@ -328,6 +328,23 @@ TEST_F(IoTest, TruncatedFilesAreClearErrors) {
     }
 }
 
+TEST_F(IoTest, VtuWhoseHeaderDisagreesWithItsDataIsAClearError) {
+    io::write(sampleMesh(), file("good.vtu"));
+    const std::string text = slurp(file("good.vtu"));
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"NumberOfCells=\"24\"", "NumberOfCells=\"99\""},
+                                   {"NumberOfPoints=\"60\"", "NumberOfPoints=\"61\""}}) {
+        const auto at = text.find(from);
+        ASSERT_NE(at, std::string::npos) << from;
+        std::string bad = text;
+        bad.replace(at, from.size(), to);
+        const std::string p = file("bad.vtu");
+        spit(p, bad);
+        const std::string m = readError(p);
+        expectOneLineNaming(m, p);
+        EXPECT_NE(m.find("damaged"), std::string::npos) << m;
+    }
+}
+
 TEST_F(IoTest, VtuWithNonHexCellsIsRejectedClearly) {
     const std::string p = file("tet.vtu");
     spit(p, R"(<?xml version="1.0"?>
