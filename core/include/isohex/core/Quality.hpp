@@ -24,7 +24,8 @@ double scaledJacobian(const HexCoords& x);
 double inverseMeanRatio(const HexCoords& x);
 // Verdict's HexCondition: max over the 9 Jacobians of |A|_F |A^-1|_F, divided by 3.
 double conditionNumber(const HexCoords& x);
-// Verdict's HexEdgeRatio: longest / shortest of the 12 edges (1e30 when an edge vanishes).
+// Edge ratio as Verdict documents it: longest / shortest of the 12 edges (1e30 when an edge
+// vanishes). VTK 9.1's vtkMeshQuality returns other values for distorted hexes.
 double edgeRatio(const HexCoords& x);
 // Exact volume of the trilinear hex (2x2x2 Gauss quadrature of det J is exact).
 double hexVolume(const HexCoords& x);
