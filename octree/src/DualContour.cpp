@@ -200,6 +200,31 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     ++localClamped;
                     x = lower + axes * u;
                 }
+                // Onto the surface between the two materials of the cell.
+                std::int32_t ma = m[0], mb = m[0];
+                bool two = true;
+                for (int c = 1; c < 8; ++c)
+                    if (m[c] != ma) {
+                        if (mb == ma) mb = m[c];
+                        else if (m[c] != mb) two = false;
+                    }
+                if (opt.projectVertices && two) {
+                    if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
+                    for (int it = 0; it < 6; ++it) {
+                        Vec3 grad;
+                        const Vec3 xv{x(0), x(1), x(2)};
+                        const double F = edgeFunction(domain, ma, mb, xv, &grad);
+                        const Eigen::Vector3d gr(grad[0], grad[1], grad[2]);
+                        const double g2 = gr.squaredNorm();
+                        if (!(g2 > 0) || !std::isfinite(F)) break;
+                        Eigen::Vector3d step = -F / g2 * gr;
+                        const Eigen::Vector3d next = x + step;
+                        const Eigen::Vector3d un = toCell * (next - lower);
+                        if ((un.array() < opt.cellMargin).any() || (un.array() > 1.0 - opt.cellMargin).any()) break;
+                        x = next;
+                        if ((toCell * step).norm() < 1e-7) break;
+                    }
+                }
                 mesh.nodes[id] = {x(0), x(1), x(2)};
             }
         crossed += localCrossed;

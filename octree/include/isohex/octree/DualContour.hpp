@@ -64,6 +64,10 @@ struct ExtractOptions {
     // are then the grid's own cubes around each labelled point (voxel meshing,
     // the stair-stepped baseline of bone biomechanics).
     bool cellCentres = false;
+    // Move each QEF vertex of a cell between two materials onto their surface
+    // with a few Newton steps (kept inside the cell): the QEF minimiser of a
+    // curved surface lies off it by a fraction of a cell.
+    bool projectVertices = true;
     Progress progress;
 };
 
