@@ -18,6 +18,7 @@ int& pendingExitCode();
 void addQualityCommand(CLI::App& app);
 void addConvertCommand(CLI::App& app);
 void addMeshCommand(CLI::App& app);
+void addSmoothCommand(CLI::App& app);
 // --threads N for the rest of the process (tbb::global_control)
 void applyThreads(int threads);
 
