@@ -96,6 +96,9 @@ private:
     Visit interiorStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit surfaceStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit untangleStep(Index v, std::vector<CornerTerm>& buf) const;
+    Visit untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const;
+    // Area-weighted centroid and unit normal of the node's surface quads; false if it has none.
+    bool surfaceFrame(std::size_t v, Vector3& centroid, Vector3& normal) const;
     static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
     void report(std::string_view stage, double fraction) const {
         if (progress_) progress_(stage, std::clamp(fraction, 0.0, 1.0));
@@ -232,9 +235,69 @@ Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) co
     // Nothing to do where Knupp's measure is already zero.
     if (objective.minDeterminant(Vector3::Zero()) >= beta) return r;
     NewtonOptions newton = opt_.newton;
-    newton.maxIterations = 10;
+    newton.maxIterations = 4;
     r.move = newtonDescent(objective, L, 1e-9 * static_cast<double>(n) * beta / L, newton);
     r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
+    return r;
+}
+
+bool Smoother::surfaceFrame(std::size_t sv, Vector3& centroid, Vector3& normal) const {
+    centroid.setZero();
+    normal.setZero();
+    Vector3 firstNormal = Vector3::Zero();
+    double area = 0;
+    for (const Index* q = nodeSurfaceQuads_.begin(sv); q != nodeSurfaceQuads_.end(sv); ++q) {
+        const auto& qn = topo_.quads[static_cast<std::size_t>(*q)].nodes;
+        Vector3 p[4];
+        for (int i = 0; i < 4; ++i) {
+            const Vec3& y = mesh_.nodes[static_cast<std::size_t>(qn[i])];
+            p[i] = Vector3(y[0], y[1], y[2]);
+        }
+        Vector3 an = (p[2] - p[0]).cross(p[3] - p[1]);  // twice the area vector of the quad
+        const double a = 0.5 * an.norm();
+        if (firstNormal.isZero()) firstNormal = an;
+        else if (an.dot(firstNormal) < 0) an = -an;  // interface quads may face either way
+        centroid += a * 0.25 * (p[0] + p[1] + p[2] + p[3]);
+        normal += an;
+        area += a;
+    }
+    if (!(area > 0) || !(normal.norm() > 0)) return false;
+    centroid /= area;
+    normal.normalize();
+    return true;
+}
+
+// Untangling a surface node: Newton on Knupp's measure within the tangent
+// plane, then back onto the surface; kept only if the measure went down.
+Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    const auto sv = static_cast<std::size_t>(v);
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double L = r.length = localEdgeLength(buf.data(), n);
+    const double beta = opt_.untangleBeta * L * L * L;
+    NodeObjective<UntangleBeta> objective(UntangleBeta{beta, 0.5 * beta}, buf.data(), n);
+    if (objective.minDeterminant(Vector3::Zero()) >= beta) return r;
+    Vector3 centroid, normal;
+    if (!surfaceFrame(sv, centroid, normal)) return r;
+    const double f0 = objective.value(Vector3::Zero());
+    TangentPlaneObjective<NodeObjective<UntangleBeta>> tangent(objective, normal);
+    NewtonOptions newton = opt_.newton;
+    newton.maxIterations = 4;
+    const NodeMove m = newtonDescent(tangent, L, 1e-9 * static_cast<double>(n) * beta / L, newton);
+    if (m.steps == 0) return r;
+    const Matrix3 P = Matrix3::Identity() - normal * normal.transpose();
+    const Vector3 moved = P * m.displacement;  // what `objective` is now shifted by
+    const Vec3& xv = mesh_.nodes[sv];
+    const Vec3 y = projector_->project(mesh_.nodeClass[sv].id, displaced(xv, moved));
+    const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+    if (!d.allFinite()) return r;
+    const double f = objective.value(d - moved);
+    if (!(f < f0)) return r;
+    r.move.before = f0;
+    r.move.after = f;
+    r.move.displacement = d;
+    r.move.steps = 1;
+    r.position = y;
     return r;
 }
 
@@ -254,26 +317,9 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     const auto sv = static_cast<std::size_t>(v);
     const Vec3& xv = mesh_.nodes[sv];
     const Vector3 x(xv[0], xv[1], xv[2]);
-    Vector3 centroid = Vector3::Zero(), normal = Vector3::Zero(), firstNormal = Vector3::Zero();
-    double area = 0;
-    for (const Index* q = nodeSurfaceQuads_.begin(sv); q != nodeSurfaceQuads_.end(sv); ++q) {
-        const auto& qn = topo_.quads[static_cast<std::size_t>(*q)].nodes;
-        Vector3 p[4];
-        for (int i = 0; i < 4; ++i) {
-            const Vec3& y = mesh_.nodes[static_cast<std::size_t>(qn[i])];
-            p[i] = Vector3(y[0], y[1], y[2]);
-        }
-        Vector3 an = (p[2] - p[0]).cross(p[3] - p[1]);  // twice the area vector of the quad
-        const double a = 0.5 * an.norm();
-        if (firstNormal.isZero()) firstNormal = an;
-        else if (an.dot(firstNormal) < 0) an = -an;  // interface quads may face either way
-        centroid += a * 0.25 * (p[0] + p[1] + p[2] + p[3]);
-        normal += an;
-        area += a;
-    }
-    if (!(area > 0) || !(normal.norm() > 0)) return r;
-    normal.normalize();
-    Vector3 delta = centroid / area - x;
+    Vector3 centroid, normal;
+    if (!surfaceFrame(sv, centroid, normal)) return r;
+    Vector3 delta = centroid - x;
     delta -= delta.dot(normal) * normal;
     if (!(delta.norm() > opt_.moveTolerance * L)) return r;
 
@@ -297,22 +343,30 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
 
 void Smoother::untanglePhase() {
     const auto t0 = Clock::now();
-    const std::size_t N = mesh_.nodeCount();
+    const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
     std::size_t count = 0;
     std::vector<std::uint8_t> inverted = invertedFlags(mesh_, count);
-    std::vector<std::uint8_t> region(N, 0);
+    std::vector<std::uint8_t> region(N, 0), hexInRegion(H, 0);
     std::vector<std::vector<Index>> lists;
+    std::vector<Index> regionHexes;  // hexes whose status region nodes can change
     auto addInvertedToRegion = [&] {
-        for (std::size_t h = 0; h < inverted.size(); ++h)
+        for (std::size_t h = 0; h < H; ++h)
             if (inverted[h])
                 for (Index u : mesh_.hexes[h])
-                    if (mode_[static_cast<std::size_t>(u)] == Mode::Interior) region[static_cast<std::size_t>(u)] = 1;
+                    if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen) region[static_cast<std::size_t>(u)] = 1;
     };
     auto rebuildLists = [&] {
         lists.assign(colouring_.classes.size(), {});
         for (std::size_t c = 0; c < colouring_.classes.size(); ++c)
             for (Index v : colouring_.classes[c])
-                if (region[static_cast<std::size_t>(v)]) lists[c].push_back(v);
+                if (region[static_cast<std::size_t>(v)]) {
+                    lists[c].push_back(v);
+                    for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+                        if (!hexInRegion[static_cast<std::size_t>(*h)]) {
+                            hexInRegion[static_cast<std::size_t>(*h)] = 1;
+                            regionHexes.push_back(*h);
+                        }
+                }
     };
     addInvertedToRegion();
     rebuildLists();
@@ -321,14 +375,23 @@ void Smoother::untanglePhase() {
     int stall = 0, growth = 0;
     for (int sweep = 0; sweep < opt_.maxUntangleSweeps && count > 0; ++sweep) {
         sweepColours(lists, [&](Index v) {
-            const Visit r = untangleStep(v, buffers_->local());
+            const auto sv = static_cast<std::size_t>(v);
+            const Visit r = mode_[sv] == Mode::Surface ? untangleSurfaceStep(v, buffers_->local())
+                                                       : untangleStep(v, buffers_->local());
             if (r.move.steps > 0) {
-                mesh_.nodes[static_cast<std::size_t>(v)] = r.position;
-                everMoved_[static_cast<std::size_t>(v)] = 1;
+                mesh_.nodes[sv] = r.position;
+                everMoved_[sv] = 1;
             }
         });
         ++result_.untangleSweeps;
-        inverted = invertedFlags(mesh_, count);
+        // Only hexes touching the region can have changed.
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, regionHexes.size(), 1024), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const Index h = regionHexes[i];
+                inverted[static_cast<std::size_t>(h)] = !(minCornerDeterminant(hexCoords(mesh_, h)) > 0);
+            }
+        });
+        count = static_cast<std::size_t>(std::count(inverted.begin(), inverted.end(), std::uint8_t{1}));
         report("untangle", static_cast<double>(sweep + 1) / opt_.maxUntangleSweeps);
         if (count == 0) break;
         if (count < best) {
@@ -342,7 +405,7 @@ void Smoother::untanglePhase() {
                 if (region[v])
                     for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
                         for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)])
-                            if (mode_[static_cast<std::size_t>(u)] == Mode::Interior) grown[static_cast<std::size_t>(u)] = 1;
+                            if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen) grown[static_cast<std::size_t>(u)] = 1;
             region.swap(grown);
             ++growth;
             stall = 0;
@@ -365,7 +428,7 @@ void Smoother::meanRatioPhase() {
 
     const ObjectiveSum start = objectiveSum(mesh_);
     double total = 8.0 * start.sum;                        // corner sum, the optimised objective
-    const double ideal = 8.0 * static_cast<double>(start.finite);  // every corner perfect
+    const double corners = 8.0 * static_cast<double>(start.finite);
     std::vector<double> gain(N, 0.0);
     result_.converged = false;
 
@@ -388,13 +451,13 @@ void Smoother::meanRatioPhase() {
         active.swap(next);
         double improvement = 0;
         for (double g : gain) improvement += g;
-        const double excess = total - ideal;
+        const double before = total;
         total -= improvement;
         ++result_.sweeps;
         result_.nodeUpdates += updates.load();
-        result_.objectiveHistory.push_back(start.finite ? total / ideal : 0.0);
+        result_.objectiveHistory.push_back(start.finite ? total / corners : 0.0);
         report("optimize", static_cast<double>(sweep + 1) / opt_.maxSweeps);
-        if (!(improvement > opt_.relativeTolerance * excess) ||
+        if (!(improvement > opt_.relativeTolerance * before) ||
             std::find(active.begin(), active.end(), std::uint8_t{1}) == active.end()) {
             result_.converged = true;
             break;
@@ -406,6 +469,7 @@ void Smoother::meanRatioPhase() {
 SmoothingResult Smoother::run(bool meanRatio) {
     const auto t0 = Clock::now();
     setUp();
+    result_.setupSeconds = secondsSince(t0);
     {
         const ObjectiveSum s = objectiveSum(mesh_);
         result_.objectiveBefore = meanOf(s);

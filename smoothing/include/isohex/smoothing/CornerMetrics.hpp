@@ -45,6 +45,21 @@ inline Vector3 determinantGradient(const Matrix3& A, int role) {
     }
 }
 
+// The determinant of A and its gradient cof(A) w in one go, reusing the cross
+// product both need.
+inline void frameDeterminant(const Matrix3& A, int role, Vector3& gradient, double& det) {
+    switch (role) {
+        case 0: gradient = A.col(1).cross(A.col(2)); det = A.col(0).dot(gradient); return;
+        case 1: gradient = A.col(2).cross(A.col(0)); det = A.col(1).dot(gradient); return;
+        case 2: gradient = A.col(0).cross(A.col(1)); det = A.col(2).dot(gradient); return;
+        default: {
+            const Vector3 bc = A.col(1).cross(A.col(2));
+            det = A.col(0).dot(bc);
+            gradient = -(bc + A.col(2).cross(A.col(0)) + A.col(0).cross(A.col(1)));
+        }
+    }
+}
+
 // A w.
 inline Vector3 roleTimes(const Matrix3& A, int role) {
     return role < kCornerRole ? Vector3(A.col(role)) : Vector3(-(A.col(0) + A.col(1) + A.col(2)));
@@ -84,22 +99,29 @@ struct InverseMeanRatio {
     //   hess f = t^(-2/3)/3 [hess n - (2/3)/t (grad n c^T + c grad n^T) + (10/9)(n/t^2) c c^T]
     // where grad n = 2 A w and hess n = 2 |w|^2 I.
     bool nodeDerivatives(const Matrix3& A, int role, CornerDerivatives& out) const {
-        const double t = cornerDeterminant(A);
+        Vector3 c;
+        double t;
+        frameDeterminant(A, role, c, t);
         if (!(t > 0)) {
             out.value = std::numeric_limits<double>::infinity();
             return false;
         }
         const double n = A.squaredNorm();
         const Vector3 gn = 2.0 * roleTimes(A, role);
-        const Vector3 c = determinantGradient(A, role);
         const double s = 1.0 / (3.0 * std::cbrt(t * t));  // t^(-2/3) / 3
         const double invT = 1.0 / t;
         out.value = n * s;
-        out.gradient = s * (gn - (2.0 / 3.0) * n * invT * c);
-        const Matrix3 cross = gn * c.transpose();
-        out.hessian = s * ((2.0 * roleNorm2(role)) * Matrix3::Identity() -
-                           (2.0 / 3.0) * invT * (cross + cross.transpose()) +
-                           (10.0 / 9.0) * n * invT * invT * (c * c.transpose()));
+        const double k = (2.0 / 3.0) * n * invT;
+        out.gradient = s * (gn - k * c);
+        // s [2|w|^2 I - (2/3)/t (gn c^T + c gn^T) + (10/9) n/t^2 c c^T], entry by entry:
+        const double a = (2.0 / 3.0) * invT, b = (10.0 / 9.0) * n * invT * invT;
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j) {
+                const double h = s * (b * c[i] * c[j] - a * (gn[i] * c[j] + c[i] * gn[j]) +
+                                      (i == j ? 2.0 * roleNorm2(role) : 0.0));
+                out.hessian(i, j) = h;
+                out.hessian(j, i) = h;
+            }
         return true;
     }
 };
@@ -121,9 +143,11 @@ struct UntangleBeta {
     }
 
     bool nodeDerivatives(const Matrix3& A, int role, CornerDerivatives& out) const {
-        const double s = beta - cornerDeterminant(A);
+        Vector3 c;
+        double t;
+        frameDeterminant(A, role, c, t);
+        const double s = beta - t;
         const double r = std::sqrt(s * s + smoothing * smoothing);
-        const Vector3 c = determinantGradient(A, role);
         out.value = s + r;
         if (r > 0) {
             out.gradient = -(1.0 + s / r) * c;

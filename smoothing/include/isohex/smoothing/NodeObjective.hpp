@@ -143,4 +143,30 @@ private:
     std::size_t count_;
 };
 
+// Restricts an objective to the plane through the node's base position with
+// unit normal n: the optimiser's steps then have no normal component. The
+// normal direction gets a positive curvature so Newton's system stays
+// solvable; its gradient there is zero, so no step goes along it.
+template <class Objective>
+class TangentPlaneObjective {
+public:
+    TangentPlaneObjective(Objective& inner, const Vector3& normal)
+        : inner_(inner), n_(normal), P_(Matrix3::Identity() - normal * normal.transpose()) {}
+
+    double value(const Vector3& d) const { return inner_.value(P_ * d); }
+    double derivatives(Vector3& g, Matrix3& H) const {
+        const double f = inner_.derivatives(g, H);
+        g = P_ * g;
+        H = P_ * H * P_;
+        H += (H.diagonal().cwiseAbs().maxCoeff() + 1e-300) * (n_ * n_.transpose());
+        return f;
+    }
+    void shift(const Vector3& d) { inner_.shift(P_ * d); }
+
+private:
+    Objective& inner_;
+    Vector3 n_;
+    Matrix3 P_;
+};
+
 }  // namespace isohex::smoothing

@@ -42,13 +42,13 @@ struct SmoothingOptions {
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
-    // Stop when one sweep lowers the objective's excess over its ideal value
-    // (1 per corner) by less than this fraction. Measuring the excess rather
-    // than the total keeps perfect interior cubes from hiding the poor layer.
+    // Stop when one sweep lowers the objective (summed over all corners) by
+    // less than this fraction of it, as Mesquite does.
     double relativeTolerance = 1e-4;
     // A node is revisited when it or a node sharing a hex moved more than this
-    // fraction of its local edge length in the previous visit.
-    double moveTolerance = 1e-5;
+    // fraction of its local edge length in its last visit; smaller moves do
+    // not wake the neighbours, so the active set stays near the poor hexes.
+    double moveTolerance = 1e-2;
     // Nodes of hexes whose inverse mean ratio is at most 1 + this start out
     // inactive (cubes are already optimal).
     double activeThreshold = 1e-6;
@@ -91,6 +91,7 @@ struct SmoothingResult {
     std::size_t movableNodes = 0;
     int colours = 0;
     bool converged = false;                // stopped on the tolerance, not on maxSweeps
+    double setupSeconds = 0;               // topology, colouring, buffers
     double untangleSeconds = 0;
     double seconds = 0;                    // whole call, set-up included
 };

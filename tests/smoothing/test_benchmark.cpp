@@ -1,0 +1,97 @@
+// Timing on ~1M-hex pillowed meshes. Skipped unless ISOHEX_BENCH is set
+// (it takes tens of seconds); run as
+//   ISOHEX_BENCH=1 smoothing_tests --gtest_filter='SmoothingBenchmark.*'
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+
+#include <gtest/gtest.h>
+
+#include "MeshFixtures.hpp"
+#include "Projectors.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+
+using namespace isohex;
+using namespace isohex::smoothing;
+
+namespace {
+
+bool benchEnabled() { return std::getenv("ISOHEX_BENCH") != nullptr; }
+
+// The voxel cells of a grid (spacing 1) whose centres lie inside the sphere
+// of `radius` at the origin, one hex per cell, with the boundary nodes then
+// moved radially onto the sphere: the non-fundamental mesh dual contouring
+// leaves before pillowing (interior cubes, bent boundary layer).
+HexMesh voxelBall(double radius) {
+    const int n = static_cast<int>(std::ceil(radius)) + 1;
+    const int w = 2 * n + 1;  // nodes per axis, from -n to n
+    auto inside = [&](int i, int j, int k) {  // cell with lower corner (i, j, k)
+        const double x = i + 0.5, y = j + 0.5, z = k + 0.5;
+        return x * x + y * y + z * z < radius * radius;
+    };
+    HexMesh m;
+    std::vector<Index> id(static_cast<std::size_t>(w) * w * w, kNone);
+    auto node = [&](int i, int j, int k) {
+        Index& v = id[(static_cast<std::size_t>(k + n) * w + (j + n)) * w + (i + n)];
+        if (v == kNone) v = m.addNode({double(i), double(j), double(k)});
+        return v;
+    };
+    for (int k = -n; k < n; ++k)
+        for (int j = -n; j < n; ++j)
+            for (int i = -n; i < n; ++i)
+                if (inside(i, j, k))
+                    m.addHex({node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
+                              node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1), node(i, j + 1, k + 1)});
+    classifyBoundaryNodes(m);
+    const test::SphereProjector sphere({0, 0, 0}, radius);
+    for (std::size_t v = 0; v < m.nodeCount(); ++v)
+        if (m.nodeClass[v].kind != NodeKind::Interior) m.nodes[v] = sphere.project(0, m.nodes[v]);
+    return m;
+}
+
+void runAndReport(const char* name, HexMesh& m, const SurfaceProjector* projector) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double sjBefore = test::minScaledJacobian(m);
+    SmoothingOptions opt;
+    if (const char* e = std::getenv("ISOHEX_BENCH_MOVETOL")) opt.moveTolerance = std::atof(e);
+    if (const char* e = std::getenv("ISOHEX_BENCH_NEWTON")) opt.newton.maxIterations = std::atoi(e);
+    if (const char* e = std::getenv("ISOHEX_BENCH_RELTOL")) opt.relativeTolerance = std::atof(e);
+    const SmoothingResult r = optimizeMesh(m, projector, opt);
+    const double sjAfter = test::minScaledJacobian(m);
+    std::cout << "[ bench ] " << name << ": " << m.hexCount() << " hexes, " << m.nodeCount() << " nodes ("
+              << r.movableNodes << " movable, " << r.colours << " colours)\n"
+              << "          optimizeMesh " << r.seconds << " s (set-up " << r.setupSeconds << " s, untangle "
+              << r.untangleSeconds << " s, " << r.untangleSweeps << " untangle sweeps), "
+              << r.sweeps << " sweeps, " << r.nodeUpdates << " node updates, " << r.nodesMoved << " nodes moved, "
+              << (r.converged ? "converged" : "hit maxSweeps") << "\n"
+              << "          mean inverse mean ratio " << r.objectiveBefore << " -> " << r.objectiveAfter
+              << ", inverted " << r.invertedBefore << " -> " << r.invertedAfter << ", min scaled Jacobian "
+              << sjBefore << " -> " << sjAfter << " (wall incl. SJ " << 
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s)\n";
+    std::cout << "          objective per sweep:";
+    for (double f : r.objectiveHistory) std::cout << ' ' << f;
+    std::cout << "\n";
+    EXPECT_EQ(r.invertedAfter, 0u);
+    EXPECT_LE(r.objectiveAfter, r.objectiveBefore);
+}
+
+}  // namespace
+
+TEST(SmoothingBenchmark, VoxelBallPillowed) {
+    if (!benchEnabled()) GTEST_SKIP() << "set ISOHEX_BENCH=1 to run";
+    const double radius = 60.5;
+    HexMesh m = voxelBall(radius);
+    pillowAllMaterials(m);
+    const test::SphereProjector sphere({0, 0, 0}, radius);
+    runAndReport("voxel ball, boundary on the sphere, pillowed", m, &sphere);
+}
+
+TEST(SmoothingBenchmark, WholeBallPillowedAndJittered) {
+    if (!benchEnabled()) GTEST_SKIP() << "set ISOHEX_BENCH=1 to run";
+    HexMesh m = test::ballFromBlock(96, 48.0);
+    pillowAllMaterials(m);
+    test::perturbInterior(m, 0.05, 1);
+    const test::SphereProjector sphere({0, 0, 0}, 48.0);
+    runAndReport("ball (every hex distorted), pillowed, jittered", m, &sphere);
+}
