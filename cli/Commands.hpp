@@ -19,6 +19,7 @@ void addQualityCommand(CLI::App& app);
 void addConvertCommand(CLI::App& app);
 void addMeshCommand(CLI::App& app);
 void addSmoothCommand(CLI::App& app);
+void addCompareCommand(CLI::App& app);
 // --threads N for the rest of the process (tbb::global_control)
 void applyThreads(int threads);
 

@@ -28,7 +28,7 @@ constexpr const char* kColours[] = {"#222222", "#e8e8e8", "#4477aa", "#ee6677", 
 
 std::string histogramSvg(const std::string& title, const std::vector<HistogramSeries>& series) {
     const int bins = 11;
-    const double W = 900, H = 480, left = 80, right = 20, top = 60, bottom = 90;
+    const double W = 900, H = 500, left = 80, right = 20, top = 60, bottom = 110;
     const double plotW = W - left - right, plotH = H - top - bottom;
     std::size_t maxCount = 1;
     for (const auto& s : series)
@@ -72,21 +72,27 @@ std::string histogramSvg(const std::string& title, const std::vector<HistogramSe
             o << "<rect x=\"" << bx << "\" y=\"" << by << "\" width=\"" << barW - 1 << "\" height=\""
               << top + plotH - by << "\" fill=\"" << kColours[s % 6] << "\" stroke=\"black\" stroke-width=\"0.5\">"
               << "<title>" << escape(series[s].label) << ": " << c << "</title></rect>\n";
-            o << "<text x=\"" << bx + barW / 2 << "\" y=\"" << by - 3
-              << "\" text-anchor=\"middle\" font-size=\"9\">" << c << "</text>\n";
+            // counts stand upright above their bar so neighbours never overlap
+            o << "<text x=\"" << bx + barW / 2 + 3 << "\" y=\"" << by - 3 << "\" transform=\"rotate(-90 "
+              << bx + barW / 2 + 3 << " " << by - 3 << ")\" font-size=\"9\">" << c << "</text>\n";
         }
     }
     o << "<text x=\"" << left + plotW / 2 << "\" y=\"" << top + plotH + 40
       << "\" text-anchor=\"middle\" font-size=\"13\">scaled Jacobian (below 0.2: questionable or unacceptable; below 0: inverted)</text>\n";
     // legend
-    double lx = left;
+    double lx = left, ly = H - 40;
     for (std::size_t s = 0; s < series.size(); ++s) {
-        o << "<rect x=\"" << lx << "\" y=\"" << H - 28 << "\" width=\"14\" height=\"14\" fill=\"" << kColours[s % 6]
-          << "\" stroke=\"black\" stroke-width=\"0.5\"/>\n";
         std::string text = series[s].label;
         if (series[s].degenerate) text += " (" + std::to_string(series[s].degenerate) + " degenerate, not shown)";
-        o << "<text x=\"" << lx + 20 << "\" y=\"" << H - 16 << "\" font-size=\"12\">" << escape(text) << "</text>\n";
-        lx += 30 + 7.0 * text.size();
+        const double width = 30 + 6.5 * text.size();
+        if (lx > left && lx + width > W - right) {  // wrap the legend
+            lx = left;
+            ly += 18;
+        }
+        o << "<rect x=\"" << lx << "\" y=\"" << ly << "\" width=\"14\" height=\"14\" fill=\"" << kColours[s % 6]
+          << "\" stroke=\"black\" stroke-width=\"0.5\"/>\n";
+        o << "<text x=\"" << lx + 20 << "\" y=\"" << ly + 12 << "\" font-size=\"12\">" << escape(text) << "</text>\n";
+        lx += width;
     }
     o << "</svg>\n";
     return o.str();

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
     addQualityCommand(app);
     addConvertCommand(app);
     addMeshCommand(app);
+    addCompareCommand(app);
     addSmoothCommand(app);
     try {
         app.parse(argc, argv);

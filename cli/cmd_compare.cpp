@@ -1,0 +1,190 @@
+// isohex compare INPUT: the seed's experiment (section 5.3.1) in one command.
+// The same input and optimiser, four ways:
+//   a  no sheet
+//   b  the fundamental sheet pillowed in
+//   c  no sheet, random sheets diced in until the element count matches b
+//   d  the fundamental sheet, random other sheets extracted until the count matches a
+#include <chrono>
+#include <filesystem>
+#include <cstdio>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "Commands.hpp"
+#include "MeshOptions.hpp"
+#include "Report.hpp"
+#include "Svg.hpp"
+#include "Versions.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Topology.hpp"
+
+namespace isohex::cli {
+
+namespace {
+
+struct CompareArgs {
+    std::string input;
+    std::string json;
+    std::string plot;
+    std::string meshDir;
+    std::uint64_t seed = 1;
+    bool moveBoundary = false;
+    MeshArgs args;
+};
+
+struct Variant {
+    std::string key, label;
+    HexMesh mesh;
+    nlohmann::json ops;
+    double seconds = 0;
+};
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// Dices randomly drawn sheets once each until the mesh has at least `target` hexes.
+nlohmann::json diceUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
+    nlohmann::json j;
+    std::size_t diced = 0;
+    for (std::uint64_t round = 0; mesh.hexCount() < target && round < 100000; ++round) {
+        const Topology t = buildTopology(mesh);
+        const DualSheets s = buildSheets(mesh, t);
+        const auto pick = randomSheets(s, 1, seed + round);
+        if (pick.empty()) break;
+        try {
+            dice(mesh, t, s, pick[0], 1);
+            ++diced;
+        } catch (const Error&) {
+            // a self-intersecting sheet: draw another
+        }
+    }
+    j["sheets_diced"] = diced;
+    return j;
+}
+
+// Extracts randomly drawn non-fundamental sheets until at most `target` hexes
+// remain; sheets whose extraction is refused are skipped.
+nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
+    nlohmann::json j;
+    std::size_t extracted = 0, refused = 0;
+    for (std::uint64_t round = 0; mesh.hexCount() > target && round < 100000; ++round) {
+        const Topology t = buildTopology(mesh);
+        const DualSheets s = buildSheets(mesh, t);
+        const auto fundamental = fundamentalSheets(mesh, t, s);
+        const auto pick = randomSheets(s, 1, seed + round, fundamental);
+        if (pick.empty()) break;
+        try {
+            extract(mesh, t, s, pick[0]);
+            ++extracted;
+        } catch (const Error&) {
+            ++refused;
+            if (refused > 50 + 10 * extracted) break;  // nothing left that can go
+        }
+    }
+    j["sheets_extracted"] = extracted;
+    j["extractions_refused"] = refused;
+    return j;
+}
+
+}  // namespace
+
+void addCompareCommand(CLI::App& app) {
+    auto c = std::make_shared<CompareArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "compare", "The seed's experiment: quality without a boundary sheet, with it, and with random sheets "
+                   "diced in or extracted to match element counts");
+    cmd->add_option("input", c->input, "Scan to mesh")->required();
+    cmd->add_option("--json", c->json, "Write the comparison as JSON here");
+    cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian per variant here");
+    cmd->add_option("--mesh-dir", c->meshDir, "Also write each variant's mesh (variant_a.vtu ...) into this folder");
+    cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)");
+    cmd->add_flag("--move-boundary", c->moveBoundary,
+                  "Let surface nodes slide on the isosurface (default: fixed, the seed's protocol)");
+    addMeshOptions(cmd, c->args);
+    addRunOptions(cmd, c->args);
+    cmd->callback([c] {
+        applyThreads(c->args.threads);
+        MeshArgs args = c->args;
+        args.finish();
+        MeshSettings s = args.settings;
+        s.fixBoundary = !c->moveBoundary;
+        if (!c->json.empty() && !args.force && std::filesystem::exists(c->json))
+            throw Error(c->json + ": file exists; refusing to overwrite it (use --force to replace it)");
+        ProgressSink sink(args.progressMode());
+        Prepared p = prepare(c->input, s, sink);
+        HexMesh base = extract(p, s, sink);
+
+        std::vector<Variant> variants(4);
+        variants[0] = {"a", "no sheet", base, {}, 0};
+        variants[1] = {"b", "fundamental sheet", base, {}, 0};
+        MeshSettings pillowed = s;
+        pillowed.pillow = true;
+        {
+            const auto t = std::chrono::steady_clock::now();
+            variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
+            variants[1].seconds += secondsSince(t);
+        }
+        variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
+        {
+            sink.begin("dice");
+            const auto t = std::chrono::steady_clock::now();
+            variants[2].ops = diceUntil(variants[2].mesh, variants[1].mesh.hexCount(), c->seed);
+            variants[2].seconds += secondsSince(t);
+            sink.end("dice", variants[2].seconds);
+        }
+        variants[3] = {"d", "fundamental sheet, random sheets extracted", variants[1].mesh, {}, 0};
+        {
+            sink.begin("extract sheets");
+            const auto t = std::chrono::steady_clock::now();
+            variants[3].ops = extractUntil(variants[3].mesh, base.hexCount(), c->seed);
+            variants[3].seconds += secondsSince(t) + variants[1].seconds;
+            sink.end("extract sheets", secondsSince(t));
+        }
+
+        nlohmann::json out;
+        out["input"] = p.report["input"];
+        out["grid"] = p.report["grid"];
+        out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
+                                        : "boundary nodes slide on the isosurface";
+        out["seed"] = c->seed;
+        std::vector<HistogramSeries> series;
+        std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
+                    "seconds");
+        for (auto& v : variants) {
+            const auto t = std::chrono::steady_clock::now();
+            const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+            v.seconds += secondsSince(t);
+            const HexQuality q = computeQuality(v.mesh);
+            const QualitySummary qs = summarize(v.mesh, q);
+            nlohmann::json j = toJson(qs);
+            j["variant"] = v.key;
+            j["label"] = v.label;
+            j["operations"] = v.ops;
+            j["optimization"] = opt;
+            j["seconds"] = v.seconds;
+            out["variants"].push_back(j);
+            series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});
+            std::printf("%-44s %9zu %8.3f %8.3f %8zu %9zu %8.1f\n", (v.key + ") " + v.label).c_str(), qs.hexes,
+                        qs.scaledJacobian.min, qs.scaledJacobian.mean, qs.below02, qs.inverted, v.seconds);
+            if (!c->meshDir.empty()) {
+                std::filesystem::create_directories(c->meshDir);
+                io::WriteOptions w;
+                w.overwrite = args.force;
+                w.scaledJacobian = q.scaledJacobian;
+                io::write(v.mesh, (std::filesystem::path(c->meshDir) / ("variant_" + v.key + ".vtu")).string(), w);
+            }
+        }
+        out["versions"] = versionsJson();
+        out["peak_memory_mb"] = peakMemoryMb();
+        if (!c->json.empty()) writeJsonFile(out, c->json, args.force);
+        if (!c->plot.empty())
+            writeHistogramSvg(c->plot, args.force, "Scaled Jacobian per variant: " + c->input, series);
+    });
+}
+
+}  // namespace isohex::cli
