@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <cmath>
 #include <string>
@@ -72,6 +74,19 @@ std::vector<std::uint8_t> invertedFlags(const HexMesh& mesh, std::size_t& count)
     });
     count = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), std::uint8_t{1}));
     return flags;
+}
+
+// With `terms` describing the node moved by `applied` from its original
+// position: true if moving it by `trial` (from the original) instead leaves
+// every corner that was positive at the original position positive.
+bool keepsValidCornersValid(const CornerTerm* terms, std::size_t n, const Vector3& applied, const Vector3& trial) {
+    for (std::size_t i = 0; i < n; ++i) {
+        Matrix3 original = terms[i].A, moved = terms[i].A;
+        displaceFrame(original, terms[i].role, -applied);
+        displaceFrame(moved, terms[i].role, trial - applied);
+        if (cornerDeterminant(original) > 0 && !(cornerDeterminant(moved) > 0)) return false;
+    }
+    return true;
 }
 
 inline void raise(std::uint8_t& flag) { std::atomic_ref<std::uint8_t>(flag).store(1, std::memory_order_relaxed); }
@@ -237,7 +252,18 @@ Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) co
     NewtonOptions newton = opt_.newton;
     newton.maxIterations = 4;
     r.move = newtonDescent(objective, L, 1e-9 * static_cast<double>(n) * beta / L, newton);
-    r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
+    if (r.move.steps == 0) return r;
+    // Knupp's measure may trade a deep inversion for a new shallow one; do not
+    // let it: shorten the move until every corner that was valid stays valid.
+    const Vector3 full = r.move.displacement;
+    Vector3 d = full;
+    for (int k = 0; k < 8 && !keepsValidCornersValid(buf.data(), n, full, d); ++k) d *= 0.5;
+    if (!keepsValidCornersValid(buf.data(), n, full, d)) {
+        r.move.steps = 0;
+        return r;
+    }
+    r.move.displacement = d;
+    r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], d);
     return r;
 }
 
@@ -292,7 +318,7 @@ Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& 
     const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
     if (!d.allFinite()) return r;
     const double f = objective.value(d - moved);
-    if (!(f < f0)) return r;
+    if (!(f < f0) || !keepsValidCornersValid(buf.data(), n, moved, d)) return r;
     r.move.before = f0;
     r.move.after = f;
     r.move.displacement = d;
@@ -321,23 +347,40 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     if (!surfaceFrame(sv, centroid, normal)) return r;
     Vector3 delta = centroid - x;
     delta -= delta.dot(normal) * normal;
-    if (!(delta.norm() > opt_.moveTolerance * L)) return r;
-
     const std::int32_t surface = mesh_.nodeClass[sv].id;
-    double omega = opt_.surfaceRelaxation;
-    for (int k = 0; k <= opt_.surfaceHalvings; ++k, omega *= 0.5) {
-        const Vector3 trial = x + omega * delta;
-        const Vec3 y = projector_->project(surface, Vec3{trial[0], trial[1], trial[2]});
-        const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
-        if (!d.allFinite()) continue;
-        const double f = objective.value(d);
-        if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
-        move.displacement = d;
-        move.after = f;
-        move.steps = 1;
-        r.position = y;  // exactly the projector's point
-        break;
+    if (delta.norm() > opt_.moveTolerance * L) {
+        double omega = opt_.surfaceRelaxation;
+        for (int k = 0; k <= opt_.surfaceHalvings; ++k, omega *= 0.5) {
+            const Vector3 trial = x + omega * delta;
+            const Vec3 y = projector_->project(surface, Vec3{trial[0], trial[1], trial[2]});
+            const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+            if (!d.allFinite()) continue;
+            const double f = objective.value(d);
+            if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+            move.displacement = d;
+            move.after = f;
+            move.steps = 1;
+            r.position = y;  // exactly the projector's point
+            return r;
+        }
     }
+    if (!opt_.surfaceNewtonFallback) return r;
+    // The centroid is reached or would make the hexes worse: minimise the
+    // hexes' mean ratio within the tangent plane instead, then project.
+    TangentPlaneObjective<NodeObjective<InverseMeanRatio>> tangent(objective, normal);
+    const NodeMove m = newtonDescent(tangent, L, opt_.gradientTolerance * static_cast<double>(n) / L, opt_.newton);
+    if (m.steps == 0) return r;
+    const Matrix3 P = Matrix3::Identity() - normal * normal.transpose();
+    const Vector3 moved = P * m.displacement;  // what `objective` is now shifted by
+    const Vec3 y = projector_->project(surface, displaced(xv, moved));
+    const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+    if (!d.allFinite()) return r;
+    const double f = objective.value(d - moved);
+    if (!std::isfinite(f) || !(f < f0)) return r;
+    move.displacement = d;
+    move.after = f;
+    move.steps = 1;
+    r.position = y;
     return r;
 }
 
@@ -346,34 +389,51 @@ void Smoother::untanglePhase() {
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
     std::size_t count = 0;
     std::vector<std::uint8_t> inverted = invertedFlags(mesh_, count);
-    std::vector<std::uint8_t> region(N, 0), hexInRegion(H, 0);
+    std::vector<std::uint8_t> inRegion(N, 0), hexInRegion(H, 0);
+    std::vector<Index> regionNodes, regionHexes;  // regionHexes: hexes whose status region nodes can change
     std::vector<std::vector<Index>> lists;
-    std::vector<Index> regionHexes;  // hexes whose status region nodes can change
-    auto addInvertedToRegion = [&] {
+    // The region: movable nodes within `rings` rings of the inverted hexes.
+    auto buildRegion = [&](int rings) {
+        for (Index v : regionNodes) inRegion[static_cast<std::size_t>(v)] = 0;
+        for (Index h : regionHexes) hexInRegion[static_cast<std::size_t>(h)] = 0;
+        regionNodes.clear();
+        regionHexes.clear();
+        auto add = [&](Index u) {
+            if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen && !inRegion[static_cast<std::size_t>(u)]) {
+                inRegion[static_cast<std::size_t>(u)] = 1;
+                regionNodes.push_back(u);
+            }
+        };
         for (std::size_t h = 0; h < H; ++h)
             if (inverted[h])
-                for (Index u : mesh_.hexes[h])
-                    if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen) region[static_cast<std::size_t>(u)] = 1;
-    };
-    auto rebuildLists = [&] {
+                for (Index u : mesh_.hexes[h]) add(u);
+        std::size_t layerStart = 0;
+        for (int ring = 0; ring < rings; ++ring) {
+            const std::size_t layerEnd = regionNodes.size();
+            for (std::size_t i = layerStart; i < layerEnd; ++i) {
+                const auto v = static_cast<std::size_t>(regionNodes[i]);
+                for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+                    for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)]) add(u);
+            }
+            layerStart = layerEnd;
+        }
         lists.assign(colouring_.classes.size(), {});
-        for (std::size_t c = 0; c < colouring_.classes.size(); ++c)
-            for (Index v : colouring_.classes[c])
-                if (region[static_cast<std::size_t>(v)]) {
-                    lists[c].push_back(v);
-                    for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
-                        if (!hexInRegion[static_cast<std::size_t>(*h)]) {
-                            hexInRegion[static_cast<std::size_t>(*h)] = 1;
-                            regionHexes.push_back(*h);
-                        }
+        for (Index v : regionNodes) {
+            lists[static_cast<std::size_t>(colouring_.colour[static_cast<std::size_t>(v)])].push_back(v);
+            for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+                if (!hexInRegion[static_cast<std::size_t>(*h)]) {
+                    hexInRegion[static_cast<std::size_t>(*h)] = 1;
+                    regionHexes.push_back(*h);
                 }
+        }
+        for (auto& l : lists) std::sort(l.begin(), l.end());
     };
-    addInvertedToRegion();
-    rebuildLists();
 
     std::size_t best = count;
-    int stall = 0, growth = 0;
-    for (int sweep = 0; sweep < opt_.maxUntangleSweeps && count > 0; ++sweep) {
+    int stall = 0, rings = 0, polish = 0;
+    buildRegion(rings);
+    for (int sweep = 0; sweep < opt_.maxUntangleSweeps && (count > 0 || polish < opt_.untanglePolishSweeps); ++sweep) {
+        if (count == 0) ++polish;
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
             const Visit r = mode_[sv] == Mode::Surface ? untangleSurfaceStep(v, buffers_->local())
@@ -393,25 +453,17 @@ void Smoother::untanglePhase() {
         });
         count = static_cast<std::size_t>(std::count(inverted.begin(), inverted.end(), std::uint8_t{1}));
         report("untangle", static_cast<double>(sweep + 1) / opt_.maxUntangleSweeps);
-        if (count == 0) break;
+        if (count == 0) continue;  // keep the region: polish it towards det >= beta
         if (count < best) {
             best = count;
             stall = 0;
         } else if (++stall >= 2) {
-            if (growth >= opt_.maxUntangleGrowth) break;
             // Stuck: give the inverted hexes more room by freeing one more ring.
-            std::vector<std::uint8_t> grown = region;
-            for (std::size_t v = 0; v < N; ++v)
-                if (region[v])
-                    for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
-                        for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)])
-                            if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen) grown[static_cast<std::size_t>(u)] = 1;
-            region.swap(grown);
-            ++growth;
+            if (rings >= opt_.maxUntangleGrowth) break;
+            ++rings;
             stall = 0;
         }
-        addInvertedToRegion();
-        rebuildLists();
+        buildRegion(rings);
     }
     report("untangle", 1.0);
     result_.untangleSeconds = secondsSince(t0);

@@ -2,6 +2,7 @@
 // (it takes tens of seconds); run as
 //   ISOHEX_BENCH=1 smoothing_tests --gtest_filter='SmoothingBenchmark.*'
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
@@ -69,6 +70,18 @@ void runAndReport(const char* name, HexMesh& m, const SurfaceProjector* projecto
               << ", inverted " << r.invertedBefore << " -> " << r.invertedAfter << ", min scaled Jacobian "
               << sjBefore << " -> " << sjAfter << " (wall incl. SJ " << 
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s)\n";
+    {
+        const std::vector<double> sj = scaledJacobians(m);
+        std::vector<std::size_t> order(sj.size());
+        for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+        std::partial_sort(order.begin(), order.begin() + 5, order.end(), [&](auto a, auto b) { return sj[a] < sj[b]; });
+        for (int k = 0; k < 5; ++k) {
+            const Hex& h = m.hexes[order[k]];
+            int surf = 0;
+            for (Index v : h) surf += m.nodeClass[v].kind != NodeKind::Interior;
+            std::cout << "          worst hex " << order[k] << " SJ " << sj[order[k]] << " surface nodes " << surf << "\n";
+        }
+    }
     std::cout << "          objective per sweep:";
     for (double f : r.objectiveHistory) std::cout << ' ' << f;
     std::cout << "\n";

@@ -143,3 +143,13 @@ TEST(NodeObjective, GatheredTermsReproduceTheNodeCorners) {
         for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(cornerDeterminant(terms[i].A), 1.0, 1e-15);
     }
 }
+
+TEST(InverseMeanRatio, FastInversePowerMatchesLibm) {
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> e(-80.0, 80.0);
+    for (int i = 0; i < 100000; ++i) {
+        const double t = std::exp2(e(rng));
+        const double ref = std::pow(t, -2.0 / 3.0);
+        EXPECT_NEAR(inversePowTwoThirds(t), ref, 4e-15 * ref) << t;
+    }
+}

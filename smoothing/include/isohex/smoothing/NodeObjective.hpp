@@ -20,6 +20,7 @@ namespace isohex::smoothing {
 struct CornerTerm {
     Matrix3 A;  // the corner's Jacobian at the node's current (base) position
     int role;   // 0..2: the node is column `role`; kCornerRole: the node is the corner
+    NormDet st; // filled by NodeObjective::derivatives for metrics of NormDet form
 };
 
 namespace detail {
@@ -54,14 +55,15 @@ inline std::size_t gatherCornerTerms(const HexMesh& mesh, const Csr& nodeHexes, 
         int local = 0;
         while (local < 8 && hex[local] != v) ++local;
         if (local == 8) continue;
+        Vector3 x[8];
+        for (int i = 0; i < 8; ++i) {
+            const Vec3& p = mesh.nodes[static_cast<std::size_t>(hex[i])];
+            x[i] = Vector3(p[0], p[1], p[2]);
+        }
         for (const detail::LocalCorner& lc : detail::kNodeCorners[local]) {
             const auto& nb = hexcell::kCornerNeighbours[lc.corner];
-            const Vec3& xk = mesh.nodes[static_cast<std::size_t>(hex[lc.corner])];
             CornerTerm& t = out[n++];
-            for (int j = 0; j < 3; ++j) {
-                const Vec3& xj = mesh.nodes[static_cast<std::size_t>(hex[nb[j]])];
-                t.A.col(j) = Vector3(xj[0] - xk[0], xj[1] - xk[1], xj[2] - xk[2]);
-            }
+            for (int j = 0; j < 3; ++j) t.A.col(j) = x[nb[j]] - x[lc.corner];
             t.role = lc.role;
         }
     }
@@ -90,13 +92,27 @@ public:
     std::size_t size() const { return count_; }
 
     // The objective with the node displaced by d from its base position; +inf
-    // if any corner is infeasible for a barrier metric.
+    // if any corner is infeasible for a barrier metric. After derivatives(),
+    // metrics of NormDet form are evaluated from the stored n, t and their
+    // exact expansions in d, without touching the frames.
     double value(const Vector3& d) const {
         double sum = 0;
         for (std::size_t i = 0; i < count_; ++i) {
-            Matrix3 A = terms_[i].A;
-            displaceFrame(A, terms_[i].role, d);
-            const double v = metric_.value(A);
+            double v;
+            if constexpr (Metric::kNormDetForm) {
+                if (stateValid_) {
+                    const NormDet& st = terms_[i].st;
+                    v = metric_.fromNormDet(st.n + st.gradN.dot(d) + st.w2 * d.squaredNorm(), st.t + st.gradT.dot(d));
+                } else {
+                    Matrix3 A = terms_[i].A;
+                    displaceFrame(A, terms_[i].role, d);
+                    v = metric_.value(A);
+                }
+            } else {
+                Matrix3 A = terms_[i].A;
+                displaceFrame(A, terms_[i].role, d);
+                v = metric_.value(A);
+            }
             if constexpr (Metric::kBarrier)
                 if (v == std::numeric_limits<double>::infinity()) return v;
             sum += v;
@@ -106,23 +122,35 @@ public:
 
     // Value, gradient and Hessian at the base position; value +inf (and the
     // derivatives meaningless) if a barrier corner is infeasible.
-    double derivatives(Vector3& g, Matrix3& H) const {
+    double derivatives(Vector3& g, Matrix3& H) {
         double sum = 0;
         g.setZero();
         H.setZero();
         CornerDerivatives cd;
         for (std::size_t i = 0; i < count_; ++i) {
-            if (!metric_.nodeDerivatives(terms_[i].A, terms_[i].role, cd)) return std::numeric_limits<double>::infinity();
+            bool ok;
+            if constexpr (Metric::kNormDetForm) {
+                terms_[i].st = normDet(terms_[i].A, terms_[i].role);
+                ok = metric_.derivativesFromState(terms_[i].st, cd);
+            } else {
+                ok = metric_.nodeDerivatives(terms_[i].A, terms_[i].role, cd);
+            }
+            if (!ok) {
+                stateValid_ = false;
+                return std::numeric_limits<double>::infinity();
+            }
             sum += cd.value;
             g += cd.gradient;
             H += cd.hessian;
         }
+        stateValid_ = Metric::kNormDetForm;
         return sum;
     }
 
     // Moves the base position by d (the node was moved).
     void shift(const Vector3& d) {
         for (std::size_t i = 0; i < count_; ++i) displaceFrame(terms_[i].A, terms_[i].role, d);
+        stateValid_ = false;
     }
 
     // Smallest corner determinant with the node displaced by d.
@@ -141,6 +169,7 @@ private:
     Metric metric_;
     CornerTerm* terms_;
     std::size_t count_;
+    bool stateValid_ = false;  // terms_[i].st describe the current base position
 };
 
 // Restricts an objective to the plane through the node's base position with
@@ -154,7 +183,7 @@ public:
         : inner_(inner), n_(normal), P_(Matrix3::Identity() - normal * normal.transpose()) {}
 
     double value(const Vector3& d) const { return inner_.value(P_ * d); }
-    double derivatives(Vector3& g, Matrix3& H) const {
+    double derivatives(Vector3& g, Matrix3& H) {
         const double f = inner_.derivatives(g, H);
         g = P_ * g;
         H = P_ * H * P_;

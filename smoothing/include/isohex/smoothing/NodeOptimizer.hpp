@@ -18,6 +18,7 @@ struct NewtonOptions {
     double armijo = 1e-4;       // sufficient decrease: f(x + a p) <= f(x) + armijo a g.p
     int maxHalvings = 30;       // backtracking steps before giving up on a direction
     double maxStep = 0.5;       // longest step, in units of the local edge length
+    double minStep = 1e-3;      // no further iteration after a step shorter than this (edge lengths)
 };
 
 struct NodeMove {
@@ -81,10 +82,9 @@ NodeMove newtonDescent(Objective& objective, double length, double gradientToler
         move.displacement += step;
         move.after = ft;
         ++move.steps;
-        if (it + 1 < opt.maxIterations) {
-            f = objective.derivatives(g, H);
-            if (!std::isfinite(f)) break;  // cannot happen for a feasible step; be safe
-        }
+        if (!(it + 1 < opt.maxIterations && step.norm() > opt.minStep * length)) break;
+        f = objective.derivatives(g, H);
+        if (!std::isfinite(f)) break;  // cannot happen for a feasible step; be safe
     }
     return move;
 }

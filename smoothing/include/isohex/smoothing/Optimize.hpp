@@ -39,6 +39,10 @@ struct SmoothingOptions {
     // The region around inverted hexes grows by one ring of nodes (at most this
     // many times) when untangling stalls.
     int maxUntangleGrowth = 4;
+    // Sweeps over the untangled region after the last inversion is gone, so
+    // its corners get from barely positive towards beta before the mean-ratio
+    // barrier sees them (which leaves better minima within reach).
+    int untanglePolishSweeps = 3;
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
@@ -65,6 +69,11 @@ struct SmoothingOptions {
     // Reject a surface move that raises the node's mean-ratio objective (it is
     // always rejected if it would invert a hex), so the objective never rises.
     bool surfaceMustNotWorsen = true;
+    // Where the centroidal move is rejected or already done, take Newton steps
+    // on the node's mean-ratio objective within the tangent plane instead
+    // (projected back, kept only if the objective drops): the surface then
+    // bends towards what the hexes need, not only towards even quads.
+    bool surfaceNewtonFallback = true;
 };
 
 // A hex left with a non-positive corner Jacobian.
