@@ -238,6 +238,57 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
 
 std::vector<RegionTopology> regionTopology(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
+    // Every point pair, square and block is counted at the block whose lowest
+    // corner is its lowest point; the grid's outer layer is background, so
+    // nothing mixed is lost past the last block. Uniform blocks (almost all)
+    // are skipped after one look at their corners.
+    struct Acc {
+        std::map<std::int32_t, RegionTopology> t;
+        std::vector<std::pair<std::int32_t, std::size_t>> mixed;  // (material, block)
+    };
+    tbb::enumerable_thread_specific<Acc> local;
+    tbb::parallel_for(tbb::blocked_range<int>(0, std::max(nz - 1, 0)), [&](const tbb::blocked_range<int>& r) {
+        Acc& acc = local.local();
+        auto addEuler = [&](std::int32_t m, long long d) {
+            if (m == 0) return;
+            auto& t = acc.t[m];
+            t.material = m;
+            t.euler += d;
+        };
+        // squares and blocks: each material present but not everywhere counts once
+        auto mixedSet = [&](const std::int32_t* m, int n, long long d, std::size_t block) {
+            for (int c = 0; c < n; ++c) {
+                if (m[c] == 0) continue;
+                bool first = true, all = true;
+                for (int e = 0; e < c; ++e) first = first && m[e] != m[c];
+                for (int e = 0; e < n; ++e) all = all && m[e] == m[c];
+                if (!first || all) continue;
+                addEuler(m[c], d);
+                if (block != static_cast<std::size_t>(-1)) acc.mixed.emplace_back(m[c], block);
+            }
+        };
+        for (int k = r.begin(); k != r.end(); ++k)
+            for (int j = 0; j + 1 < ny; ++j)
+                for (int i = 0; i + 1 < nx; ++i) {
+                    const BlockView b = block(l, i, j, k);
+                    bool uniform = true;
+                    for (int c = 1; c < 8; ++c) uniform = uniform && b.mat[c] == b.mat[0];
+                    if (uniform) continue;
+                    // corner c of the block is offset (c & 1, c >> 1 & 1, c >> 2 & 1)
+                    for (int d = 0; d < 3; ++d) {  // faces: pairs from the lowest corner
+                        const std::int32_t a = b.mat[0], o = b.mat[1 << d];
+                        if (a != o) {
+                            addEuler(a, 1);
+                            addEuler(o, 1);
+                        }
+                    }
+                    const std::int32_t sq[3][4] = {{b.mat[0], b.mat[1], b.mat[2], b.mat[3]},   // xy
+                                                   {b.mat[0], b.mat[1], b.mat[4], b.mat[5]},   // xz
+                                                   {b.mat[0], b.mat[2], b.mat[4], b.mat[6]}};  // yz
+                    for (const auto& q : sq) mixedSet(q, 4, -1, static_cast<std::size_t>(-1));
+                    mixedSet(b.mat.data(), 8, 1, l.grid.index(i, j, k));
+                }
+    });
     std::map<std::int32_t, RegionTopology> out;
     for (std::int32_t m : l.material)
         if (m != 0) {
@@ -245,59 +296,14 @@ std::vector<RegionTopology> regionTopology(const Labels& l) {
             t.material = m;
             ++t.points;
         }
-    // faces: 6-neighbour pairs with different labels
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) {
-                const std::int32_t a = l.material[l.grid.index(i, j, k)];
-                const int nb[3][3] = {{i + 1, j, k}, {i, j + 1, k}, {i, j, k + 1}};
-                for (const auto& n : nb) {
-                    if (n[0] >= nx || n[1] >= ny || n[2] >= nz) continue;
-                    const std::int32_t b = l.material[l.grid.index(n[0], n[1], n[2])];
-                    if (a == b) continue;
-                    if (a != 0) ++out[a].euler;
-                    if (b != 0) ++out[b].euler;
-                }
-            }
-    // edges: 2x2 squares where a material is present but not everywhere
-    auto squareMinus = [&](std::array<std::size_t, 4> p) {
-        std::array<std::int32_t, 4> m;
-        for (int c = 0; c < 4; ++c) m[c] = l.material[p[c]];
-        for (int c = 0; c < 4; ++c) {
-            if (m[c] == 0) continue;
-            bool first = true, all = true;
-            for (int d = 0; d < c; ++d) first = first && m[d] != m[c];
-            for (int d = 0; d < 4; ++d) all = all && m[d] == m[c];
-            if (first && !all) --out[m[c]].euler;
+    std::vector<std::pair<std::int32_t, std::size_t>> mixed;
+    for (auto& acc : local) {
+        for (auto& [m, t] : acc.t) {
+            out[m].material = m;
+            out[m].euler += t.euler;
         }
-    };
-    for (int k = 0; k < nz; ++k)
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) {
-                if (i + 1 < nx && j + 1 < ny)
-                    squareMinus({l.grid.index(i, j, k), l.grid.index(i + 1, j, k), l.grid.index(i, j + 1, k),
-                                 l.grid.index(i + 1, j + 1, k)});
-                if (i + 1 < nx && k + 1 < nz)
-                    squareMinus({l.grid.index(i, j, k), l.grid.index(i + 1, j, k), l.grid.index(i, j, k + 1),
-                                 l.grid.index(i + 1, j, k + 1)});
-                if (j + 1 < ny && k + 1 < nz)
-                    squareMinus({l.grid.index(i, j, k), l.grid.index(i, j + 1, k), l.grid.index(i, j, k + 1),
-                                 l.grid.index(i, j + 1, k + 1)});
-            }
-    // vertices: mixed 2x2x2 blocks; components: blocks joined through mixed squares
-    std::vector<std::pair<std::int32_t, std::size_t>> mixed;  // (material, block)
-    for (int k = 0; k + 1 < nz; ++k)
-        for (int j = 0; j + 1 < ny; ++j)
-            for (int i = 0; i + 1 < nx; ++i) {
-                const BlockView b = block(l, i, j, k);
-                for (int c = 0; c < 8; ++c) {
-                    if (b.mat[c] == 0) continue;
-                    bool first = true, all = true;
-                    for (int d = 0; d < c; ++d) first = first && b.mat[d] != b.mat[c];
-                    for (int d = 0; d < 8; ++d) all = all && b.mat[d] == b.mat[c];
-                    if (first && !all) mixed.emplace_back(b.mat[c], l.grid.index(i, j, k));
-                }
-            }
+        mixed.insert(mixed.end(), acc.mixed.begin(), acc.mixed.end());
+    }
     std::sort(mixed.begin(), mixed.end());
     std::vector<std::size_t> parent(mixed.size());
     std::iota(parent.begin(), parent.end(), 0);
@@ -307,7 +313,6 @@ std::vector<RegionTopology> regionTopology(const Labels& l) {
     };
     for (std::size_t n = 0; n < mixed.size(); ++n) {
         const auto [m, b] = mixed[n];
-        ++out[m].euler;
         const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
         // neighbour block in +d shares the square of the block's far face in d
         for (int d = 0; d < 3; ++d) {
