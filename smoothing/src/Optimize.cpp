@@ -3,10 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cstdio>
-#include <cstdlib>
-#include <memory>
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include <tbb/blocked_range.h>
@@ -101,7 +99,7 @@ public:
 private:
     void setUp();
     void untanglePhase();
-    void meanRatioPhase();
+    void meanRatioPhase(const ObjectiveSum& start);
     // One visit of a node: how it moved and where it ends up.
     struct Visit {
         NodeMove move;
@@ -118,8 +116,10 @@ private:
     void report(std::string_view stage, double fraction) const {
         if (progress_) progress_(stage, std::clamp(fraction, 0.0, 1.0));
     }
-    template <class Visit>
-    void sweepColours(const std::vector<std::vector<Index>>& lists, Visit visit) {
+    // Each colour is one parallel loop; nodes of a colour share no hex, so the
+    // order in which threads take them cannot change the result.
+    template <class Fn>
+    void sweepColours(const std::vector<std::vector<Index>>& lists, Fn visit) {
         for (const auto& list : lists)
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, list.size(), 16), [&](const auto& r) {
                 for (std::size_t i = r.begin(); i != r.end(); ++i) visit(list[i]);
@@ -182,10 +182,8 @@ void Smoother::setUp() {
     for (const Hex& h : mesh_.hexes)
         for (int i = 0; i < 8; ++i)
             for (int j = i + 1; j < 8; ++j)
-                if (h[i] == h[j]) {
+                if (h[i] == h[j])
                     for (Index u : h) mode_[static_cast<std::size_t>(u)] = Mode::Frozen;
-                    i = j = 8;
-                }
 
     std::vector<std::uint8_t> movable(N);
     for (std::size_t v = 0; v < N; ++v) {
@@ -469,7 +467,7 @@ void Smoother::untanglePhase() {
     result_.untangleSeconds = secondsSince(t0);
 }
 
-void Smoother::meanRatioPhase() {
+void Smoother::meanRatioPhase(const ObjectiveSum& start) {
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
     std::vector<std::uint8_t> active(N, 0), next(N, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, kBlock), [&](const auto& r) {
@@ -478,7 +476,6 @@ void Smoother::meanRatioPhase() {
                 for (Index u : mesh_.hexes[h]) raise(active[static_cast<std::size_t>(u)]);
     });
 
-    const ObjectiveSum start = objectiveSum(mesh_);
     double total = 8.0 * start.sum;                        // corner sum, the optimised objective
     const double corners = 8.0 * static_cast<double>(start.finite);
     std::vector<double> gain(N, 0.0);
@@ -528,8 +525,9 @@ SmoothingResult Smoother::run(bool meanRatio) {
         result_.invertedBefore = mesh_.hexCount() - s.finite;
     }
     if (result_.invertedBefore > 0 && opt_.untangle) untanglePhase();
-    result_.objectiveAfterUntangle = meanOf(objectiveSum(mesh_));
-    if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase();
+    const ObjectiveSum untangled = objectiveSum(mesh_);
+    result_.objectiveAfterUntangle = meanOf(untangled);
+    if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(untangled);
     else result_.converged = true;
 
     const ObjectiveSum s = objectiveSum(mesh_);

@@ -157,6 +157,27 @@ TEST(Optimize, FixBoundaryLeavesEveryNonInteriorNodeBitIdentical) {
     EXPECT_EQ(interiorMoved, r.nodesMoved);
 }
 
+TEST(Optimize, CurveAndFixedNodesNeverMove) {
+    HexMesh m = pillowedBall(5, 2.0, 0.15, 21);
+    // mark a few surface nodes as curve or fixed nodes
+    std::vector<std::size_t> pinned;
+    for (std::size_t v = 0; v < m.nodeCount() && pinned.size() < 12; ++v)
+        if (m.nodeClass[v].kind == NodeKind::Surface && v % 5 == 0) {
+            m.nodeClass[v] = pinned.size() % 2 ? NodeClass{NodeKind::Curve, 0} : NodeClass{NodeKind::Fixed, -1};
+            pinned.push_back(v);
+        }
+    // and one interior node fixed
+    std::size_t fixedInterior = 0;
+    while (m.nodeClass[fixedInterior].kind != NodeKind::Interior) ++fixedInterior;
+    m.nodeClass[fixedInterior] = {NodeKind::Fixed, -1};
+    pinned.push_back(fixedInterior);
+    const HexMesh before = m;
+    const test::SphereProjector sphere({0, 0, 0}, 2.0);
+    const SmoothingResult r = optimizeMesh(m, &sphere);
+    EXPECT_GT(r.nodesMoved, 0u);
+    for (std::size_t v : pinned) EXPECT_EQ(m.nodes[v], before.nodes[v]) << "node " << v;
+}
+
 TEST(Optimize, SurfaceNodesStayOnTheSphere) {
     HexMesh m = pillowedBall(6, 3.0, 0.15, 3);
     const HexMesh before = m;
