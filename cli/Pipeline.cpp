@@ -34,18 +34,15 @@ public:
     double finish() {
         const double s = since(start_);
         sink_.end(name_, s);
-        done_ = true;
         return s;
     }
-    ~Stage() {
-        if (!done_) sink_.end(name_, since(start_));
-    }
+    // A stage left by an exception is not reported as done; the error says why.
+    ~Stage() = default;
 
 private:
     StageSink& sink_;
     std::string name_;
     Clock::time_point start_;
-    bool done_ = false;
 };
 
 // The scan as the octree sees it: the material at a point (a label lookup for

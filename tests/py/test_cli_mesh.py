@@ -1,0 +1,182 @@
+"""End-to-end tests of `isohex mesh`, `compare` and `quality` run as a user would,
+with the results judged by VTK (vtkMeshQuality, vtkCellSizeFilter) rather than by
+isohex's own numbers."""
+import json
+import os
+import subprocess
+import sys
+import unittest
+
+import numpy as np
+import vtk
+from vtk.util import numpy_support as ns
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
+
+
+def read(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    return r.GetOutput()
+
+
+def vtk_sj(grid):
+    q = vtk.vtkMeshQuality()
+    q.SetInputData(grid)
+    q.SetHexQualityMeasureToScaledJacobian()
+    q.Update()
+    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
+
+
+def vtk_volume(grid):
+    f = vtk.vtkCellSizeFilter()
+    f.SetInputData(grid)
+    f.ComputeVolumeOn()
+    f.Update()
+    return float(ns.vtk_to_numpy(f.GetOutput().GetCellData().GetArray("Volume")).sum())
+
+
+class Phantoms(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("cli_mesh")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
+                       check=True, capture_output=True)
+
+    def mesh(self, name, *extra, out=None):
+        out = out or os.path.join(self.dir, f"{name}{abs(hash(extra))}.vtu")
+        report = out.replace(".vtu", ".json")
+        run(["mesh", os.path.join(self.dir, f"{name}.nii.gz"), "-o", out, "--report", report, "--force", "-q",
+             *extra])
+        with open(report) as f:
+            return read(out), json.load(f)
+
+    def test_sphere_is_valid_convex_and_close_to_the_ball(self):
+        grid, rep = self.mesh("sphere", "--iso", "50", "--size", "3")
+        sj = vtk_sj(grid)
+        print(f"sphere: {len(sj)} hexes, VTK scaled Jacobian min {sj.min():.3f} mean {sj.mean():.3f}")
+        self.assertEqual((sj < 0).sum(), 0)
+        self.assertGreaterEqual(sj.min(), 0.3)
+        self.assertGreaterEqual(sj.mean(), 0.85)
+        self.assertTrue(rep["validity"]["ok"], rep["validity"])
+        # volume: VTK's own cell volumes against the isosurface volume of the report and the exact ball
+        vol = vtk_volume(grid)
+        self.assertAlmostEqual(vol / rep["fidelity"]["volume_mesh"], 1.0, delta=1e-3)
+        self.assertAlmostEqual(vol / (4 / 3 * np.pi * 20 ** 3), 1.0, delta=0.03)
+        self.assertLess(rep["fidelity"]["boundary_distance_max_voxels"], 0.1)
+        # the report's figures are VTK's
+        self.assertEqual(rep["hexes"], grid.GetNumberOfCells())
+        self.assertAlmostEqual(rep["scaled_jacobian"]["min"], sj.min(), delta=1e-9)
+
+    def test_pillowing_beats_no_pillowing_with_the_same_optimiser(self):
+        g1, r1 = self.mesh("torus", "--iso", "50", "--size", "2.5", "--fix-boundary")
+        g0, r0 = self.mesh("torus", "--iso", "50", "--size", "2.5", "--fix-boundary", "--no-pillow")
+        s1, s0 = vtk_sj(g1), vtk_sj(g0)
+        print(f"torus without sheet: min {s0.min():.3f}, <0.2: {(s0 < 0.2).sum()}, inverted {(s0 < 0).sum()}; "
+              f"with sheet: min {s1.min():.3f}, <0.2: {(s1 < 0.2).sum()}, inverted {(s1 < 0).sum()}")
+        self.assertGreater(s1.min(), s0.min())
+        self.assertLessEqual((s1 < 0.2).sum(), (s0 < 0.2).sum())
+        self.assertEqual(r1["pillow"]["hexes_added"], len(s1) - len(s0))
+
+    def test_labels_give_one_material_per_label_with_interfaces(self):
+        grid, rep = self.mesh("two_materials", "--labels", "--size", "3")
+        mats = ns.vtk_to_numpy(grid.GetCellData().GetArray("material"))
+        self.assertEqual(sorted(set(mats.tolist())), [1, 2, 3])
+        sj = vtk_sj(grid)
+        self.assertEqual((sj < 0).sum(), 0)
+        self.assertTrue(rep["validity"]["ok"], rep["validity"])
+
+    def test_output_is_identical_for_one_and_two_threads(self):
+        a = os.path.join(self.dir, "t1.vtu")
+        b = os.path.join(self.dir, "t2.vtu")
+        for path, n in ((a, "1"), (b, "2")):
+            run(["mesh", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "--size", "3", "-o", path,
+                 "--threads", n, "--force", "-q"])
+        ga, gb = read(a), read(b)
+        pa = ns.vtk_to_numpy(ga.GetPoints().GetData())
+        pb = ns.vtk_to_numpy(gb.GetPoints().GetData())
+        np.testing.assert_array_equal(pa, pb)
+        np.testing.assert_array_equal(ns.vtk_to_numpy(ga.GetCells().GetConnectivityArray()),
+                                      ns.vtk_to_numpy(gb.GetCells().GetConnectivityArray()))
+
+    def test_compare_writes_four_variants_with_matching_counts(self):
+        js = os.path.join(self.dir, "cmp.json")
+        svg = os.path.join(self.dir, "cmp.svg")
+        run(["compare", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "--size", "3", "--json", js,
+             "--plot", svg, "--force", "-q"])
+        with open(js) as f:
+            c = json.load(f)
+        v = {x["variant"]: x for x in c["variants"]}
+        self.assertEqual(sorted(v), ["a", "b", "c", "d"])
+        self.assertGreaterEqual(v["c"]["hexes"], v["b"]["hexes"])          # diced up to b's count
+        self.assertLessEqual(v["d"]["hexes"], v["a"]["hexes"] * 1.0 + 1e-9)  # extracted down to a's count
+        for key in "abcd":
+            self.assertEqual(sum(v[key]["scaled_jacobian"]["histogram"]["counts"]) + v[key]["scaled_jacobian"]["degenerate"],
+                             v[key]["hexes"])
+        with open(svg) as f:
+            text = f.read()
+        self.assertIn("<svg", text)
+        for key in "abcd":
+            self.assertIn(f"{key}: ", text)
+
+
+class FailurePaths(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("cli_fail")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
+                       check=True, capture_output=True)
+
+    def test_missing_input_is_one_clear_line(self):
+        p = run(["mesh", os.path.join(self.dir, "nope.nii.gz"), "-o", os.path.join(self.dir, "x.vtu")], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("nope.nii.gz", p.stderr)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "x.vtu")))
+
+    def test_existing_output_is_not_clobbered(self):
+        out = os.path.join(self.dir, "keep.vtu")
+        with open(out, "w") as f:
+            f.write("precious")
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--iso", "50", "-o", out, "-q"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--force", p.stderr)
+        with open(out) as f:
+            self.assertEqual(f.read(), "precious")
+
+    def test_iso_outside_the_data_states_the_range(self):
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--iso", "500", "-o",
+                 os.path.join(self.dir, "y.vtu"), "-q"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("range", p.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "y.vtu")))
+
+    def test_unknown_output_format_fails_before_meshing(self):
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
+                check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn(".vtu", p.stderr)
+
+    def test_several_inputs_continue_past_a_failure_and_resume(self):
+        bad = os.path.join(self.dir, "garbage.nii.gz")
+        with open(bad, "wb") as f:
+            f.write(b"this is not a scan")
+        out = os.path.join(self.dir, "batch")
+        args = ["mesh", os.path.join(self.dir, "sphere.nii.gz"), bad, os.path.join(self.dir, "torus.nii.gz"),
+                "--iso", "50", "--size", "4", "--out-dir", out, "--format", "vtu,inp", "-q"]
+        p = run(args, check=False)
+        self.assertNotEqual(p.returncode, 0)
+        for name in ("sphere", "torus"):
+            for ext in ("vtu", "inp", "report.json"):
+                self.assertTrue(os.path.exists(os.path.join(out, f"{name}.{ext}")), (name, ext))
+        self.assertFalse(os.path.exists(os.path.join(out, "garbage.vtu")))
+        self.assertIn("1 failed", p.stdout)
+        again = run(args, check=False)
+        self.assertIn("2 skipped", again.stdout)
+        self.assertIn("1 failed", again.stdout)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
