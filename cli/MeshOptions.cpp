@@ -16,6 +16,9 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
     cmd->add_flag("--labels", a.labels, "Read an integer image as a label map and mesh every label (0 = background)")
         ->group(sel);
     cmd->add_option("--label", a.labelList, "Mesh only these labels, e.g. 3 or 3,7 (implies --labels)")->group(sel);
+    cmd->add_flag("--keep-largest", s.keepLargest,
+                  "Keep only the largest connected region of each material (drops noise specks)")
+        ->group(sel);
     cmd->add_option("--min-label-voxels", s.select.minLabelVoxels, "Drop (and report) labels with fewer voxels")
         ->group(sel);
     cmd->add_option("--smooth", s.select.smoothSigma, "Gaussian pre-smoothing, standard deviation in mm")->group(sel);

@@ -278,8 +278,21 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     }
     const octree::Grid g = gridFor(vol, solid, step, pad);
     p.labels = octree::sampleLabels(*domain, g);
+    if (settings.keepLargest) {
+        const std::size_t removed = octree::keepLargestComponents(p.labels);
+        grid["points_in_smaller_components_removed"] = removed;
+        if (removed) sink.note("info", "kept the largest region of each material (" + std::to_string(removed) +
+                                           " grid points of smaller regions removed)");
+    }
     sink.progress(0.5);
-    const octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain);
+    octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain);
+    // Repair can cut a thin bridge; keep the largest region again and re-check.
+    if (settings.keepLargest && octree::keepLargestComponents(p.labels) > 0) {
+        const octree::RepairReport again = octree::repairNonManifold(p.labels, *domain);
+        rep.pointsAdded += again.pointsAdded;
+        rep.pointsRemoved += again.pointsRemoved;
+        rep.rounds += again.rounds;
+    }
     const auto topo = octree::regionTopology(p.labels);
     grid["step_voxels"] = step;
     grid["element_size"] = g.spacing();
@@ -295,6 +308,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     // Compare with the voxel-resolution topology when the user forced the grid.
     if ((settings.size || settings.level) && vol.voxelCount() <= 60'000'000) {
         octree::Labels fine = octree::sampleLabels(*domain, gridFor(vol, solid, {1, 1, 1}, 2));
+        if (settings.keepLargest) octree::keepLargestComponents(fine);
         octree::repairNonManifold(fine, *domain);
         const auto ref = octree::regionTopology(fine);
         for (const auto& r : ref) {

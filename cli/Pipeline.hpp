@@ -24,6 +24,7 @@ struct MeshSettings {
     std::optional<double> size;   // element edge length in world units
     std::optional<int> level;     // grid step 2^level voxels (exclusive with size)
     std::string method = "dual";  // "dual" (dual contouring) or "voxel" (one hex per voxel, the baseline)
+    bool keepLargest = false;     // only the largest connected region of each material
     bool pillow = true;
     int boundaryLayers = 1;
     bool meshExterior = false;

@@ -142,6 +142,52 @@ std::vector<std::size_t> badBlocks(const Labels& l) {
 
 std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labels).size(); }
 
+std::size_t keepLargestComponents(Labels& labels) {
+    const auto [nx, ny, nz] = labels.grid.dims;
+    const std::size_t n = labels.material.size();
+    std::vector<std::uint32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto find = [&](std::uint32_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    auto unite = [&](std::size_t a, std::size_t b) {
+        const std::uint32_t ra = find(static_cast<std::uint32_t>(a)), rb = find(static_cast<std::uint32_t>(b));
+        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+    };
+    const Grid& g = labels.grid;
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t p = g.index(i, j, k);
+                const std::int32_t m = labels.material[p];
+                if (m == 0) continue;
+                if (i + 1 < nx && labels.material[g.index(i + 1, j, k)] == m) unite(p, g.index(i + 1, j, k));
+                if (j + 1 < ny && labels.material[g.index(i, j + 1, k)] == m) unite(p, g.index(i, j + 1, k));
+                if (k + 1 < nz && labels.material[g.index(i, j, k + 1)] == m) unite(p, g.index(i, j, k + 1));
+            }
+    // size of each component, then the largest root per material (ties: smallest root)
+    std::vector<std::uint32_t> size(n, 0);
+    for (std::size_t p = 0; p < n; ++p)
+        if (labels.material[p] != 0) ++size[find(static_cast<std::uint32_t>(p))];
+    std::map<std::int32_t, std::uint32_t> best;
+    for (std::size_t p = 0; p < n; ++p) {
+        const std::int32_t m = labels.material[p];
+        if (m == 0 || parent[p] != p) continue;
+        auto it = best.find(m);
+        if (it == best.end() || size[p] > size[it->second]) best[m] = static_cast<std::uint32_t>(p);
+    }
+    std::size_t removed = 0;
+    for (std::size_t p = 0; p < n; ++p) {
+        const std::int32_t m = labels.material[p];
+        if (m != 0 && find(static_cast<std::uint32_t>(p)) != best[m]) {
+            labels.material[p] = 0;
+            ++removed;
+        }
+    }
+    return removed;
+}
+
 RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
     RepairReport rep;
     const Grid& g = labels.grid;

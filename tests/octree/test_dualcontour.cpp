@@ -270,3 +270,24 @@ TEST(DualContour, SameMeshForAnyThreadCount) {
     EXPECT_EQ(one.hexes, many.hexes);
     EXPECT_EQ(one.nodes, many.nodes);
 }
+
+TEST(KeepLargest, DropsSmallerRegionsOfEachMaterialOnly) {
+    const AnalyticDomain d({unite(sphere({8, 10, 10}, 5), sphere({17, 10, 10}, 2.2)), sphere({10, 10, 25}, 3)});
+    octree::Grid g = unitGrid(31);
+    Labels l = sampleLabels(d, g);
+    std::size_t small = 0, second = 0;
+    for (std::size_t p = 0; p < l.material.size(); ++p) {
+        const int i = static_cast<int>(p % 31);
+        small += l.material[p] == 1 && i > 14;
+        second += l.material[p] == 2;
+    }
+    ASSERT_GT(small, 0u);
+    const std::size_t removed = keepLargestComponents(l);
+    EXPECT_EQ(removed, small);
+    std::size_t secondAfter = 0;
+    for (auto m : l.material) secondAfter += m == 2;
+    EXPECT_EQ(secondAfter, second);  // material 2 is one region: untouched
+    const auto topo = regionTopology(l);
+    ASSERT_EQ(topo.size(), 2u);
+    EXPECT_EQ(topo[0].components, 1u);
+}
