@@ -20,37 +20,6 @@ namespace {
 
 bool benchEnabled() { return std::getenv("ISOHEX_BENCH") != nullptr; }
 
-// The voxel cells of a grid (spacing 1) whose centres lie inside the sphere
-// of `radius` at the origin, one hex per cell, with the boundary nodes then
-// moved radially onto the sphere: the non-fundamental mesh dual contouring
-// leaves before pillowing (interior cubes, bent boundary layer).
-HexMesh voxelBall(double radius) {
-    const int n = static_cast<int>(std::ceil(radius)) + 1;
-    const int w = 2 * n + 1;  // nodes per axis, from -n to n
-    auto inside = [&](int i, int j, int k) {  // cell with lower corner (i, j, k)
-        const double x = i + 0.5, y = j + 0.5, z = k + 0.5;
-        return x * x + y * y + z * z < radius * radius;
-    };
-    HexMesh m;
-    std::vector<Index> id(static_cast<std::size_t>(w) * w * w, kNone);
-    auto node = [&](int i, int j, int k) {
-        Index& v = id[(static_cast<std::size_t>(k + n) * w + (j + n)) * w + (i + n)];
-        if (v == kNone) v = m.addNode({double(i), double(j), double(k)});
-        return v;
-    };
-    for (int k = -n; k < n; ++k)
-        for (int j = -n; j < n; ++j)
-            for (int i = -n; i < n; ++i)
-                if (inside(i, j, k))
-                    m.addHex({node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
-                              node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1), node(i, j + 1, k + 1)});
-    classifyBoundaryNodes(m);
-    const test::SphereProjector sphere({0, 0, 0}, radius);
-    for (std::size_t v = 0; v < m.nodeCount(); ++v)
-        if (m.nodeClass[v].kind != NodeKind::Interior) m.nodes[v] = sphere.project(0, m.nodes[v]);
-    return m;
-}
-
 void runAndReport(const char* name, HexMesh& m, const SurfaceProjector* projector) {
     const auto t0 = std::chrono::steady_clock::now();
     const double sjBefore = test::minScaledJacobian(m);
@@ -94,7 +63,7 @@ void runAndReport(const char* name, HexMesh& m, const SurfaceProjector* projecto
 TEST(SmoothingBenchmark, VoxelBallPillowed) {
     if (!benchEnabled()) GTEST_SKIP() << "set ISOHEX_BENCH=1 to run";
     const double radius = 60.5;
-    HexMesh m = voxelBall(radius);
+    HexMesh m = test::voxelBall(radius);
     pillowAllMaterials(m);
     const test::SphereProjector sphere({0, 0, 0}, radius);
     runAndReport("voxel ball, boundary on the sphere, pillowed", m, &sphere);
