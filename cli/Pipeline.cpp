@@ -406,7 +406,8 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     nlohmann::json j;
     // Volume the isosurface encloses, from OpenVDB's own polygonisation of the
     // field's zero set (divergence theorem over its polygons).
-    double isoTotal = 0, meshTotal = 0;
+    double isoTotal = 0, meshTotal = 0, voxTotal = 0;
+    const double voxelVolume = p.volume->spacing[0] * p.volume->spacing[1] * p.volume->spacing[2];
     std::map<std::int32_t, double> meshVolume;
     for (std::size_t h = 0; h < mesh.hexCount(); ++h) meshVolume[mesh.material[h]] += hexVolume(hexCoords(mesh, static_cast<Index>(h)));
     for (const auto& m : p.selection->materials) {
@@ -427,14 +428,28 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
         const double mv = meshVolume.count(m.id) ? meshVolume[m.id] : 0.0;
         isoTotal += v;
         meshTotal += mv;
-        j["materials"].push_back({{"material", m.id},
-                                  {"volume_mesh", mv},
-                                  {"volume_isosurface", v},
-                                  {"volume_change_percent", v > 0 ? 100.0 * (mv - v) / v : 0.0}});
+        nlohmann::json mj = {{"material", m.id},
+                             {"volume_mesh", mv},
+                             {"volume_isosurface", v},
+                             {"volume_change_percent", v > 0 ? 100.0 * (mv - v) / v : 0.0}};
+        if (p.volume->kind == imaging::VolumeKind::Labels) {
+            // A label's 0.5-isosurface rounds its voxels' corners off, so for thin
+            // labels it encloses clearly less than the segmentation's own voxels;
+            // report both references.
+            const double vox = static_cast<double>(m.voxels) * voxelVolume;
+            mj["volume_voxels"] = vox;
+            mj["volume_change_vs_voxels_percent"] = vox > 0 ? 100.0 * (mv - vox) / vox : 0.0;
+            voxTotal += vox;
+        }
+        j["materials"].push_back(mj);
     }
     j["volume_mesh"] = meshTotal;
     j["volume_isosurface"] = isoTotal;
     j["volume_change_percent"] = isoTotal > 0 ? 100.0 * (meshTotal - isoTotal) / isoTotal : 0.0;
+    if (voxTotal > 0) {
+        j["volume_voxels"] = voxTotal;
+        j["volume_change_vs_voxels_percent"] = 100.0 * (meshTotal - voxTotal) / voxTotal;
+    }
     // Distance of surface nodes to their surface (projection distance).
     FieldProjector proj(*domain, mesh);
     std::vector<Index> nodes;

@@ -90,6 +90,74 @@ BlockView block(const Labels& l, int i, int j, int k) {
     return b;
 }
 
+// With three or more materials in a block, each interface between two of them
+// must also be one fan around the block centre: the block edges joining an
+// a-point to a b-point are the interface's faces there, and two of them are
+// joined across a block square holding exactly two such edges.
+int badPairs(const std::array<std::int32_t, 8>& mat) {
+    std::array<std::int32_t, 8> distinct{};
+    int nd = 0;
+    for (int c = 0; c < 8; ++c) {
+        bool seen = false;
+        for (int e = 0; e < nd; ++e) seen = seen || distinct[e] == mat[c];
+        if (!seen) distinct[nd++] = mat[c];
+    }
+    if (nd < 3) return 0;
+    // block edges: corner c to c | (1 << d) where bit d of c is clear
+    static constexpr auto edges = [] {
+        std::array<std::array<int, 2>, 12> e{};
+        int n = 0;
+        for (int c = 0; c < 8; ++c)
+            for (int d = 0; d < 3; ++d)
+                if (!(c >> d & 1)) e[n++] = {c, c | (1 << d)};
+        return e;
+    }();
+    // block squares: the 6 faces, each listing its 4 edges by index
+    static constexpr auto squares = [] {
+        std::array<std::array<int, 4>, 6> sq{};
+        int n = 0;
+        for (int d = 0; d < 3; ++d)
+            for (int side = 0; side < 2; ++side) {
+                int k = 0;
+                for (int e = 0; e < 12; ++e)
+                    if (((edges[e][0] >> d & 1) == side) && ((edges[e][1] >> d & 1) == side)) sq[n][k++] = e;
+                ++n;
+            }
+        return sq;
+    }();
+    int bad = 0;
+    for (int x = 0; x < nd; ++x)
+        for (int y = x + 1; y < nd; ++y) {
+            const std::int32_t a = distinct[x], b = distinct[y];
+            unsigned faces = 0;
+            for (int e = 0; e < 12; ++e) {
+                const std::int32_t p = mat[edges[e][0]], q = mat[edges[e][1]];
+                if ((p == a && q == b) || (p == b && q == a)) faces |= 1u << e;
+            }
+            if (faces == 0) continue;
+            int parent[12];
+            for (int e = 0; e < 12; ++e) parent[e] = e;
+            auto find = [&](int e) {
+                while (parent[e] != e) e = parent[e] = parent[parent[e]];
+                return e;
+            };
+            for (const auto& sq : squares) {
+                int in[4], n = 0;
+                for (int e : sq)
+                    if (faces >> e & 1) in[n++] = e;
+                if (n == 2) {
+                    const int ra = find(in[0]), rb = find(in[1]);
+                    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+                }
+            }
+            int components = 0;
+            for (int e = 0; e < 12; ++e)
+                if ((faces >> e & 1) && find(e) == e) ++components;
+            bad += components > 1;
+        }
+    return bad;
+}
+
 bool blockManifold(const std::array<std::int32_t, 8>& mat) {
     for (int c = 0; c < 8; ++c) {
         bool first = true;
@@ -101,7 +169,7 @@ bool blockManifold(const std::array<std::int32_t, 8>& mat) {
             if (mat[d] == mat[c]) p |= 1u << d;
         if (!kTable.ok[p]) return false;
     }
-    return true;
+    return badPairs(mat) == 0;
 }
 
 int badMaterials(const std::array<std::int32_t, 8>& mat) {
@@ -116,7 +184,7 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
             if (mat[d] == mat[c]) p |= 1u << d;
         bad += !kTable.ok[p];
     }
-    return bad;
+    return bad + badPairs(mat);
 }
 
 std::vector<std::size_t> badBlocks(const Labels& l) {

@@ -1,0 +1,133 @@
+"""The mesher on the real scans in shared/data (issues 4 and 5), judged from the
+written files with numpy/VTK: topological validity after dual contouring, volume
+against the isosurface, and what pillowing must guarantee (one new hex per surface
+quad, surface nodes bit-identical, at most one face per hex on each surface, two
+sheets on every interface between labels)."""
+import json
+import os
+import sys
+import unittest
+
+import numpy as np
+import vtk
+from vtk.util import numpy_support as ns
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import SHARED_DATA, run, workdir  # noqa: E402
+
+FACES = np.array([[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1], [4, 5, 6, 7]])
+
+CASES = [
+    # name, file, options
+    ("skull", "skull_ct.nii.gz", ["--iso", "2.9"]),
+    ("brain_2mm", "ch2bet.nii.gz", ["--size", "2", "--keep-largest"]),
+    ("jhu_labels", "JHU-WhiteMatter-labels-2mm.nii.gz", ["--labels"]),
+]
+
+
+def read(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    g = r.GetOutput()
+    pts = ns.vtk_to_numpy(g.GetPoints().GetData()).astype(float)
+    hexes = ns.vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(-1, 8)
+    mat = ns.vtk_to_numpy(g.GetCellData().GetArray("material"))
+    return pts, hexes, mat
+
+
+def faces_of(hexes, mat):
+    """All hex faces: sorted node keys, owning hex, material."""
+    f = hexes[:, FACES].reshape(-1, 4)
+    keys = np.sort(f, axis=1)
+    owner = np.repeat(np.arange(len(hexes)), 6)
+    return keys, owner, mat[owner]
+
+
+def surface_faces(hexes, mat):
+    """Faces on a surface: held by one hex, or by two hexes of different material.
+    Returns (owner hex, surface id) per face side, surface = (material, other or -1)."""
+    keys, owner, fm = faces_of(hexes, mat)
+    order = np.lexsort(keys.T[::-1])
+    k = keys[order]
+    same_next = np.all(k[1:] == k[:-1], axis=1)
+    start = np.concatenate([[True], ~same_next])
+    group = np.cumsum(start) - 1
+    counts = np.bincount(group)
+    o, m = owner[order], fm[order]
+    other = np.full(len(o), -1)
+    pair = counts[group] == 2
+    idx = np.nonzero(pair)[0]
+    first = idx[start[idx]]
+    other[first] = m[first + 1]
+    other[first + 1] = m[first]
+    on_surface = (counts[group] == 1) | (pair & (other != m))
+    return o[on_surface], m[on_surface], other[on_surface], group[on_surface]
+
+
+class RealScans(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("real")
+        cls.meshes = {}
+        for name, file, opts in CASES:
+            src = os.path.join(SHARED_DATA, file)
+            plain = os.path.join(cls.dir, f"{name}_dc.vtu")
+            pillowed = os.path.join(cls.dir, f"{name}_pillow.vtu")
+            run(["mesh", src, *opts, "--no-optimize", "--no-pillow", "-o", plain, "--report", plain + ".json", "-q"])
+            run(["mesh", src, *opts, "--no-optimize", "-o", pillowed, "--report", pillowed + ".json", "-q"])
+            with open(plain + ".json") as f:
+                rp = json.load(f)
+            with open(pillowed + ".json") as f:
+                rq = json.load(f)
+            cls.meshes[name] = (read(plain), read(pillowed), rp, rq)
+
+    def test_dual_contouring_is_topologically_valid(self):
+        for name, (_, _, rep, _) in self.meshes.items():
+            defects = set(rep["validity"]["defects"]) - {"inverted_hex"}
+            self.assertEqual(defects, set(), f"{name}: {rep['validity']}")
+
+    def test_volume_within_two_percent_of_the_isosurface(self):
+        for name in ("skull", "brain_2mm"):
+            rep = self.meshes[name][2]
+            change = rep["fidelity"]["volume_change_percent"]
+            print(f"{name}: volume change {change:+.3f}% ({rep['hexes']} hexes)")
+            self.assertLess(abs(change), 2.0, name)
+
+    def test_label_volume_lies_between_the_smooth_isosurface_and_the_voxels(self):
+        # The 0.5-isosurface of a label's indicator rounds voxel corners off; dual
+        # contouring follows the label boundaries, so the mesh volume must fall
+        # between that smooth surface's volume and the label's voxel volume.
+        f = self.meshes["jhu_labels"][2]["fidelity"]
+        print(f"labels: isosurface {f['volume_isosurface']:.0f}, mesh {f['volume_mesh']:.0f}, "
+              f"voxels {f['volume_voxels']:.0f} mm^3")
+        self.assertGreater(f["volume_mesh"], f["volume_isosurface"])
+        self.assertLess(f["volume_mesh"], f["volume_voxels"])
+
+    def test_pillow_adds_one_hex_per_surface_quad_and_keeps_surface_nodes(self):
+        for name, ((p0, h0, m0), (p1, h1, m1), _, _) in self.meshes.items():
+            owner, mat, other, group = surface_faces(h0, m0)
+            sides = len(owner)  # an interface quad counts once per side: it gets a sheet on each
+            self.assertEqual(len(h1) - len(h0), sides, name)
+            np.testing.assert_array_equal(p1[: len(p0)], p0, err_msg=name)  # bit-identical
+
+    def test_after_pillowing_no_hex_has_two_faces_on_one_surface(self):
+        for name, (_, (p1, h1, m1), _, rep) in self.meshes.items():
+            defects = set(rep["validity"]["defects"]) - {"inverted_hex"}
+            self.assertEqual(defects, set(), f"{name}: {rep['validity']}")
+            owner, mat, other, _ = surface_faces(h1, m1)
+            key = owner.astype(np.int64) * 1_000_000 + (other + 1)
+            _, n = np.unique(key, return_counts=True)
+            self.assertEqual(n.max(), 1, f"{name}: a hex has {n.max()} faces on one surface")
+
+    def test_every_interface_carries_two_sheets(self):
+        (_, h0, m0), (_, h1, m1), _, _ = self.meshes["jhu_labels"]
+        owner, mat, other, _ = surface_faces(h1, m1)
+        interface = other >= 0
+        self.assertGreater(interface.sum(), 100)
+        # both hexes at every interface quad are new sheet hexes
+        self.assertTrue(np.all(owner[interface] >= len(h0)))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
