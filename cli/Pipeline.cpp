@@ -4,6 +4,9 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <cctype>
+#include <filesystem>
+#include <optional>
 #include <sstream>
 
 #include <openvdb/tools/VolumeToMesh.h>
@@ -15,6 +18,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/imaging/Surface.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
 namespace isohex::cli {
@@ -138,6 +142,26 @@ private:
     std::vector<SurfaceTag> surfaces_;
 };
 
+bool isSurfaceFile(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    return ext == ".stl" || ext == ".obj" || ext == ".ply" || ext == ".off";
+}
+
+double meanEdgeLength(const imaging::TriangleSurface& s) {
+    double sum = 0;
+    std::size_t n = 0;
+    for (const auto& t : s.triangles)
+        for (int i = 0; i < 3; ++i) {
+            const Vec3& a = s.vertices[t[i]];
+            const Vec3& b = s.vertices[t[(i + 1) % 3]];
+            sum += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+            ++n;
+        }
+    if (n == 0) throw Error(s.source + ": the surface has no triangles");
+    return sum / static_cast<double>(n);
+}
+
 // Index-space box of the voxels inside any selected material.
 openvdb::CoordBBox solidBox(const imaging::Volume& vol, const imaging::Selection& sel) {
     const openvdb::CoordBBox box = vol.box;
@@ -202,11 +226,45 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         throw Error("--size and --level both given; choose one (--size is the element edge length in world units)");
     if (settings.size && !(*settings.size > 0))
         throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
+    std::optional<double> size = settings.size;
+    nlohmann::json surfaceJson;
     {
         Stage st(sink, "load");
-        imaging::LoadOptions lo = settings.load;
-        lo.progress = [&](std::string_view, double f) { sink.progress(f); };
-        p.volume = std::make_shared<const imaging::Volume>(imaging::loadVolume(input, lo));
+        if (isSurfaceFile(input)) {
+            // A closed triangle surface becomes a signed-distance level set (two
+            // voxels per element), meshed like a scan whose iso value is 0.
+            imaging::TriangleSurface surface = imaging::loadSurface(input);
+            imaging::checkClosedManifold(surface);
+            if (!size) size = meanEdgeLength(surface);
+            imaging::LevelSetOptions lso;
+            lso.elementSize = *size;
+            lso.maxMemoryMB = settings.load.maxMemoryMB;
+            surfaceJson = {{"triangles", surface.triangles.size()},
+                           {"vertices", surface.vertices.size()},
+                           {"volume", surface.volume()},
+                           {"area", surface.area()},
+                           {"flipped", surface.flipped}};
+            imaging::SurfaceLevelSet ls = imaging::surfaceToLevelSet(std::move(surface), lso);
+            auto vol = std::make_shared<imaging::Volume>();
+            vol->kind = imaging::VolumeKind::Intensity;
+            vol->intensity = ls.grid;
+            vol->box = ls.grid->evalActiveVoxelBoundingBox();
+            vol->box.expand(2);
+            vol->spacing = {ls.voxelSize, ls.voxelSize, ls.voxelSize};
+            const openvdb::Vec3d o = ls.grid->transform().indexToWorld(openvdb::Vec3d(0, 0, 0));
+            vol->origin = {o[0], o[1], o[2]};
+            vol->minValue = -ls.grid->background();
+            vol->maxValue = ls.grid->background();
+            vol->levelSet = true;
+            vol->source = input;
+            vol->format = "triangle surface";
+            vol->pixelType = "float32 (signed distance)";
+            p.volume = vol;
+        } else {
+            imaging::LoadOptions lo = settings.load;
+            lo.progress = [&](std::string_view, double f) { sink.progress(f); };
+            p.volume = std::make_shared<const imaging::Volume>(imaging::loadVolume(input, lo));
+        }
         st.finish();
     }
     const imaging::Volume& vol = *p.volume;
@@ -233,6 +291,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     in["data_range"] = {vol.minValue, vol.maxValue};
     in["coordinates"] = "LPS (ITK physical space), world units of the scan (mm for medical images)";
     if (!vol.seriesUid.empty()) in["dicom_series"] = vol.seriesUid;
+    if (!surfaceJson.is_null()) in["surface"] = surfaceJson;
     nlohmann::json selJson;
     if (sel.iso) {
         selJson["iso"] = *sel.iso;
@@ -258,10 +317,10 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     octree::LevelChoice choice;
     std::array<double, 3> step{1, 1, 1};
     nlohmann::json grid;
-    if (settings.size) {
-        for (int a = 0; a < 3; ++a) step[a] = *settings.size / vol.spacing[a];
-        if (*settings.size < 0.5 * spacingMin)
-            p.warnings.push_back("--size " + std::to_string(*settings.size) +
+    if (size) {
+        for (int a = 0; a < 3; ++a) step[a] = *size / vol.spacing[a];
+        if (*size < 0.5 * spacingMin)
+            p.warnings.push_back("--size " + std::to_string(*size) +
                                  " is below half the voxel spacing; the mesh cannot resolve more than the scan");
         grid["chosen_by"] = "size";
     } else if (settings.level) {
@@ -296,7 +355,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     const auto topo = octree::regionTopology(p.labels);
     grid["step_voxels"] = step;
     grid["element_size"] = g.spacing();
-    if (!settings.size) grid["level"] = settings.level ? *settings.level : choice.level;
+    if (!size) grid["level"] = settings.level ? *settings.level : choice.level;
     grid["grid"] = gridJson(g);
     grid["repair"] = {{"nonmanifold_blocks_before", rep.nonManifoldBefore},
                       {"points_added", rep.pointsAdded},
@@ -306,7 +365,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
     // Compare with the voxel-resolution topology when the user forced the grid.
-    if ((settings.size || settings.level) && vol.voxelCount() <= 60'000'000) {
+    if ((size || settings.level) && vol.voxelCount() <= 60'000'000) {
         octree::Labels fine = octree::sampleLabels(*domain, gridFor(vol, solid, {1, 1, 1}, 2));
         if (settings.keepLargest) octree::keepLargestComponents(fine);
         octree::repairNonManifold(fine, *domain);

@@ -22,6 +22,11 @@ CASES = [
     ("skull", "skull_ct.nii.gz", ["--iso", "2.9"]),
     ("brain_2mm", "ch2bet.nii.gz", ["--size", "2", "--keep-largest"]),
     ("jhu_labels", "JHU-WhiteMatter-labels-2mm.nii.gz", ["--labels"]),
+    # closed triangle surfaces, meshed through their signed-distance level sets
+    ("femur", "femur.off", []),
+    ("sphere966", "sphere966.off", []),
+    ("knot1", "knot1.off", []),
+    ("fandisk", "fandisk.off", []),
 ]
 
 
@@ -88,7 +93,7 @@ class RealScans(unittest.TestCase):
             self.assertEqual(defects, set(), f"{name}: {rep['validity']}")
 
     def test_volume_within_two_percent_of_the_isosurface(self):
-        for name in ("skull", "brain_2mm"):
+        for name in ("skull", "brain_2mm", "femur", "sphere966", "knot1", "fandisk"):
             rep = self.meshes[name][2]
             change = rep["fidelity"]["volume_change_percent"]
             print(f"{name}: volume change {change:+.3f}% ({rep['hexes']} hexes)")
