@@ -4,6 +4,12 @@
 // colouring, each colour one parallel loop), sliding surface nodes along their
 // surface by centroidal-area smoothing.
 //
+// Untangling works on the movable nodes of the inverted hexes (Knupp's
+// measure with Newton steps; surface nodes within their tangent plane, then
+// projected), widening that region ring by ring when it stalls. A node's
+// untangling move never makes a corner that was positive non-positive, so the
+// number of inverted corners never grows.
+//
 // Cost per sweep: O(active nodes x their hexes); only nodes near poor hexes,
 // or next to a node that moved, are visited, so a grid mesh whose interior is
 // cubes pays for its boundary layer only. Memory: O(nodes + hexes) besides the
@@ -36,8 +42,9 @@ struct SmoothingOptions {
     // Knupp's beta as a fraction of the cubed local edge length: untangling
     // aims for every corner determinant >= beta, not just > 0.
     double untangleBeta = 0.02;
-    // The region around inverted hexes grows by one ring of nodes (at most this
-    // many times) when untangling stalls.
+    // When two sweeps in a row remove no inverted hex, the region (nodes of
+    // the inverted hexes) widens by one ring of nodes, at most this many times;
+    // after that untangling gives up and the hexes are reported.
     int maxUntangleGrowth = 4;
     // Sweeps over the untangled region after the last inversion is gone, so
     // its corners get from barely positive towards beta before the mean-ratio
