@@ -11,7 +11,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   # libraries isohex links
   libopenvdb-dev libboost-iostreams-dev libinsighttoolkit5-dev libeigen3-dev libtbb-dev
-  libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev
+  libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libcsv-dev
   libvtk9-dev libgmsh-dev libexodusii-dev libnetcdf-dev
   libgtest-dev
   # independent tools the tests check isohex's output with
@@ -34,8 +34,10 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"
 
 if [ "${1:-}" != "--no-demo" ]; then
+  mkdir -p out
   echo
-  echo "setup: built ./build/cli/isohex; judging the bundled sample mesh:"
-  echo "+ ./build/cli/isohex quality samples/twisted_bar.vtu"
-  ./build/cli/isohex quality samples/twisted_bar.vtu
+  echo "setup: built ./build/cli/isohex; meshing the bundled skull CT (samples/skull_ct.nii.gz):"
+  echo "+ ./build/cli/isohex mesh samples/skull_ct.nii.gz --iso 2.9 -o out/skull.vtu -o out/skull.inp --report out/skull.json --plot out/skull.svg --force"
+  ./build/cli/isohex mesh samples/skull_ct.nii.gz --iso 2.9 -o out/skull.vtu -o out/skull.inp \
+    --report out/skull.json --plot out/skull.svg --force
 fi
