@@ -312,3 +312,12 @@ TEST(NonManifoldRepair, RandomMultiMaterialLabelsBecomeValidMeshes) {
         EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d))) << "seed " << seed;
     }
 }
+
+TEST(LbieCellTests, SmoothLargeShapePassesAndThinFeatureFails) {
+    // a big ball: coarse cells see at most one crossing per edge
+    const AnalyticDomain ball({sphere({16, 16, 16}, 11)});
+    EXPECT_EQ(lbieFailures(sampleLabels(ball, unitGrid(33))), 0u);
+    // a plate one fine step thick between coarse points: coarse edges across it change material twice
+    const AnalyticDomain plate({box({3, 3, 14.6}, {29, 29, 15.4})});
+    EXPECT_GT(lbieFailures(sampleLabels(plate, unitGrid(33))), 0u);
+}

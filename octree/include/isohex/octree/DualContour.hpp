@@ -88,6 +88,13 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                          ExtractStats* stats = nullptr);
 
 // --- choosing the grid
+// LBIE's test of whether coarse cells (2 fine steps wide) may replace their 8
+// children: on the fine labels, a coarse edge whose ends agree must not change
+// material at its midpoint, a coarse face or cell whose corners all agree must
+// not differ at its centre, and no coarse face or cell may carry an ambiguous
+// (diagonal) pattern. Returns the number of coarse cells that fail.
+std::size_t lbieFailures(const Labels& fine);
+
 struct LevelChoice {
     int level = 0;                        // grid step = 2^level base steps
     Grid grid;
@@ -101,6 +108,7 @@ struct LevelOptions {
     int maxLevel = 6;
     double maxVolumeChange = 0.05;        // a coarser level must keep the labelled volume within this
     std::size_t minPoints = 64;           // and keep at least this many labelled points per material
+    bool cellTests = true;                // also require LBIE's per-cell topology tests to pass
 };
 
 // The coarsest level whose repaired regions have the same components and Euler
