@@ -70,9 +70,10 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     w.overwrite = args.force;
     w.scaledJacobian = q.scaledJacobian;
     for (const auto& o : job.outputs) {
+        const auto t = std::chrono::steady_clock::now();
         sink.begin("write");
         io::write(out.mesh, o, w);
-        sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count());
+        sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
     }
     timings["write"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
     timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
