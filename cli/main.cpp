@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
     addMeshCommand(app);
     addCompareCommand(app);
     addSmoothCommand(app);
+    addBatchCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
