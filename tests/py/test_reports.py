@@ -1,0 +1,263 @@
+"""The report (--report) against independent computation, and the progress channels on stderr:
+--log-json (one JSON object per line), plain lines when stderr is not a terminal, --quiet.
+
+Independent figures: VTK's reader counts cells and points; vtkMeshQuality's scaled Jacobian binned
+by numpy.histogram gives the histogram; vtkCellSizeFilter sums the volume; vtkNIFTIImageReader
+reads dimensions, spacing and the qform of the scan (converted from NIfTI's RAS to ITK's LPS)."""
+import json
+import os
+import subprocess
+import sys
+import unittest
+
+import numpy as np
+import vtk
+from vtk.util import numpy_support as ns
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import SOURCE, run, workdir  # noqa: E402
+
+sys.path.insert(0, os.path.join(SOURCE, "samples"))
+from make_phantoms import ramp, write_nifti  # noqa: E402
+
+STAGES = ["load", "select", "octree", "extract", "pillow", "optimize", "fidelity", "write"]
+
+
+def read_vtu(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    return r.GetOutput()
+
+
+def vtk_sj(grid):
+    q = vtk.vtkMeshQuality()
+    q.SetInputData(grid)
+    q.SetHexQualityMeasureToScaledJacobian()
+    q.Update()
+    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
+
+
+def vtk_volumes(grid):
+    f = vtk.vtkCellSizeFilter()
+    f.SetInputData(grid)
+    f.ComputeVolumeOn()
+    f.Update()
+    return ns.vtk_to_numpy(f.GetOutput().GetCellData().GetArray("Volume")).astype(float)
+
+
+def trilinear_volumes(grid):
+    """Exact volume of each trilinear hex (2x2x2 Gauss points integrate its Jacobian determinant exactly)."""
+    pts = ns.vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
+    x = pts[ns.vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 8)]  # (hexes, 8, 3), VTK order
+    ref = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    g = (0.5 - 0.5 / np.sqrt(3), 0.5 + 0.5 / np.sqrt(3))
+    vol = np.zeros(len(x))
+    for p in ((u, v, w) for u in g for v in g for w in g):
+        basis = np.where(ref == 1, p, 1 - np.array(p))  # (8, 3): each node's 1-D factors
+        sign = np.where(ref == 1, 1.0, -1.0)
+        dn = np.empty((8, 3))  # d(shape_i)/d(param_d)
+        for d in range(3):
+            others = [e for e in range(3) if e != d]
+            dn[:, d] = sign[:, d] * basis[:, others[0]] * basis[:, others[1]]
+        jac = np.einsum("id,nic->ndc", dn, x)
+        vol += np.linalg.det(jac) / 8
+    return vol
+
+
+def nifti_geometry(path):
+    """Dimensions, spacing, and LPS origin and direction of voxel (0,0,0) as VTK reads the NIfTI."""
+    r = vtk.vtkNIFTIImageReader()
+    r.SetFileName(path)
+    r.Update()
+    img = r.GetOutput()
+    dims = list(img.GetDimensions())
+    spacing = np.array(img.GetSpacing())
+    m = r.GetQFormMatrix() or r.GetSFormMatrix()
+    # no qform/sform (NIfTI "method 1", as VTK writes an image at the origin): voxel index times spacing
+    q = np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)]) if m else np.eye(4)
+    # VTK's image coordinates (origin + index * spacing) -> RAS through the 4x4 matrix; RAS -> LPS flips x, y
+    lps = np.diag([-1.0, -1.0, 1.0])
+    origin = lps @ (q[:3, :3] @ np.array(img.GetOrigin()) + q[:3, 3])
+    direction = lps @ q[:3, :3]  # columns: the world direction of each index axis
+    return dims, spacing, origin, direction
+
+
+class Reports(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("reports")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir,
+                        "--size", "48"], check=True, capture_output=True)
+        # An ellipsoid on anisotropic voxels away from the origin, so spacing and origin are not 1 and 0.
+        n = (40, 36, 30)
+        spacing = (1.2, 1.0, 1.5)
+        origin = (12.5, -30.0, 7.25)
+        idx = np.meshgrid(*(np.arange(k) for k in n), indexing="ij")
+        c = [(k - 1) / 2 for k in n]
+        x, y, z = ((i - ci) * s for i, ci, s in zip(idx, c, spacing))
+        r = np.sqrt((x / 16) ** 2 + (y / 12) ** 2 + (z / 14) ** 2)
+        cls.scan = os.path.join(cls.dir, "ellipsoid.nii.gz")
+        write_nifti(cls.scan, ramp((r - 1) * 12), spacing=spacing, origin=origin)
+        cls.vtu = os.path.join(cls.dir, "ellipsoid.vtu")
+        cls.report_path = os.path.join(cls.dir, "ellipsoid.json")
+        cls.proc = run(["mesh", cls.scan, "--iso", "50", "--size", "3", "-o", cls.vtu, "--report", cls.report_path,
+                        "--log-json", "--threads", "2"])
+        with open(cls.report_path) as f:
+            cls.report = json.load(f)
+        cls.grid = read_vtu(cls.vtu)
+
+    # --- --log-json ------------------------------------------------------------------------------
+
+    def test_log_json_is_one_object_per_line_with_every_stage(self):
+        events = []
+        for line in self.proc.stderr.splitlines():
+            e = json.loads(line)  # every line, not just most
+            self.assertIsInstance(e, dict, line)
+            self.assertIn("event", e, line)
+            self.assertIsInstance(e["time"], float)
+            events.append(e)
+        begins = [e["stage"] for e in events if e["event"] == "stage_begin"]
+        ends = [e["stage"] for e in events if e["event"] == "stage_end"]
+        for s in STAGES:
+            self.assertIn(s, begins)
+            self.assertIn(s, ends)
+        self.assertEqual(begins[0], "load")
+        self.assertEqual(ends[-1], "write")
+        # begin and end alternate: each stage ends before the next begins
+        seq = [(e["event"], e["stage"]) for e in events if e["event"] in ("stage_begin", "stage_end")]
+        for (ev0, s0), (ev1, s1) in zip(seq[::2], seq[1::2]):
+            self.assertEqual((ev0, ev1, s0), ("stage_begin", "stage_end", s1))
+        self.assertTrue(all(e["seconds"] >= 0 for e in events if e["event"] == "stage_end"))
+        times = [e["time"] for e in events]
+        self.assertEqual(times, sorted(times))
+        # the report's stage times are the logged ones (writing is timed around all outputs instead)
+        logged = {}
+        for e in events:
+            if e["event"] == "stage_end":
+                logged[e["stage"]] = logged.get(e["stage"], 0.0) + e["seconds"]
+        for s in STAGES:
+            if s != "write":
+                self.assertAlmostEqual(self.report["timings_s"][s], logged[s], delta=1e-9, msg=s)
+        self.assertGreaterEqual(self.report["timings_s"]["write"], logged["write"] * 0.99)
+
+    def test_plain_lines_when_stderr_is_not_a_terminal_and_nothing_with_quiet(self):
+        out = os.path.join(self.dir, "plain.vtu")
+        p = run(["mesh", self.scan, "--iso", "50", "--size", "3", "-o", out, "--force"])
+        lines = p.stderr.splitlines()
+        self.assertNotIn("\r", p.stderr)
+        self.assertNotIn("\033", p.stderr)
+        for line in lines:
+            self.assertTrue(line.startswith("isohex: "), line)
+        done = [line.split()[1] for line in lines if " done in " in line]
+        for s in STAGES:
+            self.assertIn(s, done, p.stderr)
+        q = run(["mesh", self.scan, "--iso", "50", "--size", "3", "-o", out, "--force", "-q"])
+        # only warnings may remain with --quiet
+        for line in q.stderr.splitlines():
+            self.assertTrue(line.startswith("isohex: warning:"), line)
+        self.assertNotIn("done in", q.stderr)
+        self.assertIn("wrote", q.stdout)  # the result itself still goes to stdout
+
+    # --- report contents -------------------------------------------------------------------------
+
+    def test_counts_are_vtks(self):
+        rep = self.report
+        self.assertEqual(rep["hexes"], self.grid.GetNumberOfCells())
+        self.assertEqual(rep["nodes"], self.grid.GetNumberOfPoints())
+        types = {self.grid.GetCellType(i) for i in range(self.grid.GetNumberOfCells())}
+        self.assertEqual(types, {vtk.VTK_HEXAHEDRON})
+        mats = ns.vtk_to_numpy(self.grid.GetCellData().GetArray("material"))
+        per = {m["material"]: m for m in rep["materials"]} if isinstance(rep["materials"], list) else None
+        self.assertIsNotNone(per, rep["materials"])
+        for m, count in zip(*np.unique(mats, return_counts=True)):
+            self.assertEqual(per[int(m)]["hexes"], int(count))
+
+    def test_histogram_and_statistics_are_numpys_over_vtk_quality(self):
+        sj = vtk_sj(self.grid)
+        h = self.report["scaled_jacobian"]
+        self.assertEqual(h["degenerate"], 0)
+        counts, _ = np.histogram(np.clip(sj, -1, 1), bins=np.array(h["histogram"]["edges"]))
+        self.assertEqual(h["histogram"]["counts"], counts.tolist())
+        self.assertEqual(sum(h["histogram"]["counts"]), len(sj))
+        self.assertAlmostEqual(h["min"], sj.min(), delta=1e-9)
+        self.assertAlmostEqual(h["max"], sj.max(), delta=1e-9)
+        self.assertAlmostEqual(h["mean"], sj.mean(), delta=1e-9)
+        self.assertEqual(h["below_0_2"], int((sj < 0.2).sum()))
+        self.assertEqual(h["inverted"], int((sj < 0).sum()))
+
+    def test_input_geometry_is_what_vtk_reads(self):
+        dims, spacing, origin, direction = nifti_geometry(self.scan)
+        i = self.report["input"]
+        self.assertEqual(i["dimensions"], dims)
+        np.testing.assert_allclose(i["spacing"], spacing, rtol=1e-6)
+        np.testing.assert_allclose(i["origin"], origin, atol=1e-4)
+        d = np.array(i["direction"], dtype=float).reshape(3, 3)
+        np.testing.assert_allclose(d, direction, atol=1e-6)
+        self.assertEqual(i["path"], self.scan)
+        self.assertEqual(self.report["selection"]["iso"], 50)
+
+    def test_timings_memory_and_versions_are_present(self):
+        t = self.report["timings_s"]
+        for s in STAGES + ["quality", "total"]:
+            self.assertIsInstance(t[s], float, s)
+            self.assertGreaterEqual(t[s], 0.0, s)
+        self.assertGreaterEqual(t["total"], sum(t[s] for s in STAGES if s != "write") * 0.99)
+        self.assertGreater(self.report["peak_memory_mb"], 1.0)
+        v = self.report["versions"]
+        first = run(["--version"]).stdout.splitlines()[0]
+        self.assertEqual(first, "isohex " + v["isohex"])
+        for lib in ("cli11", "tbb", "nlohmann_json"):
+            self.assertIn(lib, v)
+        for name, ver in v.items():
+            self.assertIsInstance(ver, str, name)
+            self.assertRegex(ver, r"\d", name)
+
+    def test_fidelity_volume_is_vtks_and_close_to_the_ellipsoid(self):
+        f = self.report["fidelity"]
+        # isohex integrates each trilinear hex exactly; so does numpy here, from VTK's reading of the file
+        self.assertAlmostEqual(f["volume_mesh"] / trilinear_volumes(self.grid).sum(), 1.0, delta=1e-9)
+        # vtkCellSizeFilter splits each hex into tetrahedra, which differs from the trilinear volume where
+        # boundary faces are warped; over the whole mesh it agrees to about 1e-4
+        vol = vtk_volumes(self.grid).sum()
+        self.assertAlmostEqual(f["volume_mesh"] / vol, 1.0, delta=1e-3)
+        self.assertAlmostEqual(f["volume_change_percent"],
+                               100 * (f["volume_mesh"] - f["volume_isosurface"]) / f["volume_isosurface"], delta=1e-9)
+        exact = 4 / 3 * np.pi * 16 * 12 * 14
+        self.assertAlmostEqual(f["volume_isosurface"] / exact, 1.0, delta=0.03)
+        self.assertAlmostEqual(vol / exact, 1.0, delta=0.05)
+
+    def test_label_map_report_per_material_against_vtk(self):
+        scan = os.path.join(self.dir, "two_materials.nii.gz")
+        out = os.path.join(self.dir, "labels.vtu")
+        rep_path = os.path.join(self.dir, "labels.json")
+        run(["mesh", scan, "--labels", "--size", "4", "-o", out, "--report", rep_path, "-q", "--force"])
+        with open(rep_path) as f:
+            rep = json.load(f)
+        grid = read_vtu(out)
+        mats = ns.vtk_to_numpy(grid.GetCellData().GetArray("material"))
+        vols = vtk_volumes(grid)
+        exact = trilinear_volumes(grid)
+        per = {m["material"]: m for m in rep["fidelity"]["materials"]}
+        self.assertEqual(sorted(per), sorted(set(mats.tolist())))
+        for m, info in per.items():
+            self.assertAlmostEqual(info["volume_mesh"] / exact[mats == m].sum(), 1.0, delta=1e-9, msg=str(m))
+            # tetrahedra vs trilinear differ on warped interface faces, with opposite signs on their two sides
+            self.assertAlmostEqual(info["volume_mesh"] / vols[mats == m].sum(), 1.0, delta=0.02, msg=str(m))
+        self.assertAlmostEqual(rep["fidelity"]["volume_mesh"] / vols.sum(), 1.0, delta=1e-3)
+        # the voxel count of each label, against numpy over VTK's reading of the label map
+        r = vtk.vtkNIFTIImageReader()
+        r.SetFileName(scan)
+        r.Update()
+        voxels = ns.vtk_to_numpy(r.GetOutput().GetPointData().GetScalars())
+        for m in rep["selection"]["materials"]:
+            self.assertEqual(m["voxels"], int((voxels == m["id"]).sum()), m)
+        dims, spacing, _, _ = nifti_geometry(scan)
+        self.assertEqual(rep["input"]["dimensions"], dims)
+        np.testing.assert_allclose(rep["input"]["spacing"], spacing)
+        self.assertEqual(rep["input"]["kind"], "labels")
+        self.assertEqual(rep["hexes"], grid.GetNumberOfCells())
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
