@@ -1,0 +1,237 @@
+"""End-to-end tests of `isohex batch MANIFEST` (CSV and JSON-lines manifests): per-job options
+over command-line defaults, a failing job that does not stop the others, the summary table,
+the exit status, resuming (skipping up-to-date outputs) and --force, and clear errors that
+name the manifest's file and line. Meshes are read back with VTK."""
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import unittest
+
+import vtk
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import SOURCE, run, workdir  # noqa: E402
+
+
+def cells(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    return r.GetOutput().GetNumberOfCells()
+
+
+def load(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def summary_rows(stdout):
+    """{input: status} from the summary table runJobs prints."""
+    rows = {}
+    lines = stdout.splitlines()
+    start = next(i for i, l in enumerate(lines) if l.startswith("input") and "status" in l)
+    for line in lines[start + 1:]:
+        parts = line.split()
+        if len(parts) >= 2 and parts[1] in ("ok", "failed", "skipped"):
+            rows[os.path.basename(parts[0])] = parts[1]
+    return rows
+
+
+class Batch(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("batch")
+        cls.scans = os.path.join(cls.dir, "scans")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.scans],
+                       check=True, capture_output=True)
+        with open(os.path.join(cls.scans, "garbage.nii.gz"), "wb") as f:
+            f.write(b"this is not a scan")
+
+    def fresh(self, name):
+        d = os.path.join(self.dir, name)
+        shutil.rmtree(d, ignore_errors=True)
+        os.makedirs(d)
+        return d
+
+    def test_csv_manifest_runs_every_job_past_a_failure_and_resumes(self):
+        d = self.fresh("csv")
+        manifest = os.path.join(d, "jobs.csv")
+        # Paths are relative to the manifest's folder; the run starts elsewhere (cwd = self.dir).
+        with open(manifest, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["input", "output", "report", "size", "no_pillow", "labels"])
+            w.writerow(["../scans/sphere.nii.gz", "out/sphere.vtu;out/sphere.inp", "out/sphere.json", "", "", ""])
+            w.writerow(["../scans/garbage.nii.gz", "out/garbage.vtu", "out/garbage.json", "", "", ""])
+            w.writerow(["../scans/torus.nii.gz", "out/torus.vtu", "out/torus.json", "5", "true", ""])
+            w.writerow(["../scans/two_materials.nii.gz", "out/labels.vtu", "out/labels.json", "", "", "yes"])
+        # command-line defaults: --iso 50 --size 4; the label-map row drops the iso, the torus row changes size
+        args = ["batch", manifest, "--iso", "50", "--size", "4", "-q"]
+        t0 = time.time()
+        p = run(args, check=False, cwd=self.dir)
+        print(f"first run {time.time() - t0:.1f} s\n{p.stdout}")
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        rows = summary_rows(p.stdout)
+        self.assertEqual(rows, {"sphere.nii.gz": "ok", "garbage.nii.gz": "failed", "torus.nii.gz": "ok",
+                                "two_materials.nii.gz": "ok"}, p.stdout)
+        self.assertIn("4 job(s): 3 ok, 0 skipped, 1 failed", p.stdout)
+        failed_row = next(l for l in p.stdout.splitlines() if "garbage.nii.gz" in l and " failed " in l)
+        self.assertGreater(len(failed_row.split(" failed ", 1)[1].strip(" -")), 0, "the failure's reason")
+        out = os.path.join(d, "out")
+        self.assertFalse(os.path.exists(os.path.join(out, "garbage.vtu")))
+        self.assertFalse(os.path.exists(os.path.join(out, "garbage.json")))
+        # every output of the good jobs, and the per-job options took effect
+        sphere, torus, labels = (load(os.path.join(out, n + ".json")) for n in ("sphere", "torus", "labels"))
+        self.assertEqual(sphere["hexes"], cells(os.path.join(out, "sphere.vtu")))
+        self.assertTrue(os.path.getsize(os.path.join(out, "sphere.inp")) > 0)
+        self.assertEqual(torus["hexes"], cells(os.path.join(out, "torus.vtu")))
+        self.assertEqual(labels["hexes"], cells(os.path.join(out, "labels.vtu")))
+        self.assertTrue(sphere["pillow"]["enabled"])
+        self.assertFalse(torus["pillow"]["enabled"])
+        self.assertEqual(sphere["grid"]["chosen_by"], "size")
+        self.assertEqual(sphere["selection"]["iso"], 50)
+        self.assertEqual(json.dumps(sphere["grid"]["element_size"]).count("4"), 3, sphere["grid"]["element_size"])
+        self.assertEqual(json.dumps(torus["grid"]["element_size"]).count("5"), 3, torus["grid"]["element_size"])
+        self.assertEqual(labels["input"]["kind"], "labels")
+        self.assertEqual(sorted(m["id"] for m in labels["selection"]["materials"]), [1, 2, 3])
+        self.assertNotIn("iso", labels["selection"])
+
+        # resume: the three good jobs are up to date, the failed one runs (and fails) again
+        mtime = os.path.getmtime(os.path.join(out, "sphere.vtu"))
+        again = run(args, check=False, cwd=self.dir)
+        self.assertEqual(again.returncode, 1)
+        self.assertIn("4 job(s): 0 ok, 3 skipped, 1 failed", again.stdout)
+        self.assertEqual(summary_rows(again.stdout)["sphere.nii.gz"], "skipped")
+        self.assertEqual(os.path.getmtime(os.path.join(out, "sphere.vtu")), mtime)
+
+        # a job whose report is missing is not up to date; with --force everything is redone
+        os.remove(os.path.join(out, "torus.json"))
+        forced = run(args + ["--force"], check=False, cwd=self.dir)
+        self.assertEqual(forced.returncode, 1)
+        self.assertIn("4 job(s): 3 ok, 0 skipped, 1 failed", forced.stdout)
+        self.assertTrue(os.path.exists(os.path.join(out, "torus.json")))
+
+    def test_jsonl_manifest_all_ok_exits_zero_and_logs_json(self):
+        d = self.fresh("jsonl")
+        manifest = os.path.join(d, "jobs.jsonl")
+        sphere = os.path.join(d, "sphere.nii.gz")  # a copy: its time stamp changes below
+        shutil.copy(os.path.join(self.scans, "sphere.nii.gz"), sphere)
+        jobs = [
+            {"input": sphere, "output": ["a.vtu", "a.msh"], "report": "a.json", "iso": 50, "size": 4},
+            {"input": os.path.join(self.scans, "two_materials.nii.gz"), "output": "b.vtu", "report": "b.json",
+             "label": [1, 3], "size": 4, "no_pillow": False, "plot": "b.svg"},
+        ]
+        with open(manifest, "w") as f:
+            f.write(json.dumps(jobs[0]) + "\n\n")  # a blank line is allowed
+            f.write(json.dumps(jobs[1]) + "\n")
+        p = run(["batch", manifest, "--log-json"], check=False)
+        self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
+        self.assertIn("2 job(s): 2 ok, 0 skipped, 0 failed", p.stdout)
+        events = [json.loads(line) for line in p.stderr.splitlines() if line.strip()]
+        self.assertEqual([e["input"] for e in events if e["event"] == "job_begin"],
+                         [sphere, os.path.join(self.scans, "two_materials.nii.gz")])
+        self.assertEqual([e["status"] for e in events if e["event"] == "job_end"], ["ok", "ok"])
+        for ext in ("vtu", "msh", "json"):
+            self.assertTrue(os.path.exists(os.path.join(d, "a." + ext)), ext)
+        b = load(os.path.join(d, "b.json"))
+        self.assertEqual(sorted(m["id"] for m in b["selection"]["materials"]), [1, 3])
+        self.assertEqual(b["hexes"], cells(os.path.join(d, "b.vtu")))
+        with open(os.path.join(d, "b.svg")) as f:
+            self.assertIn("<svg", f.read())
+        # resume: nothing to do
+        again = run(["batch", manifest, "-q"])
+        self.assertIn("2 job(s): 0 ok, 2 skipped, 0 failed", again.stdout)
+        # a newer input makes its job stale; isohex then refuses to clobber without --force
+        later = time.time() + 5
+        os.utime(sphere, (later, later))
+        stale = run(["batch", manifest, "-q"], check=False)
+        self.assertEqual(stale.returncode, 1)
+        self.assertEqual(summary_rows(stale.stdout), {"sphere.nii.gz": "failed", "two_materials.nii.gz": "skipped"})
+        self.assertIn("--force", stale.stdout)
+
+
+class ManifestErrors(unittest.TestCase):
+    """A malformed manifest fails before any job runs, naming the file and line."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("batch_err")
+
+    def check(self, name, text, *expected):
+        path = os.path.join(self.dir, name)
+        with open(path, "w", newline="") as f:
+            f.write(text)
+        p = run(["batch", path, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        self.assertEqual(p.stdout, "", "no job may run")
+        err = p.stderr.strip()
+        self.assertEqual(len(err.splitlines()), 1, err)
+        self.assertTrue(err.startswith("isohex: error: "), err)
+        for e in expected:
+            self.assertIn(e, err)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "x.vtu")))
+        return err
+
+    def test_unknown_column(self):
+        err = self.check("unknown.csv", "input,output,sise\na.nii.gz,x.vtu,2\n", "unknown.csv:1:",
+                         "unknown column 'sise'", "size")
+        print(err)
+
+    def test_bad_value_names_line_and_column(self):
+        err = self.check("badvalue.csv", "input,output,size\na.nii.gz,x.vtu,2\nb.nii.gz,y.vtu,two\n",
+                         "badvalue.csv:3:", "column 'size'", "'two'")
+        print(err)
+        self.check("badbool.csv", "input,output,no_pillow\na.nii.gz,x.vtu,maybe\n", "badbool.csv:2:",
+                   "column 'no_pillow'", "true or false")
+        self.check("badchoice.csv", "input,output,inside\na.nii.gz,x.vtu,left\n", "badchoice.csv:2:",
+                   "above or below")
+        self.check("badrange.csv", "input,output,boundary_layers\na.nii.gz,x.vtu,99\n", "badrange.csv:2:",
+                   "between 1 and 16")
+        self.check("badlabel.csv", 'input,output,label\na.nii.gz,x.vtu,"3,x"\n', "badlabel.csv:2:", "column 'label'")
+
+    def test_malformed_csv(self):
+        self.check("fields.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,y.vtu,3\n", "fields.csv:3:",
+                   "3 field(s)", "2 column(s)")
+        self.check("quote.csv", 'input,output\na.nii.gz,x.vtu\nb.nii.gz,"y.vtu"z\n', "quote.csv:3:", "malformed CSV")
+        self.check("unclosed.csv", 'input,output\na.nii.gz,"x.vtu\n', "unclosed.csv:2:", "not closed")
+        self.check("empty.csv", "", "empty.csv", "header")
+        self.check("dupcol.csv", "input,output,size,Size\n", "dupcol.csv:1:", "twice")
+
+    def test_quoted_fields_and_line_numbers_after_multiline_field(self):
+        # a quoted field with a comma, a doubled quote and a line break is one field; the error on the
+        # next record names its own line (4), not the record count
+        self.check("multi.csv", 'input,output,size\n"a, ""b"".nii.gz","x.vtu\n",2\nc.nii.gz,y.vtu,-1\n',
+                   "multi.csv:4:", "positive")
+
+    def test_missing_required_and_global_only_columns(self):
+        self.check("noout.csv", "input,size\na.nii.gz,2\n", "noout.csv:2:", "no output")
+        self.check("threads.csv", "input,output,threads\na.nii.gz,x.vtu,2\n", "threads.csv:1:", "--threads",
+                   "command line")
+        self.check("sizelevel.csv", "input,output,size,level\na.nii.gz,x.vtu,2,3\n", "sizelevel.csv:2:",
+                   "size or level")
+        self.check("format.csv", "input,output\na.nii.gz,x.stp\n", "format.csv:2:", ".vtu")
+        self.check("twice.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,x.vtu\n", "twice.csv:3:", "line 2")
+
+    def test_malformed_jsonl(self):
+        self.check("bad.jsonl", '{"input": "a.nii.gz", "output": "x.vtu"}\n{"input": "b.nii.gz", \n',
+                   "bad.jsonl:2:", "not valid JSON")
+        self.check("notobj.jsonl", '["a.nii.gz", "x.vtu"]\n', "notobj.jsonl:1:", "JSON object")
+        self.check("key.jsonl", '\n{"input": "a.nii.gz", "output": "x.vtu", "pillow": true}\n', "key.jsonl:2:",
+                   "unknown key 'pillow'")
+        self.check("type.ndjson", '{"input": "a.nii.gz", "output": "x.vtu", "size": [1, 2]}\n', "type.ndjson:1:",
+                   "column 'size'", "list")
+        self.check("nested.jsonl", '{"input": "a.nii.gz", "output": "x.vtu", "iso": {"v": 1}}\n', "nested.jsonl:1:",
+                   "key 'iso'")
+
+    def test_unknown_extension_and_missing_file(self):
+        self.check("jobs.txt", "input,output\n", "jobs.txt", ".csv", ".jsonl")
+        p = run(["batch", os.path.join(self.dir, "nope.csv")], check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("nope.csv", p.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
