@@ -253,6 +253,10 @@ Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) co
     if (r.move.steps == 0) return r;
     // Knupp's measure may trade a deep inversion for a new shallow one; do not
     // let it: shorten the move until every corner that was valid stays valid.
+    if (!opt_.untangleKeepsValidCorners) {
+        r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
+        return r;
+    }
     const Vector3 full = r.move.displacement;
     Vector3 d = full;
     for (int k = 0; k < 8 && !keepsValidCornersValid(buf.data(), n, full, d); ++k) d *= 0.5;
@@ -316,7 +320,7 @@ Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& 
     const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
     if (!d.allFinite()) return r;
     const double f = objective.value(d - moved);
-    if (!(f < f0) || !keepsValidCornersValid(buf.data(), n, moved, d)) return r;
+    if (!(f < f0) || (opt_.untangleKeepsValidCorners && !keepsValidCornersValid(buf.data(), n, moved, d))) return r;
     r.move.before = f0;
     r.move.after = f;
     r.move.displacement = d;

@@ -50,6 +50,10 @@ struct SmoothingOptions {
     // its corners get from barely positive towards beta before the mean-ratio
     // barrier sees them (which leaves better minima within reach).
     int untanglePolishSweeps = 3;
+    // An untangling move may not make a positive corner non-positive (it is
+    // shortened until none does). Without this guard Knupp's measure can trade
+    // one deep inversion for several shallow ones.
+    bool untangleKeepsValidCorners = true;
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
