@@ -27,6 +27,7 @@ void runAndReport(const char* name, HexMesh& m, const SurfaceProjector* projecto
     if (const char* e = std::getenv("ISOHEX_BENCH_MOVETOL")) opt.moveTolerance = std::atof(e);
     if (const char* e = std::getenv("ISOHEX_BENCH_NEWTON")) opt.newton.maxIterations = std::atoi(e);
     if (const char* e = std::getenv("ISOHEX_BENCH_RELTOL")) opt.relativeTolerance = std::atof(e);
+    if (const char* e = std::getenv("ISOHEX_BENCH_MINSTEP")) opt.newton.minStep = std::atof(e);
     const SmoothingResult r = optimizeMesh(m, projector, opt);
     const double sjAfter = test::minScaledJacobian(m);
     std::cout << "[ bench ] " << name << ": " << m.hexCount() << " hexes, " << m.nodeCount() << " nodes ("

@@ -18,7 +18,7 @@ struct NewtonOptions {
     double armijo = 1e-4;       // sufficient decrease: f(x + a p) <= f(x) + armijo a g.p
     int maxHalvings = 30;       // backtracking steps before giving up on a direction
     double maxStep = 0.5;       // longest step, in units of the local edge length
-    double minStep = 1e-3;      // no further iteration after a step shorter than this (edge lengths)
+    double minStep = 1e-2;      // no further iteration after a step shorter than this (edge lengths)
 };
 
 struct NodeMove {
