@@ -35,21 +35,8 @@ inline constexpr int kCornerRole = 3;  // the node is the corner itself (roles 0
 // det(A) as a.(b x c) with a, b, c the columns.
 inline double cornerDeterminant(const Matrix3& A) { return A.col(0).dot(A.col(1).cross(A.col(2))); }
 
-// The derivative of det(A + d w^T) with respect to d: cof(A) w.
-inline Vector3 determinantGradient(const Matrix3& A, int role) {
-    const Vector3 bc = A.col(1).cross(A.col(2));
-    const Vector3 ca = A.col(2).cross(A.col(0));
-    const Vector3 ab = A.col(0).cross(A.col(1));
-    switch (role) {
-        case 0: return bc;
-        case 1: return ca;
-        case 2: return ab;
-        default: return -(bc + ca + ab);
-    }
-}
-
-// The determinant of A and its gradient cof(A) w in one go, reusing the cross
-// product both need.
+// The determinant of A and the derivative of det(A + d w^T) with respect to
+// d, cof(A) w, in one go, reusing the cross product both need.
 inline void frameDeterminant(const Matrix3& A, int role, Vector3& gradient, double& det) {
     switch (role) {
         case 0: gradient = A.col(1).cross(A.col(2)); det = A.col(0).dot(gradient); return;
