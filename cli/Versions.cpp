@@ -6,12 +6,15 @@
 #include <nlohmann/json.hpp>
 
 #include "isohex/core/Version.hpp"
+#include "isohex/imaging/Version.hpp"
 
 namespace isohex::cli {
 
 nlohmann::json versionsJson() {
     nlohmann::json v = coreVersions();
     v["cli11"] = CLI11_VERSION;
+    const nlohmann::json imagingVersions = imaging::versions();  // a named object: items() only refers to it
+    for (const auto& [name, ver] : imagingVersions.items()) v[name] = ver;
     return v;
 }
 

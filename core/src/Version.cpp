@@ -22,7 +22,8 @@ nlohmann::json coreVersions() {
     v["gmsh"] = GMSH_API_VERSION;
     v["exodusii"] = std::to_string(EX_API_VERS_NODOT / 100) + "." + std::to_string(EX_API_VERS_NODOT % 100 / 10) +
                     std::to_string(EX_API_VERS_NODOT % 10);
-    v["netcdf"] = std::string(nc_inq_libvers());
+    const std::string netcdf = nc_inq_libvers();  // "4.9.0 of <build date> $"
+    v["netcdf"] = netcdf.substr(0, netcdf.find(' '));
     v["nlohmann_json"] = std::to_string(NLOHMANN_JSON_VERSION_MAJOR) + "." +
                          std::to_string(NLOHMANN_JSON_VERSION_MINOR) + "." +
                          std::to_string(NLOHMANN_JSON_VERSION_PATCH);
