@@ -9,9 +9,10 @@ SHARED_DATA = os.environ.get("ISOHEX_SHARED_DATA", "")
 SOURCE = os.environ.get("ISOHEX_SOURCE", os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
 
 
-def run(args, check=True, **kw):
-    """Runs the isohex binary; returns the CompletedProcess (text mode)."""
-    proc = subprocess.run([ISOHEX] + [str(a) for a in args], capture_output=True, text=True, **kw)
+def run(args, check=True, timeout=600, **kw):
+    """Runs the isohex binary; returns the CompletedProcess (text mode). A hang
+    fails the test (subprocess.TimeoutExpired) instead of stalling the suite."""
+    proc = subprocess.run([ISOHEX] + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, **kw)
     if check and proc.returncode != 0:
         sys.stderr.write(proc.stdout + proc.stderr)
         raise AssertionError(f"isohex {' '.join(map(str, args))} exited {proc.returncode}")
