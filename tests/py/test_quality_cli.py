@@ -95,5 +95,47 @@ class QualityCommand(unittest.TestCase):
         self.assertIn("inverted", p2.stdout)
 
 
+class SmoothCommand(unittest.TestCase):
+    def test_smooth_untangles_the_interior_and_keeps_the_boundary(self):
+        import numpy as np
+        import vtk
+        from vtk.util import numpy_support as ns
+        d = workdir("smooth_cli")
+        r = vtk.vtkXMLUnstructuredGridReader()
+        r.SetFileName(SAMPLE)
+        r.Update()
+        g = r.GetOutput()
+        pts = ns.vtk_to_numpy(g.GetPoints().GetData()).copy()
+        conn = ns.vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(-1, 8)
+        # an interior node of the bar: in 8 hexes
+        counts = np.bincount(conn.ravel(), minlength=len(pts))
+        v = int(np.nonzero(counts == 8)[0][0])
+        hexes = np.nonzero((conn == v).any(axis=1))[0]
+        far = conn[hexes[0]][np.argmax(np.linalg.norm(pts[conn[hexes[0]]] - pts[v], axis=1))]
+        moved = pts.copy()
+        moved[v] = pts[v] + 1.6 * (pts[far] - pts[v])  # through the opposite corner: inverts hexes
+        g.GetPoints().SetData(ns.numpy_to_vtk(moved, deep=True))
+        bad = os.path.join(d, "tangled.vtu")
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        w.SetFileName(bad)
+        w.SetInputData(g)
+        w.Write()
+        out = os.path.join(d, "smoothed.vtu")
+        p = run(["smooth", bad, "-o", out, "-q"])
+        self.assertIn("inverted", p.stdout)
+        r2 = vtk.vtkXMLUnstructuredGridReader()
+        r2.SetFileName(out)
+        r2.Update()
+        q = vtk.vtkMeshQuality()
+        q.SetInputData(r2.GetOutput())
+        q.SetHexQualityMeasureToScaledJacobian()
+        q.Update()
+        sj = ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality"))
+        self.assertEqual((sj < 0).sum(), 0)
+        after = ns.vtk_to_numpy(r2.GetOutput().GetPoints().GetData())
+        boundary = counts < 8
+        np.testing.assert_array_equal(after[boundary], moved[boundary])
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
