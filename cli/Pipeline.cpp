@@ -105,13 +105,27 @@ public:
     Vec3 project(std::int32_t surfaceId, const Vec3& x) const override {
         const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
         const std::int32_t a = s.inside, b = s.outside;
-        if (a > 0 && b <= 0) return domain_.field(a).project(x);
-        if (a <= 0 && b > 0) return domain_.field(b).project(x);
+        if (a > 0 && b <= 0) return nearby(domain_.field(a), x);
+        if (a <= 0 && b > 0) return nearby(domain_.field(b), x);
         if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
         return projectDifference(a, b, x);
     }
 
 private:
+    // The smoother only asks for points near the surface (a node moved a
+    // fraction of an element along it), so a projection that has to travel
+    // more than a few voxels has found the wrong place, typically where the
+    // field is flat far from any surface. Answer with a non-finite point: the
+    // smoother rejects such a move (otherwise an untangling step could carry a
+    // surface node far off the surface, as seen on the skull CT without sheet).
+    static Vec3 nearby(const imaging::ImplicitField& f, const Vec3& x) {
+        imaging::ProjectOptions o;
+        o.maxDistanceVoxels = 3.0;
+        const imaging::Projection p = f.projectDetailed(x, o);
+        if (p.converged) return p.point;
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        return {nan, nan, nan};
+    }
     // Newton steps on F = f_a - f_b along its gradient, each at most half a
     // voxel, keeping the best point; enough for the small moves of smoothing.
     Vec3 projectDifference(std::int32_t a, std::int32_t b, const Vec3& x0) const {
@@ -135,6 +149,12 @@ private:
             step = std::clamp(step, -maxStep, maxStep);
             const double inv = 1.0 / std::sqrt(g2);
             for (int c = 0; c < 3; ++c) x[c] -= step * g[c] * inv;
+        }
+        const double moved = std::sqrt((best[0] - x0[0]) * (best[0] - x0[0]) + (best[1] - x0[1]) * (best[1] - x0[1]) +
+                                       (best[2] - x0[2]) * (best[2] - x0[2]));
+        if (moved > 3.0 * fa.voxelSize()) {  // see nearby()
+            const double nan = std::numeric_limits<double>::quiet_NaN();
+            return {nan, nan, nan};
         }
         return best;
     }
