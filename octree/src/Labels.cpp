@@ -158,20 +158,6 @@ int badPairs(const std::array<std::int32_t, 8>& mat) {
     return bad;
 }
 
-bool blockManifold(const std::array<std::int32_t, 8>& mat) {
-    for (int c = 0; c < 8; ++c) {
-        bool first = true;
-        for (int d = 0; d < c; ++d)
-            if (mat[d] == mat[c]) first = false;
-        if (!first) continue;
-        unsigned p = 0;
-        for (int d = 0; d < 8; ++d)
-            if (mat[d] == mat[c]) p |= 1u << d;
-        if (!kTable.ok[p]) return false;
-    }
-    return badPairs(mat) == 0;
-}
-
 int badMaterials(const std::array<std::int32_t, 8>& mat) {
     int bad = 0;
     for (int c = 0; c < 8; ++c) {
@@ -186,6 +172,8 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
     }
     return bad + badPairs(mat);
 }
+
+bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials(mat) == 0; }
 
 std::vector<std::size_t> badBlocks(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
