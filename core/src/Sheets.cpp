@@ -1,6 +1,7 @@
 #include "isohex/core/Sheets.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -50,10 +51,6 @@ int cornerAt(int x, int y, int z) {
 
 PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const PillowOptions& opt) {
     if (shrinkSet.empty()) throw Error("cannot pillow: the shrink set is empty");
-    const Topology topo = buildTopology(mesh);
-    if (!topo.overfullQuads.empty())
-        throw Error("cannot pillow: the mesh has " + std::to_string(topo.overfullQuads.size()) +
-                    " quads shared by more than two hexes; repair the mesh first");
     const std::size_t H = mesh.hexCount(), N = mesh.nodeCount();
     std::vector<std::uint8_t> inS(H, 0);
     for (Index h : shrinkSet) {
@@ -62,22 +59,58 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                         std::to_string(H) + " hexes");
         inS[h] = 1;
     }
+    std::vector<Index> S;  // the shrink set, sorted and without repeats
+    S.reserve(shrinkSet.size());
+    for (std::size_t h = 0; h < H; ++h)
+        if (inS[h]) S.push_back(static_cast<Index>(h));
 
-    // Quads with exactly one shrink-set hex, seen from that hex (outward).
+    // Node -> shrink-set hexes (a counting sort over the shrink set only: the
+    // sheet needs no faces or edges of the rest of the mesh).
+    const Csr nodeS = detail::bucketItems(N, 8 * S.size(), [&](std::size_t i) { return mesh.hexes[S[i / 8]][i % 8]; });
+    auto hexOf = [&](Index item) { return S[static_cast<std::size_t>(item) / 8]; };
+
+    // Faces of shrink-set hexes that no other shrink-set hex shares: the
+    // boundary of the shrink set, seen from inside (outward normals), in
+    // (hex, face) order for any thread count.
+    std::vector<std::uint8_t> faceMask(S.size(), 0);
+    std::atomic<Index> overfull{kNone};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 1024), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Hex& hx = mesh.hexes[S[i]];
+            std::uint8_t mask = 0;
+            for (int f = 0; f < 6; ++f) {
+                const auto& lf = hexcell::kFaces[f];
+                int sharers = 0;
+                for (const Index* it = nodeS.begin(hx[lf[0]]); it != nodeS.end(hx[lf[0]]); ++it) {
+                    const Index other = hexOf(*it);
+                    if (other == S[i]) continue;
+                    const Hex& ho = mesh.hexes[other];
+                    bool all = true;
+                    for (int k = 1; k < 4 && all; ++k) all = std::find(ho.begin(), ho.end(), hx[lf[k]]) != ho.end();
+                    sharers += all;
+                }
+                if (sharers == 0) mask |= static_cast<std::uint8_t>(1u << f);
+                if (sharers > 1) {
+                    Index expected = kNone;
+                    overfull.compare_exchange_strong(expected, S[i]);
+                }
+            }
+            faceMask[i] = mask;
+        }
+    });
+    if (overfull.load() != kNone)
+        throw Error("cannot pillow: a face of hex " + std::to_string(overfull.load()) +
+                    " is shared by more than two hexes; repair the mesh first");
     std::vector<std::pair<Index, int>> faces;
     std::vector<std::array<Index, 4>> quadNodes;
-    for (std::size_t q = 0; q < topo.quads.size(); ++q) {
-        const Quad& quad = topo.quads[q];
-        const bool a = inS[quad.hex[0]];
-        const bool b = quad.hex[1] != kNone && inS[quad.hex[1]];
-        if (a == b) continue;
-        const int side = a ? 0 : 1;
-        const Index h = quad.hex[side];
-        const int f = quad.localFace[side];
-        faces.emplace_back(h, f);
-        const auto& lf = hexcell::kFaces[f];
-        quadNodes.push_back({mesh.hexes[h][lf[0]], mesh.hexes[h][lf[1]], mesh.hexes[h][lf[2]], mesh.hexes[h][lf[3]]});
-    }
+    for (std::size_t i = 0; i < S.size(); ++i)
+        for (int f = 0; f < 6; ++f)
+            if (faceMask[i] >> f & 1) {
+                const Hex& hx = mesh.hexes[S[i]];
+                const auto& lf = hexcell::kFaces[f];
+                faces.emplace_back(S[i], f);
+                quadNodes.push_back({hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]});
+            }
     if (faces.empty()) throw Error("cannot pillow: the shrink set has no boundary");
     const ManifoldCheck mc = checkManifold(quadNodes, N, true);
     if (!mc.ok()) {
@@ -118,19 +151,20 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             edgeCount[q[i]] += 2;
         }
     }
-    // Centroid of the shrink-set hexes around each split node: the fallback
-    // inward direction where the normal is unreliable.
-    std::vector<Vec3> inward(C);
+    // Each copy starts at its node plus `push`, an inward step of `inset`
+    // local edge lengths that the loop below halves where it inverts a hex.
+    // Inward is the averaged inward normal, or towards the centroid of the
+    // shrink-set hexes around the node where the normal points away from them.
+    std::vector<Vec3> base(C), push(C);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Index v = res.copyOf[i];
             Vec3 c{0, 0, 0};
             int n = 0;
-            for (const Index* h = topo.nodeHexes.begin(v); h != topo.nodeHexes.end(v); ++h)
-                if (inS[*h]) {
-                    for (Index u : mesh.hexes[*h]) c = c + mesh.nodes[u];
-                    n += 8;
-                }
+            for (const Index* it = nodeS.begin(v); it != nodeS.end(v); ++it) {
+                for (Index u : mesh.hexes[hexOf(*it)]) c = c + mesh.nodes[u];
+                n += 8;
+            }
             const Vec3 toCentre = (1.0 / n) * c - mesh.nodes[v];
             const double len = norm(normal[v]);
             Vec3 dir = len > 0 ? (-1.0 / len) * normal[v] : Vec3{0, 0, 0};
@@ -138,19 +172,18 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 const double l = norm(toCentre);
                 dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
             }
-            inward[i] = (edgeSum[v] / edgeCount[v]) * dir;
+            base[i] = mesh.nodes[v];
+            push[i] = (opt.inset * edgeSum[v] / edgeCount[v]) * dir;
         }
     });
 
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
     mesh.nodes.reserve(N + C);
     mesh.nodeClass.reserve(N + C);
-    for (std::size_t i = 0; i < C; ++i)
-        mesh.addNode(mesh.nodes[res.copyOf[i]] + opt.inset * inward[i], NodeClass{});
-    for (std::size_t h = 0; h < H; ++h)
-        if (inS[h])
-            for (Index& v : mesh.hexes[h])
-                if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
+    for (std::size_t i = 0; i < C; ++i) mesh.addNode(base[i] + push[i], NodeClass{});
+    for (Index h : S)
+        for (Index& v : mesh.hexes[h])
+            if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
     mesh.hexes.reserve(H + faces.size());
     mesh.material.reserve(H + faces.size());
     for (std::size_t i = 0; i < faces.size(); ++i) {
@@ -159,17 +192,16 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     mesh.material[faces[i].first]);
     }
 
-    // Pull copies back toward their original where a hex around them inverted.
+    // Shorten the inward step of copies where a hex around them inverted.
     std::vector<Index> watch;  // hexes that contain a copy
-    for (std::size_t h = 0; h < H; ++h)
-        if (inS[h])
-            for (Index v : mesh.hexes[h])
-                if (v >= static_cast<Index>(N)) {
-                    watch.push_back(static_cast<Index>(h));
-                    break;
-                }
+    for (Index h : S)
+        for (Index v : mesh.hexes[h])
+            if (v >= static_cast<Index>(N)) {
+                watch.push_back(h);
+                break;
+            }
     for (std::size_t h = H; h < mesh.hexCount(); ++h) watch.push_back(static_cast<Index>(h));
-    std::vector<double> scale(C, opt.inset);
+    std::vector<double> scale(C, 1.0);
     std::vector<std::uint8_t> bad(watch.size());
     for (int round = 0; round <= opt.maxHalvings; ++round) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
@@ -186,7 +218,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         for (std::size_t i = 0; i < C; ++i)
             if (shrink[i]) {
                 scale[i] *= 0.5;
-                mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + scale[i] * inward[i];
+                mesh.nodes[N + i] = base[i] + scale[i] * push[i];
             }
     }
     return res;
