@@ -462,6 +462,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
     j["nodes_moved"] = r.nodesMoved;
+    j["surface_nodes_off_surface"] = r.surfaceNodesReleased;
     j["inverted_before"] = r.invertedBefore;
     j["inverted_after"] = r.invertedAfter;
     j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;
@@ -542,16 +543,27 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
             dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
         }
     });
+    // A projection that does not converge within 3 voxels answers NaN: such a
+    // node is counted apart (it is at least that far off, or where the field
+    // is flat), not folded into the mean.
     double sum = 0, mx = 0;
+    std::size_t measured = 0, far = 0;
     for (double d : dist) {
+        if (!std::isfinite(d)) {
+            ++far;
+            continue;
+        }
         sum += d;
         mx = std::max(mx, d);
+        ++measured;
     }
     const double voxel = p.selection->materials.front().field.voxelSize();
+    const double mean = measured ? sum / static_cast<double>(measured) : 0.0;
     j["boundary_nodes"] = nodes.size();
-    j["boundary_distance_mean"] = nodes.empty() ? 0.0 : sum / nodes.size();
+    j["boundary_nodes_not_projected"] = far;
+    j["boundary_distance_mean"] = mean;
     j["boundary_distance_max"] = mx;
-    j["boundary_distance_mean_voxels"] = nodes.empty() ? 0.0 : sum / nodes.size() / voxel;
+    j["boundary_distance_mean_voxels"] = mean / voxel;
     j["boundary_distance_max_voxels"] = mx / voxel;
     j["units"] = "world units of the scan (mm for medical images)";
     return j;

@@ -135,6 +135,19 @@ double minCornerDeterminant(const HexCoords& x) {
     return m;
 }
 
+double centreDeterminant(const HexCoords& x) {
+    Vec3 a[3];
+    for (int k = 0; k < 3; ++k) {
+        a[k] = {0, 0, 0};
+        for (int e = 4 * k; e < 4 * k + 4; ++e)
+            for (int c = 0; c < 3; ++c)
+                a[k][c] += 0.25 * (x[hexcell::kEdges[e][1]][c] - x[hexcell::kEdges[e][0]][c]);
+    }
+    return dot(a[0], cross(a[1], a[2]));
+}
+
+double minJacobianDeterminant(const HexCoords& x) { return std::min(minCornerDeterminant(x), centreDeterminant(x)); }
+
 HexCoords hexCoords(const HexMesh& mesh, Index hex) {
     HexCoords x;
     const Hex& h = mesh.hexes[static_cast<std::size_t>(hex)];

@@ -206,7 +206,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     for (int round = 0; round <= opt.maxHalvings; ++round) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i)
-                bad[i] = minCornerDeterminant(hexCoords(mesh, watch[i])) <= 0;
+                bad[i] = !(minJacobianDeterminant(hexCoords(mesh, watch[i])) > 0);
         });
         res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
         if (res.invertedAtStart == 0 || round == opt.maxHalvings) break;

@@ -76,23 +76,6 @@ bool sameNodeSet(const HexMesh& mesh, Index a, Index b) {
     return sortedNodes(mesh.hexes[a]) == sortedNodes(mesh.hexes[b]);
 }
 
-double det3(const Vec3& a, const Vec3& b, const Vec3& c) {
-    return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-           a[2] * (b[0] * c[1] - b[1] * c[0]);
-}
-
-// Determinant of the trilinear map at the hex centre (Verdict's principal axes).
-// A hex can have eight positive corners and still fold in the middle.
-double centreDeterminant(const HexCoords& x) {
-    Vec3 xi{}, eta{}, zeta{};
-    for (int c = 0; c < 3; ++c) {
-        xi[c] = (x[1][c] + x[2][c] + x[5][c] + x[6][c]) - (x[0][c] + x[3][c] + x[4][c] + x[7][c]);
-        eta[c] = (x[2][c] + x[3][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[4][c] + x[5][c]);
-        zeta[c] = (x[4][c] + x[5][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
-    }
-    return det3(xi, eta, zeta);
-}
-
 template <std::size_t K>
 Vec3 centroid(const HexMesh& mesh, const std::array<Index, K>& ids) {
     Vec3 c{0, 0, 0};
@@ -186,7 +169,7 @@ HexAcc checkHexes(const HexMesh& mesh, const Topology& topo) {
             // it is reported once, as repeated_node. NaN counts as inverted.
             if (!repeated) {
                 const HexCoords x = hexCoords(mesh, h);
-                const double det = std::min(minCornerDeterminant(x), centreDeterminant(x));
+                const double det = minJacobianDeterminant(x);
                 if (!(det > 0.0)) acc.inverted.add(h);
             }
         }

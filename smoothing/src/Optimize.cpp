@@ -68,10 +68,16 @@ std::vector<std::uint8_t> invertedFlags(const HexMesh& mesh, std::size_t& count)
     std::vector<std::uint8_t> flags(mesh.hexCount());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, flags.size(), kBlock), [&](const auto& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h)
-            flags[h] = !(minCornerDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0);
+            flags[h] = !(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0);
     });
     count = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), std::uint8_t{1}));
     return flags;
+}
+
+std::size_t invertedCount(const HexMesh& mesh) {
+    std::size_t count = 0;
+    invertedFlags(mesh, count);
+    return count;
 }
 
 // With `terms` describing the node moved by `applied` from its original
@@ -99,6 +105,7 @@ public:
 private:
     void setUp();
     void untanglePhase();
+    void returnToSurface();
     void meanRatioPhase(const ObjectiveSum& start);
     // One visit of a node: how it moved and where it ends up.
     struct Visit {
@@ -145,6 +152,9 @@ private:
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
     std::vector<std::uint8_t> everMoved_;
+    bool guarded_ = true;  // untangling moves may not invert a valid corner
+    bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
+    std::vector<std::uint8_t> released_;
     SmoothingResult result_;
 };
 
@@ -253,7 +263,7 @@ Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) co
     if (r.move.steps == 0) return r;
     // Knupp's measure may trade a deep inversion for a new shallow one; do not
     // let it: shorten the move until every corner that was valid stays valid.
-    if (!opt_.untangleKeepsValidCorners) {
+    if (!guarded_) {
         r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
         return r;
     }
@@ -320,7 +330,7 @@ Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& 
     const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
     if (!d.allFinite()) return r;
     const double f = objective.value(d - moved);
-    if (!(f < f0) || (opt_.untangleKeepsValidCorners && !keepsValidCornersValid(buf.data(), n, moved, d))) return r;
+    if (!(f < f0) || (guarded_ && !keepsValidCornersValid(buf.data(), n, moved, d))) return r;
     r.move.before = f0;
     r.move.after = f;
     r.move.displacement = d;
@@ -386,6 +396,29 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     return r;
 }
 
+// Released nodes, one at a time in index order (few, and deterministic):
+// the largest step towards their projection, of 1, 1/2, ... 1/64, that keeps
+// every corner around them positive.
+void Smoother::returnToSurface() {
+    auto& buf = buffers_->local();
+    for (std::size_t v = 0; v < released_.size(); ++v) {
+        if (!released_[v]) continue;
+        const Vec3& x = mesh_.nodes[v];
+        const Vec3 y = projector_->project(mesh_.nodeClass[v].id, x);
+        const Vector3 full(y[0] - x[0], y[1] - x[1], y[2] - x[2]);
+        if (!full.allFinite()) continue;
+        const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, static_cast<Index>(v), buf.data());
+        NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+        double t = 1.0;
+        for (int k = 0; k <= 6; ++k, t *= 0.5)
+            if (std::isfinite(objective.value(t * full))) {
+                mesh_.nodes[v] = k == 0 ? y : displaced(x, t * full);
+                if (k == 0) released_[v] = 0;
+                break;
+            }
+    }
+}
+
 void Smoother::untanglePhase() {
     const auto t0 = Clock::now();
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
@@ -438,11 +471,13 @@ void Smoother::untanglePhase() {
         if (count == 0) ++polish;
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
-            const Visit r = mode_[sv] == Mode::Surface ? untangleSurfaceStep(v, buffers_->local())
-                                                       : untangleStep(v, buffers_->local());
+            const bool onSurface = mode_[sv] == Mode::Surface;
+            const Visit r = onSurface && !releaseSurface_ ? untangleSurfaceStep(v, buffers_->local())
+                                                          : untangleStep(v, buffers_->local());
             if (r.move.steps > 0) {
                 mesh_.nodes[sv] = r.position;
                 everMoved_[sv] = 1;
+                if (onSurface && releaseSurface_) released_[sv] = 1;
             }
         });
         ++result_.untangleSweeps;
@@ -450,7 +485,7 @@ void Smoother::untanglePhase() {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, regionHexes.size(), 1024), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const Index h = regionHexes[i];
-                inverted[static_cast<std::size_t>(h)] = !(minCornerDeterminant(hexCoords(mesh_, h)) > 0);
+                inverted[static_cast<std::size_t>(h)] = !(minJacobianDeterminant(hexCoords(mesh_, h)) > 0);
             }
         });
         count = static_cast<std::size_t>(std::count(inverted.begin(), inverted.end(), std::uint8_t{1}));
@@ -526,13 +561,57 @@ SmoothingResult Smoother::run(bool meanRatio) {
     {
         const ObjectiveSum s = objectiveSum(mesh_);
         result_.objectiveBefore = meanOf(s);
-        result_.invertedBefore = mesh_.hexCount() - s.finite;
+        result_.invertedBefore = invertedCount(mesh_);
     }
+    guarded_ = opt_.untangleKeepsValidCorners;
     if (result_.invertedBefore > 0 && opt_.untangle) untanglePhase();
     const ObjectiveSum untangled = objectiveSum(mesh_);
     result_.objectiveAfterUntangle = meanOf(untangled);
     if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(untangled);
     else result_.converged = true;
+    // The mean-ratio sweeps even out the hexes around what is still inverted,
+    // which often leaves the untangler room it did not have: alternate while
+    // that helps.
+    int stalls = 0;  // rounds in a row that removed no inverted hex
+    for (int round = 1; round < opt_.untangleRounds && opt_.untangle; ++round) {
+        const std::size_t left = invertedCount(mesh_);
+        if (left == 0) break;
+        // Every other round drops the guard that keeps valid corners valid:
+        // node by node that guard can lock a tight spot; Knupp's measure
+        // summed over the region may still fall by trading one deep inversion
+        // for shallow ones that the next guarded round removes. A round that
+        // ends with more inverted hexes is undone.
+        guarded_ = opt_.untangleKeepsValidCorners && (round % 2 == 1);
+        const std::vector<Vec3> saved = guarded_ ? std::vector<Vec3>{} : mesh_.nodes;
+        untanglePhase();
+        guarded_ = opt_.untangleKeepsValidCorners;
+        if (!saved.empty() && invertedCount(mesh_) > left) {
+            mesh_.nodes = saved;
+            if (++stalls >= 2) break;
+            continue;
+        }
+        const ObjectiveSum after = objectiveSum(mesh_);
+        if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(after);
+        if (invertedCount(mesh_) < left) stalls = 0;
+        else if (++stalls >= 2) break;
+    }
+
+    // Last resort: what is still inverted is usually a fold of the surface
+    // mesh itself (two sides of a narrow gap within one cell), which no
+    // tangential move can open. Validity comes before fidelity: the surface
+    // nodes of those hexes may leave the surface to untangle them; the
+    // mean-ratio sweeps then pull them back as far as the hexes allow.
+    if (opt_.untangle && opt_.releaseSurfaceToUntangle && projector_ && !opt_.fixBoundary &&
+        invertedCount(mesh_) > 0) {
+        released_.assign(mesh_.nodeCount(), 0);
+        releaseSurface_ = true;
+        untanglePhase();
+        releaseSurface_ = false;
+        if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_));
+        returnToSurface();
+        result_.surfaceNodesReleased =
+            static_cast<std::size_t>(std::count(released_.begin(), released_.end(), std::uint8_t{1}));
+    }
 
     const ObjectiveSum s = objectiveSum(mesh_);
     result_.objectiveAfter = meanOf(s);
@@ -546,7 +625,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
         t.hex = static_cast<Index>(h);
         for (const Vec3& p : x)
             for (int i = 0; i < 3; ++i) t.centroid[i] += p[i] / 8.0;
-        t.minDeterminant = minCornerDeterminant(x);
+        t.minDeterminant = minJacobianDeterminant(x);
         result_.untangleFailures.push_back(t);
     }
     result_.nodesMoved = static_cast<std::size_t>(std::count(everMoved_.begin(), everMoved_.end(), std::uint8_t{1}));
@@ -567,7 +646,7 @@ SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options, const P
 
 double meanObjective(const HexMesh& mesh, std::size_t* inverted) {
     const ObjectiveSum s = objectiveSum(mesh);
-    if (inverted) *inverted = mesh.hexCount() - s.finite;
+    if (inverted) *inverted = invertedCount(mesh);
     return meanOf(s);
 }
 

@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
+#include "isohex/core/Quality.hpp"
 #include "isohex/smoothing/CornerMetrics.hpp"
 #include "isohex/smoothing/NodeObjective.hpp"
 #include "support/Blocks.hpp"
@@ -34,7 +35,7 @@ double valueAt(const Metric& m, Matrix3 A, int role, const Vector3& d) {
 template <class Metric>
 void expectDerivativesMatchFiniteDifferences(const Metric& metric, const Matrix3& A, double tol) {
     const double h = 1e-5;
-    for (int role = 0; role < 4; ++role) {
+    for (int role = 0; role < kCentreRole + 8; ++role) {  // corner roles and the 8 centre roles
         CornerDerivatives cd;
         ASSERT_TRUE(metric.nodeDerivatives(A, role, cd));
         EXPECT_NEAR(cd.value, metric.value(A), 1e-14 * std::abs(cd.value) + 1e-300);
@@ -85,7 +86,7 @@ TEST(InverseMeanRatio, GradientAndHessianMatchFiniteDifferences) {
 }
 
 TEST(InverseMeanRatio, OrthonormalCornerIsAStationaryPoint) {
-    for (int role = 0; role < 4; ++role) {
+    for (int role = 0; role < kCentreRole + 8; ++role) {  // corner roles and the 8 centre roles
         CornerDerivatives cd;
         ASSERT_TRUE(InverseMeanRatio{}.nodeDerivatives(Matrix3::Identity(), role, cd));
         EXPECT_LT(cd.gradient.norm(), 1e-15);
@@ -118,29 +119,35 @@ TEST(NodeObjective, InteriorNodeOfACubeGridHasZeroGradient) {
     const HexMesh m = test::makeBlock(2, 2, 2, 0.7);
     const Topology topo = buildTopology(m);
     const Index centre = 13;  // (1,1,1)
-    std::vector<CornerTerm> terms(32);
+    std::vector<CornerTerm> terms(8 * termsPerHex);
     const std::size_t n = gatherCornerTerms(m, topo.nodeHexes, centre, terms.data());
-    EXPECT_EQ(n, 32u);
+    EXPECT_EQ(n, 40u);  // 8 hexes: 4 corners and the centre each
     NodeObjective<InverseMeanRatio> obj(InverseMeanRatio{}, terms.data(), n);
     Vector3 g;
     Matrix3 H;
-    EXPECT_NEAR(obj.derivatives(g, H), 32.0, 1e-12);
+    EXPECT_NEAR(obj.derivatives(g, H), 40.0, 1e-12);
     EXPECT_LT(g.norm(), 1e-12);
     const Eigen::SelfAdjointEigenSolver<Matrix3> es(H);
     EXPECT_GT(es.eigenvalues().minCoeff(), 0.0);  // a strict local minimum
     // any small move makes it worse
-    for (int i = 0; i < 3; ++i) EXPECT_GT(obj.value(Vector3::Unit(i) * 0.01), 32.0);
+    for (int i = 0; i < 3; ++i) EXPECT_GT(obj.value(Vector3::Unit(i) * 0.01), 40.0);
 }
 
 TEST(NodeObjective, GatheredTermsReproduceTheNodeCorners) {
-    // Every term is a corner that contains the node; their number is 4 per hex.
+    // Every term is a corner that contains the node (4 per hex) or the centre
+    // frame of one of its hexes; on a unit grid each has determinant 1.
     const HexMesh m = test::makeBlock(3, 2, 1);
     const Topology topo = buildTopology(m);
-    std::vector<CornerTerm> terms(64);
+    std::vector<CornerTerm> terms(8 * termsPerHex);
     for (std::size_t v = 0; v < m.nodeCount(); ++v) {
         const std::size_t n = gatherCornerTerms(m, topo.nodeHexes, static_cast<Index>(v), terms.data());
-        EXPECT_EQ(n, 4 * topo.nodeHexes.size(v));
-        for (std::size_t i = 0; i < n; ++i) EXPECT_NEAR(cornerDeterminant(terms[i].A), 1.0, 1e-15);
+        EXPECT_EQ(n, 5 * topo.nodeHexes.size(v));
+        std::size_t centres = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            EXPECT_NEAR(cornerDeterminant(terms[i].A), 1.0, 1e-15);
+            centres += terms[i].role >= kCentreRole;
+        }
+        EXPECT_EQ(centres, topo.nodeHexes.size(v));
     }
 }
 
@@ -151,5 +158,27 @@ TEST(InverseMeanRatio, FastInversePowerMatchesLibm) {
         const double t = std::exp2(e(rng));
         const double ref = std::pow(t, -2.0 / 3.0);
         EXPECT_NEAR(inversePowTwoThirds(t), ref, 4e-15 * ref) << t;
+    }
+}
+
+TEST(NodeObjective, CentreFrameFollowsTheNodeLikeTheHexCentreJacobian) {
+    // Moving one node of a hex must change the centre term exactly as
+    // recomputing the centre Jacobian of the moved hex does.
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(-0.2, 0.2);
+    HexMesh m = test::makeBlock(1, 1, 1);
+    for (auto& p : m.nodes)
+        for (double& c : p) c += u(rng);
+    const Topology topo = buildTopology(m);
+    std::vector<CornerTerm> terms(termsPerHex);
+    for (Index v = 0; v < 8; ++v) {
+        const std::size_t n = gatherCornerTerms(m, topo.nodeHexes, v, terms.data());
+        ASSERT_EQ(n, 5u);
+        const Vector3 d(u(rng), u(rng), u(rng));
+        Matrix3 A = terms[4].A;
+        displaceFrame(A, terms[4].role, d);
+        HexMesh moved = m;
+        for (int c = 0; c < 3; ++c) moved.nodes[static_cast<std::size_t>(v)][c] += d[c];
+        EXPECT_NEAR(cornerDeterminant(A), centreDeterminant(hexCoords(moved, 0)), 1e-12) << "node " << v;
     }
 }

@@ -29,8 +29,14 @@ double conditionNumber(const HexCoords& x);
 double edgeRatio(const HexCoords& x);
 // Exact volume of the trilinear hex (2x2x2 Gauss quadrature of det J is exact).
 double hexVolume(const HexCoords& x);
-// Smallest corner Jacobian determinant (unscaled), the inversion test.
+// Smallest corner Jacobian determinant (unscaled).
 double minCornerDeterminant(const HexCoords& x);
+// Determinant of the Jacobian at the centre: columns are the mean of the four
+// edges along each reference axis (same scale as a corner determinant).
+double centreDeterminant(const HexCoords& x);
+// The inversion test of validate() and Verdict: the smallest of the 8 corner
+// determinants and the centre one.
+double minJacobianDeterminant(const HexCoords& x);
 
 HexCoords hexCoords(const HexMesh& mesh, Index hex);
 

@@ -31,6 +31,18 @@ using Vector3 = Eigen::Vector3d;
 using Matrix3 = Eigen::Matrix3d;
 
 inline constexpr int kCornerRole = 3;  // the node is the corner itself (roles 0..2: a column)
+// Roles kCentreRole + bits: the frame is the hex's centre Jacobian (columns:
+// the mean of the four edges along xi, eta, zeta), which a node enters with
+// w = (s0, s1, s2) / 4, s_k = +1 if bit k is set (the node is at reference
+// coordinate 1 along axis k) and -1 otherwise. Verdict and validate() count a
+// hex whose centre determinant is <= 0 as inverted even when all 8 corners are
+// positive, so the smoother must see it too.
+inline constexpr int kCentreRole = 4;
+
+inline Vector3 centreWeights(int role) {
+    const int b = role - kCentreRole;
+    return Vector3((b & 1) ? 0.25 : -0.25, (b & 2) ? 0.25 : -0.25, (b & 4) ? 0.25 : -0.25);
+}
 
 // det(A) as a.(b x c) with a, b, c the columns.
 inline double cornerDeterminant(const Matrix3& A) { return A.col(0).dot(A.col(1).cross(A.col(2))); }
@@ -42,10 +54,17 @@ inline void frameDeterminant(const Matrix3& A, int role, Vector3& gradient, doub
         case 0: gradient = A.col(1).cross(A.col(2)); det = A.col(0).dot(gradient); return;
         case 1: gradient = A.col(2).cross(A.col(0)); det = A.col(1).dot(gradient); return;
         case 2: gradient = A.col(0).cross(A.col(1)); det = A.col(2).dot(gradient); return;
-        default: {
+        case kCornerRole: {
             const Vector3 bc = A.col(1).cross(A.col(2));
             det = A.col(0).dot(bc);
             gradient = -(bc + A.col(2).cross(A.col(0)) + A.col(0).cross(A.col(1)));
+            return;
+        }
+        default: {
+            const Vector3 w = centreWeights(role);
+            const Vector3 bc = A.col(1).cross(A.col(2));
+            det = A.col(0).dot(bc);
+            gradient = w[0] * bc + w[1] * A.col(2).cross(A.col(0)) + w[2] * A.col(0).cross(A.col(1));
         }
     }
 }
@@ -73,16 +92,19 @@ inline double inversePowTwoThirds(double t) {
 
 // A w.
 inline Vector3 roleTimes(const Matrix3& A, int role) {
-    return role < kCornerRole ? Vector3(A.col(role)) : Vector3(-(A.col(0) + A.col(1) + A.col(2)));
+    if (role < kCornerRole) return A.col(role);
+    if (role == kCornerRole) return -(A.col(0) + A.col(1) + A.col(2));
+    return A * centreWeights(role);
 }
 
 // |w|^2.
-inline double roleNorm2(int role) { return role < kCornerRole ? 1.0 : 3.0; }
+inline double roleNorm2(int role) { return role < kCornerRole ? 1.0 : role == kCornerRole ? 3.0 : 3.0 / 16.0; }
 
 // A += d w^T: the frame after the node moved by d.
 inline void displaceFrame(Matrix3& A, int role, const Vector3& d) {
     if (role < kCornerRole) A.col(role) += d;
-    else A.colwise() -= d;
+    else if (role == kCornerRole) A.colwise() -= d;
+    else A += d * centreWeights(role).transpose();
 }
 
 struct CornerDerivatives {

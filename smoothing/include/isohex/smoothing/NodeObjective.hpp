@@ -1,7 +1,7 @@
 #pragma once
 // The objective seen by one free node: a corner metric summed over every
 // corner of the node's hexes that the node belongs to (as the corner or as
-// one of its three neighbours; 4 corners per hex). Corners the node is not part
+// one of its three neighbours; 4 corners per hex) and the hex's centre frame. Corners the node is not part
 // of do not change when it moves, so they are left out.
 //
 // The corner frames are gathered once per visit into a caller-owned buffer;
@@ -42,8 +42,13 @@ constexpr std::array<std::array<LocalCorner, 4>, 8> makeNodeCorners() {
 inline constexpr auto kNodeCorners = makeNodeCorners();
 }  // namespace detail
 
-// Upper bound on the terms gatherCornerTerms writes for a node in `hexCount` hexes.
-inline constexpr std::size_t termsPerHex = 4;
+// Reference coordinates (0 or 1 per axis) of the VTK hex's local nodes.
+inline constexpr int kReferenceBit[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                            {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+
+// Upper bound on the terms gatherCornerTerms writes for a node in `hexCount`
+// hexes: its 4 corner frames and the hex's centre frame.
+inline constexpr std::size_t termsPerHex = 5;
 
 // Writes the corner terms of node v into `out` (room for termsPerHex x the
 // node's hex count) and returns how many were written. The node must occur
@@ -66,6 +71,17 @@ inline std::size_t gatherCornerTerms(const HexMesh& mesh, const Csr& nodeHexes, 
             for (int j = 0; j < 3; ++j) t.A.col(j) = x[nb[j]] - x[lc.corner];
             t.role = lc.role;
         }
+        // The centre frame: mean edge along each axis (edges 4k..4k+3 of
+        // hexcell::kEdges run along axis k from reference 0 to reference 1).
+        CornerTerm& c = out[n++];
+        for (int k = 0; k < 3; ++k) {
+            Vector3 sum = Vector3::Zero();
+            for (int e = 4 * k; e < 4 * k + 4; ++e) sum += x[hexcell::kEdges[e][1]] - x[hexcell::kEdges[e][0]];
+            c.A.col(k) = 0.25 * sum;
+        }
+        int bits = 0;
+        for (int k = 0; k < 3; ++k) bits |= kReferenceBit[local][k] << k;
+        c.role = kCentreRole + bits;
     }
     return n;
 }

@@ -54,6 +54,14 @@ struct SmoothingOptions {
     // shortened until none does). Without this guard Knupp's measure can trade
     // one deep inversion for several shallow ones.
     bool untangleKeepsValidCorners = true;
+    // Untangle / mean-ratio rounds: while hexes stay inverted after a round
+    // and the last round removed some, untangle again around them.
+    int untangleRounds = 4;
+    // After the rounds, surface nodes of hexes still inverted may move off
+    // their surface (in 3-D, like interior nodes) to untangle them; the
+    // mean-ratio sweeps then slide them back towards the surface where the
+    // hexes allow. Validity before fidelity; the count is reported.
+    bool releaseSurfaceToUntangle = true;
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
@@ -109,6 +117,7 @@ struct SmoothingResult {
     std::size_t invertedAfter = 0;
     std::vector<TangledHex> untangleFailures;  // the hexes still inverted at the end
     std::size_t movableNodes = 0;
+    std::size_t surfaceNodesReleased = 0;  // surface nodes the last-resort untangling moved off their surface
     int colours = 0;
     bool converged = false;                // stopped on the tolerance, not on maxSweeps
     double setupSeconds = 0;               // topology, colouring, buffers
