@@ -25,7 +25,9 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-enum class Mode : std::uint8_t { Frozen, Interior, Surface };
+// Curve: a node on a curve (where three materials or two surfaces meet); it
+// moves only in the last-resort untangling, like a released surface node.
+enum class Mode : std::uint8_t { Frozen, Interior, Surface, Curve };
 
 // Fixed-size blocks summed in parallel, block sums added in block order: the
 // same floating-point result for any thread count.
@@ -155,6 +157,8 @@ private:
     bool guarded_ = true;  // untangling moves may not invert a valid corner
     bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
     std::vector<std::uint8_t> released_;
+    std::vector<Vec3> anchor_;  // surface positions when the release began
+    double releaseLimit_ = 0;   // current bound on a released node's distance from its anchor, edge lengths
     SmoothingResult result_;
 };
 
@@ -182,6 +186,10 @@ void Smoother::setUp() {
                     mode_[v] = Mode::Surface;
                     anySurface = true;
                 }
+                break;
+            case NodeKind::Curve:
+                if (!opt_.fixBoundary && projector_ && opt_.untangle && opt_.releaseSurfaceToUntangle)
+                    mode_[v] = Mode::Curve;
                 break;
             default: break;
         }
@@ -402,7 +410,7 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
 void Smoother::returnToSurface() {
     auto& buf = buffers_->local();
     for (std::size_t v = 0; v < released_.size(); ++v) {
-        if (!released_[v]) continue;
+        if (!released_[v] || mode_[v] != Mode::Surface) continue;  // no projector for curves
         const Vec3& x = mesh_.nodes[v];
         const Vec3 y = projector_->project(mesh_.nodeClass[v].id, x);
         const Vector3 full(y[0] - x[0], y[1] - x[1], y[2] - x[2]);
@@ -434,7 +442,8 @@ void Smoother::untanglePhase() {
         regionNodes.clear();
         regionHexes.clear();
         auto add = [&](Index u) {
-            if (mode_[static_cast<std::size_t>(u)] != Mode::Frozen && !inRegion[static_cast<std::size_t>(u)]) {
+            const Mode m = mode_[static_cast<std::size_t>(u)];
+            if (m != Mode::Frozen && (m != Mode::Curve || releaseSurface_) && !inRegion[static_cast<std::size_t>(u)]) {
                 inRegion[static_cast<std::size_t>(u)] = 1;
                 regionNodes.push_back(u);
             }
@@ -471,13 +480,20 @@ void Smoother::untanglePhase() {
         if (count == 0) ++polish;
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
-            const bool onSurface = mode_[sv] == Mode::Surface;
+            const bool onSurface = mode_[sv] == Mode::Surface || mode_[sv] == Mode::Curve;
             const Visit r = onSurface && !releaseSurface_ ? untangleSurfaceStep(v, buffers_->local())
                                                           : untangleStep(v, buffers_->local());
+            if (r.move.steps > 0 && onSurface && releaseSurface_) {
+                // A released node stays within releaseDistance edge lengths of
+                // where it was on the surface.
+                const Vec3& a = anchor_[sv];
+                const double dx = r.position[0] - a[0], dy = r.position[1] - a[1], dz = r.position[2] - a[2];
+                if (std::sqrt(dx * dx + dy * dy + dz * dz) > releaseLimit_ * r.length) return;
+                released_[sv] = 1;
+            }
             if (r.move.steps > 0) {
                 mesh_.nodes[sv] = r.position;
                 everMoved_[sv] = 1;
-                if (onSurface && releaseSurface_) released_[sv] = 1;
             }
         });
         ++result_.untangleSweeps;
@@ -526,7 +542,7 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start) {
         std::atomic<std::size_t> updates{0};
         sweepColours(colouring_.classes, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
-            if (!active[sv]) return;
+            if (!active[sv] || mode_[sv] == Mode::Curve) return;
             auto& buf = buffers_->local();
             const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf) : interiorStep(v, buf);
             if (r.move.steps == 0) return;
@@ -604,13 +620,30 @@ SmoothingResult Smoother::run(bool meanRatio) {
     if (opt_.untangle && opt_.releaseSurfaceToUntangle && projector_ && !opt_.fixBoundary &&
         invertedCount(mesh_) > 0) {
         released_.assign(mesh_.nodeCount(), 0);
+        anchor_ = mesh_.nodes;
         releaseSurface_ = true;
-        untanglePhase();
+        // Guarded first, then (undone if it ends worse) unguarded, each
+        // followed by mean-ratio sweeps; the second pass lets nodes go twice as far.
+        for (int pass = 0; pass < 2 && invertedCount(mesh_) > 0; ++pass) {
+            releaseLimit_ = opt_.releaseDistance * (pass + 1);
+            for (const bool guard : {true, false}) {
+                const std::size_t left = invertedCount(mesh_);
+                if (left == 0) break;
+                guarded_ = guard && opt_.untangleKeepsValidCorners;
+                const std::vector<Vec3> saved = guard ? std::vector<Vec3>{} : mesh_.nodes;
+                untanglePhase();
+                guarded_ = opt_.untangleKeepsValidCorners;
+                if (!saved.empty() && invertedCount(mesh_) > left) mesh_.nodes = saved;
+            }
+            releaseSurface_ = false;
+            if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_));
+            releaseSurface_ = true;
+        }
         releaseSurface_ = false;
-        if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_));
         returnToSurface();
         result_.surfaceNodesReleased =
             static_cast<std::size_t>(std::count(released_.begin(), released_.end(), std::uint8_t{1}));
+        anchor_ = {};
     }
 
     const ObjectiveSum s = objectiveSum(mesh_);

@@ -62,6 +62,9 @@ struct SmoothingOptions {
     // mean-ratio sweeps then slide them back towards the surface where the
     // hexes allow. Validity before fidelity; the count is reported.
     bool releaseSurfaceToUntangle = true;
+    // How far (in local edge lengths) a released node may go from its place
+    // on the surface.
+    double releaseDistance = 0.5;
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
