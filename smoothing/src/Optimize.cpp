@@ -108,7 +108,10 @@ private:
     void setUp();
     void untanglePhase();
     void returnToSurface();
-    void meanRatioPhase(const ObjectiveSum& start);
+    // With `onlyTouched`, only nodes that untangling moved since the last
+    // mean-ratio phase (and their neighbours) start active: the rest is
+    // where the previous phase left it.
+    void meanRatioPhase(const ObjectiveSum& start, bool onlyTouched = false);
     // One visit of a node: how it moved and where it ends up.
     struct Visit {
         NodeMove move;
@@ -154,6 +157,7 @@ private:
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
     std::vector<std::uint8_t> everMoved_;
+    std::vector<std::uint8_t> touched_;  // moved by untangling since the last mean-ratio phase
     bool guarded_ = true;  // untangling moves may not invert a valid corner
     bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
     std::vector<std::uint8_t> released_;
@@ -244,6 +248,7 @@ void Smoother::setUp() {
     buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
         [n = maxTerms_] { return std::vector<CornerTerm>(n); });
     everMoved_.assign(N, 0);
+    touched_.assign(N, 0);
 }
 
 Smoother::Visit Smoother::interiorStep(Index v, std::vector<CornerTerm>& buf) const {
@@ -494,6 +499,7 @@ void Smoother::untanglePhase() {
             if (r.move.steps > 0) {
                 mesh_.nodes[sv] = r.position;
                 everMoved_[sv] = 1;
+                touched_[sv] = 1;
             }
         });
         ++result_.untangleSweeps;
@@ -522,14 +528,21 @@ void Smoother::untanglePhase() {
     result_.untangleSeconds = secondsSince(t0);
 }
 
-void Smoother::meanRatioPhase(const ObjectiveSum& start) {
+void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
     std::vector<std::uint8_t> active(N, 0), next(N, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, kBlock), [&](const auto& r) {
-        for (std::size_t h = r.begin(); h != r.end(); ++h)
-            if (!(inverseMeanRatio(hexCoords(mesh_, static_cast<Index>(h))) <= 1.0 + opt_.activeThreshold))
-                for (Index u : mesh_.hexes[h]) raise(active[static_cast<std::size_t>(u)]);
-    });
+    if (onlyTouched) {
+        for (std::size_t v = 0; v < N; ++v)
+            if (touched_[v]) markNeighbours(static_cast<Index>(v), active, next);
+        std::fill(next.begin(), next.end(), std::uint8_t{0});
+    } else {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, kBlock), [&](const auto& r) {
+            for (std::size_t h = r.begin(); h != r.end(); ++h)
+                if (!(inverseMeanRatio(hexCoords(mesh_, static_cast<Index>(h))) <= 1.0 + opt_.activeThreshold))
+                    for (Index u : mesh_.hexes[h]) raise(active[static_cast<std::size_t>(u)]);
+        });
+    }
+    std::fill(touched_.begin(), touched_.end(), std::uint8_t{0});
 
     double total = 8.0 * start.sum;                        // corner sum, the optimised objective
     const double corners = 8.0 * static_cast<double>(start.finite);
@@ -607,7 +620,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
             continue;
         }
         const ObjectiveSum after = objectiveSum(mesh_);
-        if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(after);
+        if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(after, true);
         if (invertedCount(mesh_) < left) stalls = 0;
         else if (++stalls >= 2) break;
     }
@@ -636,7 +649,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
                 if (!saved.empty() && invertedCount(mesh_) > left) mesh_.nodes = saved;
             }
             releaseSurface_ = false;
-            if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_));
+            if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_), true);
             releaseSurface_ = true;
         }
         releaseSurface_ = false;
