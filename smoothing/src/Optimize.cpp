@@ -488,16 +488,27 @@ void Smoother::untanglePhase() {
             const bool onSurface = mode_[sv] == Mode::Surface || mode_[sv] == Mode::Curve;
             const Visit r = onSurface && !releaseSurface_ ? untangleSurfaceStep(v, buffers_->local())
                                                           : untangleStep(v, buffers_->local());
+            Vec3 to = r.position;
             if (r.move.steps > 0 && onSurface && releaseSurface_) {
-                // A released node stays within releaseDistance edge lengths of
-                // where it was on the surface.
+                // A released node stays within releaseLimit_ edge lengths of
+                // where it was on the surface: the step is shortened (by
+                // halves) until it does. Knupp's measure is convex and the
+                // determinants affine along the step, so a shorter step still
+                // lowers the measure and keeps valid corners valid.
                 const Vec3& a = anchor_[sv];
-                const double dx = r.position[0] - a[0], dy = r.position[1] - a[1], dz = r.position[2] - a[2];
-                if (std::sqrt(dx * dx + dy * dy + dz * dz) > releaseLimit_ * r.length) return;
+                const Vec3& x = mesh_.nodes[sv];
+                const Vector3 d = r.move.displacement;
+                double t = 1;
+                for (int k = 0; k <= 6; ++k, t *= 0.5) {
+                    to = displaced(x, t * d);
+                    const double dx = to[0] - a[0], dy = to[1] - a[1], dz = to[2] - a[2];
+                    if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * r.length) break;
+                }
+                if (t < 1.0 / 64) return;
                 released_[sv] = 1;
             }
             if (r.move.steps > 0) {
-                mesh_.nodes[sv] = r.position;
+                mesh_.nodes[sv] = to;
                 everMoved_[sv] = 1;
                 touched_[sv] = 1;
             }

@@ -332,3 +332,75 @@ TEST(Optimize, PillowingTheNonFundamentalBallGivesBetterElementsAfterSmoothing) 
     std::cout << "[ info ] min scaled Jacobian after smoothing: without pillow " << sjPlain << ", with pillow "
               << sjPillowed << "\n";
 }
+
+TEST(Optimize, HexInvertedOnlyAtItsCentreIsSeenAndUntangled) {
+    // Eight positive corners and a negative centre Jacobian: VTK and
+    // validate() call this hex inverted, so the smoother must too.
+    HexMesh m = classifiedBlock(3);
+    const double shape[8][3] = {{-0.62, 0.33, -1.5}, {-0.29, -0.44, -2.49}, {0.24, -0.41, -1.09}, {0.8, 0.16, -1.83},
+                                {0.05, -1.11, 0.42}, {0.13, -0.14, -0.04}, {0.2, 0.58, -0.2}, {-0.42, -0.61, 0.44}};
+    Index centreHex = kNone;
+    for (std::size_t h = 0; h < m.hexCount(); ++h) {
+        bool inner = true;
+        for (Index v : m.hexes[h]) inner = inner && m.nodeClass[static_cast<std::size_t>(v)].kind == NodeKind::Interior;
+        if (inner) centreHex = static_cast<Index>(h);
+    }
+    ASSERT_NE(centreHex, kNone);
+    for (int i = 0; i < 8; ++i) {
+        Vec3& p = m.nodes[static_cast<std::size_t>(m.hexes[static_cast<std::size_t>(centreHex)][i])];
+        p = {1.5 + 0.3 * shape[i][0], 1.5 + 0.3 * shape[i][1], 1.5 + 0.3 * (shape[i][2] + 0.9)};
+    }
+    const HexCoords x = hexCoords(m, centreHex);
+    ASSERT_GT(minCornerDeterminant(x), 0.0);
+    ASSERT_LT(centreDeterminant(x), 0.0);
+    std::size_t inverted = 0;
+    meanObjective(m, &inverted);
+    EXPECT_GE(inverted, 1u);
+    const SmoothingResult r = optimizeMesh(m, nullptr);
+    EXPECT_EQ(r.invertedAfter, 0u);
+    for (std::size_t h = 0; h < m.hexCount(); ++h)
+        EXPECT_GT(minJacobianDeterminant(hexCoords(m, static_cast<Index>(h))), 0.0) << "hex " << h;
+}
+
+namespace {
+// One layer of 3x3 hexes whose four inner top nodes sit on the plane
+// z = -0.1, below the fixed bottom nodes at z = 0 (everything else is fixed):
+// every hex is inverted and no move within the plane can help.
+HexMesh foldedLayer() {
+    HexMesh m = makeBlock(3, 3, 1);
+    classifyBoundaryNodes(m);
+    for (std::size_t v = 0; v < m.nodeCount(); ++v) {
+        const bool innerTop = m.nodes[v][2] == 1.0 && m.nodes[v][0] > 0 && m.nodes[v][0] < 3 &&
+                              m.nodes[v][1] > 0 && m.nodes[v][1] < 3;
+        if (innerTop) m.nodes[v][2] = -0.1;
+        else m.nodeClass[v] = {NodeKind::Fixed, -1};
+    }
+    return m;
+}
+}  // namespace
+
+TEST(Optimize, SurfaceFoldIsUntangledByReleasingItsNodesWithinTheirBound) {
+    const test::PlaneProjector plane({0, 0, 1}, -0.1);
+    HexMesh locked = foldedLayer();
+    SmoothingOptions keep;
+    keep.releaseSurfaceToUntangle = false;
+    const SmoothingResult r0 = optimizeMesh(locked, &plane, keep);
+    EXPECT_EQ(r0.invertedBefore, 9u);
+    EXPECT_EQ(r0.invertedAfter, 9u);  // tangential moves cannot open it
+    EXPECT_EQ(r0.surfaceNodesReleased, 0u);
+
+    HexMesh m = foldedLayer();
+    const HexMesh start = m;
+    SmoothingOptions opt;
+    const SmoothingResult r = optimizeMesh(m, &plane, opt);
+    EXPECT_EQ(r.invertedAfter, 0u);
+    EXPECT_GT(r.surfaceNodesReleased, 0u);
+    std::size_t off = 0;
+    for (std::size_t v = 0; v < m.nodeCount(); ++v) {
+        if (start.nodeClass[v].kind != NodeKind::Surface) continue;
+        // two passes: at most 2 x releaseDistance local edge lengths (about 1 here)
+        EXPECT_LT(distance(m.nodes[v], start.nodes[v]), 2 * opt.releaseDistance * 1.5) << "node " << v;
+        off += std::abs(m.nodes[v][2] + 0.1) > 1e-9;
+    }
+    EXPECT_EQ(off, r.surfaceNodesReleased);  // the report counts exactly the nodes left off the plane
+}
