@@ -25,7 +25,7 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-enum class Mode : std::uint8_t { Frozen, Interior, Surface };
+enum class Mode : std::uint8_t { Frozen, Interior, Surface, Curve };
 
 // Fixed-size blocks summed in parallel, block sums added in block order: the
 // same floating-point result for any thread count.
@@ -110,6 +110,8 @@ private:
     Visit surfaceStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit untangleStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const;
+    // A curve node: towards the mean of its curve neighbours, then onto the curve.
+    Visit curveStep(Index v, std::vector<CornerTerm>& buf) const;
     // Area-weighted centroid and unit normal of the node's surface quads; false if it has none.
     bool surfaceFrame(std::size_t v, Vector3& centroid, Vector3& normal) const;
     static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
@@ -142,6 +144,7 @@ private:
     std::vector<Mode> mode_;
     NodeColouring colouring_;
     Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
+    Csr nodeCurveNeighbours_;  // per Curve node, the nodes joined to it by an edge of the same curve
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
     std::vector<std::uint8_t> everMoved_;
@@ -172,6 +175,9 @@ void Smoother::setUp() {
                     mode_[v] = Mode::Surface;
                     anySurface = true;
                 }
+                break;
+            case NodeKind::Curve:
+                if (!opt_.fixBoundary && projector_ && projector_->hasCurves()) mode_[v] = Mode::Curve;
                 break;
             default: break;
         }
@@ -208,9 +214,13 @@ void Smoother::setUp() {
         }
         auto& c = nodeSurfaceQuads_;
         c.offsets.assign(N + 1, 0);
+        // Several surfaces may share a material pair (a block's faces and a
+        // cut both bound material 1): match quads to a node by the pair.
         auto uses = [&](std::size_t q, Index v) {
-            return mode_[static_cast<std::size_t>(v)] == Mode::Surface && quadSurface[q] >= 0 &&
-                   quadSurface[q] == mesh_.nodeClass[static_cast<std::size_t>(v)].id;
+            if (mode_[static_cast<std::size_t>(v)] != Mode::Surface || quadSurface[q] < 0) return false;
+            const SurfaceTag& a = mesh_.surfaces[static_cast<std::size_t>(quadSurface[q])];
+            const SurfaceTag& b = mesh_.surfaces[static_cast<std::size_t>(mesh_.nodeClass[static_cast<std::size_t>(v)].id)];
+            return a.inside == b.inside && a.outside == b.outside;
         };
         for (std::size_t q = 0; q < topo_.quads.size(); ++q)
             for (Index v : topo_.quads[q].nodes)
@@ -221,6 +231,29 @@ void Smoother::setUp() {
         for (std::size_t q = 0; q < topo_.quads.size(); ++q)
             for (Index v : topo_.quads[q].nodes)
                 if (uses(q, v)) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(q);
+    }
+
+    {
+        // Curve neighbours: edges joining two curve nodes of the same curve.
+        auto& c = nodeCurveNeighbours_;
+        c.offsets.assign(N + 1, 0);
+        auto joins = [&](const std::array<Index, 2>& e) {
+            const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+            return mode_[a] == Mode::Curve && mode_[b] == Mode::Curve && mesh_.nodeClass[a].id == mesh_.nodeClass[b].id;
+        };
+        for (const auto& e : topo_.edges)
+            if (joins(e)) {
+                ++c.offsets[static_cast<std::size_t>(e[0]) + 1];
+                ++c.offsets[static_cast<std::size_t>(e[1]) + 1];
+            }
+        for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
+        c.items.resize(static_cast<std::size_t>(c.offsets[N]));
+        std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+        for (const auto& e : topo_.edges)
+            if (joins(e)) {
+                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[0])]++)] = e[1];
+                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[1])]++)] = e[0];
+            }
     }
 
     buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
@@ -386,6 +419,41 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     return r;
 }
 
+Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    const auto sv = static_cast<std::size_t>(v);
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double L = r.length = localEdgeLength(buf.data(), n);
+    NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+    const double f0 = objective.value(Vector3::Zero());
+    r.move.before = r.move.after = f0;
+    const std::size_t k = nodeCurveNeighbours_.size(sv);
+    if (!std::isfinite(f0) || k == 0) return r;
+    const Vec3& xv = mesh_.nodes[sv];
+    const Vector3 x(xv[0], xv[1], xv[2]);
+    Vector3 target = Vector3::Zero();
+    for (const Index* u = nodeCurveNeighbours_.begin(sv); u != nodeCurveNeighbours_.end(sv); ++u) {
+        const Vec3& p = mesh_.nodes[static_cast<std::size_t>(*u)];
+        target += Vector3(p[0], p[1], p[2]);
+    }
+    const Vector3 delta = target / static_cast<double>(k) - x;
+    if (!(delta.norm() > opt_.moveTolerance * L)) return r;
+    double omega = opt_.surfaceRelaxation;
+    for (int i = 0; i <= opt_.surfaceHalvings; ++i, omega *= 0.5) {
+        const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, omega * delta));
+        const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+        if (!d.allFinite()) continue;
+        const double f = objective.value(d);
+        if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+        r.move.displacement = d;
+        r.move.after = f;
+        r.move.steps = 1;
+        r.position = y;
+        return r;
+    }
+    return r;
+}
+
 void Smoother::untanglePhase() {
     const auto t0 = Clock::now();
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
@@ -438,6 +506,7 @@ void Smoother::untanglePhase() {
         if (count == 0) ++polish;
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
+            if (mode_[sv] == Mode::Curve) return;  // curve nodes only move in the mean-ratio phase
             const Visit r = mode_[sv] == Mode::Surface ? untangleSurfaceStep(v, buffers_->local())
                                                        : untangleStep(v, buffers_->local());
             if (r.move.steps > 0) {
@@ -493,7 +562,9 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start) {
             const auto sv = static_cast<std::size_t>(v);
             if (!active[sv]) return;
             auto& buf = buffers_->local();
-            const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf) : interiorStep(v, buf);
+            const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf)
+                            : mode_[sv] == Mode::Curve ? curveStep(v, buf)
+                                                       : interiorStep(v, buf);
             if (r.move.steps == 0) return;
             mesh_.nodes[sv] = r.position;
             gain[sv] = r.move.before - r.move.after;
