@@ -14,6 +14,7 @@
 
 #include "isohex/core/Error.hpp"
 #include "isohex/core/QuadSurface.hpp"
+#include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 
 namespace isohex::sheets {
@@ -359,30 +360,41 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
         }
     }
 
-    std::vector<Vec3> pos(3 * C);  // middle, inside copy, outside copy
+    // Middle copies: on the curve where the interface reaches a surface the
+    // mesh already has, else at the closest point of the triangles.
+    std::vector<Vec3> unitNormal(C), mid(C);
+    std::vector<double> spacing(C);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 256), [&](const auto& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
             const Index v = split[k];
             const Vec3& x = mesh.nodes[v];
-            Vec3 mid = x;
-            if (opt.project) {
-                if (midClass[k].kind == NodeKind::Curve) mid = geometry.projectToCurve(midClass[k].id, x);
-                else mid = S.closestPoint(x);
-            }
             Vec3 n = normal[k];
             if (topo.nodeOnBoundary[v]) {  // keep the copies on the mesh's boundary
                 const double bl = norm(bnormal[k]);
                 if (bl > 0) n = n - (dot(n, bnormal[k]) / (bl * bl)) * bnormal[k];
             }
             const double nl = norm(n);
-            n = nl > 0 ? (1.0 / nl) * n : Vec3{0, 0, 0};
-            const double d = opt.offset * edgeSum[k] / std::max(1, edgeCount[k]);
-            Vec3 in = mid - d * n, out = mid + d * n;
+            unitNormal[k] = nl > 0 ? (1.0 / nl) * n : Vec3{0, 0, 0};
+            spacing[k] = edgeSum[k] / std::max(1, edgeCount[k]);
+            mid[k] = x;
+            if (!opt.project) continue;
+            mid[k] = midClass[k].kind == NodeKind::Curve ? geometry.projectToCurve(midClass[k].id, x) : S.closestPoint(x);
+        }
+    });
+    // The outer copies start `offset` elements either side of the middle one
+    // along the interface normal (the seed's shrinking of both sides).
+    std::vector<Vec3> pos(3 * C);  // middle, inside copy, outside copy
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 256), [&](const auto& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) {
+            const Index v = split[k];
+            const Vec3& n = unitNormal[k];
+            const double d = opt.offset * spacing[k];
+            Vec3 in = mid[k] - d * n, out = mid[k] + d * n;
             if (opt.project && copyClass[k].kind == NodeKind::Surface && topo.nodeOnBoundary[v]) {
                 in = geometry.project(copyClass[k].id, in);
                 out = geometry.project(copyClass[k].id, out);
             }
-            pos[3 * k] = mid;
+            pos[3 * k] = mid[k];
             pos[3 * k + 1] = in;
             pos[3 * k + 2] = out;
         }

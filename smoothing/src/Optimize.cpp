@@ -234,25 +234,43 @@ void Smoother::setUp() {
     }
 
     {
-        // Curve neighbours: edges joining two curve nodes of the same curve.
+        // Curve neighbours: edges joining two curve nodes of the same curve;
+        // at the end of a chain (fewer than two), also fixed boundary nodes
+        // joined by an edge (the vertex where the curve ends).
         auto& c = nodeCurveNeighbours_;
         c.offsets.assign(N + 1, 0);
-        auto joins = [&](const std::array<Index, 2>& e) {
-            const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+        auto sameCurve = [&](std::size_t a, std::size_t b) {
             return mode_[a] == Mode::Curve && mode_[b] == Mode::Curve && mesh_.nodeClass[a].id == mesh_.nodeClass[b].id;
         };
+        std::vector<std::uint8_t> chainEnd(N, 0);
+        {
+            std::vector<std::uint8_t> count(N, 0);
+            for (const auto& e : topo_.edges)
+                if (sameCurve(static_cast<std::size_t>(e[0]), static_cast<std::size_t>(e[1])))
+                    for (Index u : e) count[static_cast<std::size_t>(u)] = static_cast<std::uint8_t>(std::min(2, count[static_cast<std::size_t>(u)] + 1));
+            for (std::size_t v = 0; v < N; ++v) chainEnd[v] = mode_[v] == Mode::Curve && count[v] < 2;
+        }
+        auto endsAt = [&](std::size_t a, std::size_t b) {
+            return chainEnd[a] && mesh_.nodeClass[b].kind == NodeKind::Fixed && topo_.nodeOnBoundary[b];
+        };
+        auto joins = [&](const std::array<Index, 2>& e) {
+            const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+            return sameCurve(a, b) || endsAt(a, b) || endsAt(b, a);
+        };
+        // Only curve nodes get rows (a fixed end node never moves).
+        auto isCurve = [&](Index v) { return mode_[static_cast<std::size_t>(v)] == Mode::Curve; };
         for (const auto& e : topo_.edges)
             if (joins(e)) {
-                ++c.offsets[static_cast<std::size_t>(e[0]) + 1];
-                ++c.offsets[static_cast<std::size_t>(e[1]) + 1];
+                if (isCurve(e[0])) ++c.offsets[static_cast<std::size_t>(e[0]) + 1];
+                if (isCurve(e[1])) ++c.offsets[static_cast<std::size_t>(e[1]) + 1];
             }
         for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
         c.items.resize(static_cast<std::size_t>(c.offsets[N]));
         std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
         for (const auto& e : topo_.edges)
             if (joins(e)) {
-                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[0])]++)] = e[1];
-                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[1])]++)] = e[0];
+                if (isCurve(e[0])) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[0])]++)] = e[1];
+                if (isCurve(e[1])) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[1])]++)] = e[0];
             }
     }
 

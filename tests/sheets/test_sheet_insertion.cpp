@@ -9,6 +9,7 @@
 #include <memory>
 #include <set>
 
+#include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
 #include "isohex/core/Dual.hpp"
