@@ -378,7 +378,25 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
             spacing[k] = edgeSum[k] / std::max(1, edgeCount[k]);
             mid[k] = x;
             if (!opt.project) continue;
-            mid[k] = midClass[k].kind == NodeKind::Curve ? geometry.projectToCurve(midClass[k].id, x) : S.closestPoint(x);
+            const NodeClass old = copyClass[k];
+            if (midClass[k].kind == NodeKind::Curve) {
+                mid[k] = geometry.projectToCurve(midClass[k].id, x);
+            } else if (midClass[k].kind == NodeKind::Fixed && old.kind == NodeKind::Curve && old.id >= 0 &&
+                       static_cast<std::size_t>(old.id) < geometry.curves.size()) {
+                // Where the new surface crosses a curve: the point on all three surfaces.
+                const auto [a, b] = geometry.curves[static_cast<std::size_t>(old.id)];
+                Vec3 p = x;
+                for (int it = 0; it < 300; ++it) {
+                    const Vec3 q = geometry.trees[static_cast<std::size_t>(b)]->closestPoint(
+                        geometry.trees[static_cast<std::size_t>(a)]->closestPoint(S.closestPoint(p)));
+                    const double step = norm(q - p);
+                    p = q;
+                    if (step <= 1e-12 * (1.0 + norm(p))) break;
+                }
+                mid[k] = p;
+            } else {
+                mid[k] = S.closestPoint(x);
+            }
         }
     });
     // The outer copies start `offset` elements either side of the middle one
@@ -393,6 +411,9 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
             if (opt.project && copyClass[k].kind == NodeKind::Surface && topo.nodeOnBoundary[v]) {
                 in = geometry.project(copyClass[k].id, in);
                 out = geometry.project(copyClass[k].id, out);
+            } else if (opt.project && copyClass[k].kind == NodeKind::Curve) {  // copies stay on the old curve
+                in = geometry.projectToCurve(copyClass[k].id, in);
+                out = geometry.projectToCurve(copyClass[k].id, out);
             }
             pos[3 * k] = mid[k];
             pos[3 * k + 1] = in;
