@@ -90,22 +90,34 @@ Vec3 SheetGeometry::projectToCurve(std::int32_t curveId, const Vec3& x) const {
 std::size_t adoptBoundary(HexMesh& mesh, SheetGeometry& geometry, double featureAngleDegrees) {
     classifyBoundaryNodes(mesh);
     const Topology topo = buildTopology(mesh);
-    // The boundary quads as triangles over the boundary nodes.
+    // Each surface (outer boundary or interface between materials) as the
+    // triangles of its quads, two per quad.
+    const std::vector<SurfacePatch> patches = surfacePatches(mesh, topo);
+    geometry.surfaceTree.assign(mesh.surfaces.size(), -1);
     std::vector<Index> local(mesh.nodeCount(), kNone);
-    std::vector<Vec3> vertices;
-    for (Index v : topo.boundaryNodes) {
-        local[static_cast<std::size_t>(v)] = static_cast<Index>(vertices.size());
-        vertices.push_back(mesh.nodes[static_cast<std::size_t>(v)]);
+    for (std::size_t s = 0; s < patches.size() && s < mesh.surfaces.size(); ++s) {
+        std::vector<Vec3> vertices;
+        std::vector<Index> used;
+        std::vector<std::array<std::int32_t, 3>> tris;
+        auto id = [&](Index v) {
+            if (local[v] == kNone) {
+                local[v] = static_cast<Index>(vertices.size());
+                vertices.push_back(mesh.nodes[v]);
+                used.push_back(v);
+            }
+            return local[v];
+        };
+        for (Index q : patches[s].quads) {
+            const auto& n = topo.quads[static_cast<std::size_t>(q)].nodes;
+            const Index a = id(n[0]), b = id(n[1]), c = id(n[2]), d = id(n[3]);
+            tris.push_back({a, b, c});
+            tris.push_back({a, c, d});
+        }
+        for (Index v : used) local[v] = kNone;
+        if (tris.empty()) continue;
+        geometry.surfaceTree[s] = geometry.addTree(
+            std::make_shared<TriangleTree>(std::move(vertices), std::move(tris), surfaceName(mesh.surfaces[s])));
     }
-    std::vector<std::array<std::int32_t, 3>> tris;
-    for (Index q : topo.boundaryQuads) {
-        const auto& n = topo.quads[static_cast<std::size_t>(q)].nodes;
-        tris.push_back({local[n[0]], local[n[1]], local[n[2]]});
-        tris.push_back({local[n[0]], local[n[2]], local[n[3]]});
-    }
-    if (tris.empty()) throw Error("the mesh has no boundary");
-    const std::int32_t id = geometry.addTree(std::make_shared<TriangleTree>(std::move(vertices), std::move(tris), "mesh boundary"));
-    geometry.surfaceTree.assign(mesh.surfaces.size(), id);
 
     // Sharp boundary edges: the two boundary quads meet at more than the angle.
     const double cosLimit = std::cos(featureAngleDegrees * M_PI / 180.0);
@@ -338,6 +350,7 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
     const std::int32_t newTree = geometry.addTree(surface);
     const auto newSurface = static_cast<std::int32_t>(mesh.surfaces.size());
     std::map<std::int32_t, std::int32_t> curveOf;  // old tree -> curve id
+    const auto firstCurve = static_cast<std::int32_t>(geometry.curves.size());
     std::vector<NodeClass> midClass(C), copyClass(C);
     for (std::size_t k = 0; k < C; ++k) {
         const Index v = split[k];
@@ -509,7 +522,7 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
 
     for (const NodeClass& c : out.nodeClass) {
         if (c.kind == NodeKind::Surface && c.id == newSurface) ++res.surfaceNodes;
-        else if (c.kind == NodeKind::Curve && !curveOf.empty() && c.id >= curveOf.begin()->second) ++res.curveNodes;
+        else if (c.kind == NodeKind::Curve && c.id >= firstCurve) ++res.curveNodes;
     }
     for (const auto& c : midClass) res.fixedNodes += c.kind == NodeKind::Fixed;
     res.sheetHexes = 2 * iface.size() - (opt.keep == Keep::Both ? 0 : iface.size());

@@ -45,12 +45,13 @@ struct SheetGeometry final : smoothing::SurfaceProjector {
     std::int32_t addTree(std::shared_ptr<const TriangleTree> tree);
 };
 
-// Makes the boundary of a mesh read from a file a surface the smoother can
+// Makes the surfaces of a mesh read from a file surfaces the smoother can
 // keep nodes on: classifies boundary nodes (classifyBoundaryNodes), puts the
-// boundary quads (two triangles each) in one tree that every existing surface
-// maps to, and fixes nodes on sharp boundary edges (dihedral angle above
-// `featureAngleDegrees`) and on curves between existing surfaces, whose
-// geometry is not known. Returns the number of nodes fixed.
+// quads of each surface (outer boundary per material, interfaces between
+// materials; two triangles a quad) in a tree of its own, and fixes nodes on
+// sharp boundary edges (dihedral angle above `featureAngleDegrees`) and on
+// curves between existing surfaces, whose geometry is not known. Returns the
+// number of nodes fixed.
 std::size_t adoptBoundary(HexMesh& mesh, SheetGeometry& geometry, double featureAngleDegrees = 30.0);
 
 enum class Intersected { Auto, Side1, Side2 };  // Side1 = inside the surface
