@@ -12,7 +12,7 @@ PACKAGES=(
   # libraries isohex links
   libopenvdb-dev libboost-iostreams-dev libinsighttoolkit5-dev libeigen3-dev libtbb-dev
   libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libcsv-dev
-  libvtk9-dev libgmsh-dev libexodusii-dev libnetcdf-dev
+  libvtk9-dev libgmsh-dev libexodusii-dev libnetcdf-dev libcgal-dev
   libgtest-dev
   # independent tools the tests check isohex's output with
   python3 python3-numpy python3-vtk9 python3-meshio gmsh calculix-ccx snakemake

@@ -42,8 +42,10 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
                                       "that keeps the surface's topology")
         ->group(grid);
     cmd->add_option("--level", s.level, "Grid level: elements 2^level voxels wide (instead of --size)")->group(grid);
-    cmd->add_option("--method", s.method, "dual (dual contouring, default) or voxel (one cube per voxel, a baseline)")
-        ->check(CLI::IsMember({"dual", "voxel"}))
+    cmd->add_option("--method", s.method,
+                    "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets "
+                    "(surfaces only: a grid cut by two sheets along the triangles, seed 5.4)")
+        ->check(CLI::IsMember({"dual", "voxel", "sheets"}))
         ->group(grid);
     cmd->add_flag("!--no-pillow", s.pillow, "Do not insert the fundamental boundary sheet")->group(grid);
     cmd->add_option("--boundary-layers", s.boundaryLayers, "Layers of hexes in the boundary sheet (default 1)")

@@ -1,4 +1,5 @@
 #include "Pipeline.hpp"
+#include "SheetMethod.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -570,6 +571,7 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
 }
 
 MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    if (settings.method == "sheets") return runSheetMethod(input, settings, sink);  // SheetMethod.cpp
     const auto t0 = Clock::now();
     Prepared p = prepare(input, settings, sink);
     MeshOutcome out;

@@ -23,7 +23,7 @@ struct MeshSettings {
     imaging::SelectOptions select;
     std::optional<double> size;   // element edge length in world units
     std::optional<int> level;     // grid step 2^level voxels (exclusive with size)
-    std::string method = "dual";  // "dual" (dual contouring) or "voxel" (one hex per voxel, the baseline)
+    std::string method = "dual";  // "dual" (dual contouring), "voxel" (one hex per voxel, the baseline), "sheets" (surfaces)
     bool keepLargest = false;     // only the largest connected region of each material
     bool pillow = true;
     int boundaryLayers = 1;

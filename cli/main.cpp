@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
     addCompareCommand(app);
     addSmoothCommand(app);
     addBatchCommand(app);
+    addInsertSheetCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -25,8 +25,10 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// Curve: a node on a curve (where three materials or two surfaces meet); it
-// moves only in the last-resort untangling, like a released surface node.
+// Curve: a node on a curve (where three materials or two surfaces meet). With
+// a projector that knows curves it slides along its curve in the mean-ratio
+// phase; in any case it may move in the last-resort untangling, like a
+// released surface node.
 enum class Mode : std::uint8_t { Frozen, Interior, Surface, Curve };
 
 // Fixed-size blocks summed in parallel, block sums added in block order: the
@@ -122,6 +124,8 @@ private:
     Visit surfaceStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit untangleStep(Index v, std::vector<CornerTerm>& buf) const;
     Visit untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const;
+    // A curve node: towards the mean of its curve neighbours, then onto the curve.
+    Visit curveStep(Index v, std::vector<CornerTerm>& buf) const;
     // Area-weighted centroid and unit normal of the node's surface quads; false if it has none.
     bool surfaceFrame(std::size_t v, Vector3& centroid, Vector3& normal) const;
     static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
@@ -154,6 +158,7 @@ private:
     std::vector<Mode> mode_;
     NodeColouring colouring_;
     Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
+    Csr nodeCurveNeighbours_;  // per Curve node, the nodes joined to it by an edge of the same curve
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
     std::vector<std::uint8_t> everMoved_;
@@ -192,7 +197,8 @@ void Smoother::setUp() {
                 }
                 break;
             case NodeKind::Curve:
-                if (!opt_.fixBoundary && projector_ && opt_.untangle && opt_.releaseSurfaceToUntangle)
+                if (!opt_.fixBoundary && projector_ &&
+                    (projector_->hasCurves() || (opt_.untangle && opt_.releaseSurfaceToUntangle)))
                     mode_[v] = Mode::Curve;
                 break;
             default: break;
@@ -230,9 +236,13 @@ void Smoother::setUp() {
         }
         auto& c = nodeSurfaceQuads_;
         c.offsets.assign(N + 1, 0);
+        // Several surfaces may share a material pair (a block's faces and a
+        // cut both bound material 1): match quads to a node by the pair.
         auto uses = [&](std::size_t q, Index v) {
-            return mode_[static_cast<std::size_t>(v)] == Mode::Surface && quadSurface[q] >= 0 &&
-                   quadSurface[q] == mesh_.nodeClass[static_cast<std::size_t>(v)].id;
+            if (mode_[static_cast<std::size_t>(v)] != Mode::Surface || quadSurface[q] < 0) return false;
+            const SurfaceTag& a = mesh_.surfaces[static_cast<std::size_t>(quadSurface[q])];
+            const SurfaceTag& b = mesh_.surfaces[static_cast<std::size_t>(mesh_.nodeClass[static_cast<std::size_t>(v)].id)];
+            return a.inside == b.inside && a.outside == b.outside;
         };
         for (std::size_t q = 0; q < topo_.quads.size(); ++q)
             for (Index v : topo_.quads[q].nodes)
@@ -243,6 +253,47 @@ void Smoother::setUp() {
         for (std::size_t q = 0; q < topo_.quads.size(); ++q)
             for (Index v : topo_.quads[q].nodes)
                 if (uses(q, v)) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(q);
+    }
+
+    {
+        // Curve neighbours: edges joining two curve nodes of the same curve;
+        // at the end of a chain (fewer than two), also fixed boundary nodes
+        // joined by an edge (the vertex where the curve ends).
+        auto& c = nodeCurveNeighbours_;
+        c.offsets.assign(N + 1, 0);
+        auto sameCurve = [&](std::size_t a, std::size_t b) {
+            return mode_[a] == Mode::Curve && mode_[b] == Mode::Curve && mesh_.nodeClass[a].id == mesh_.nodeClass[b].id;
+        };
+        std::vector<std::uint8_t> chainEnd(N, 0);
+        {
+            std::vector<std::uint8_t> count(N, 0);
+            for (const auto& e : topo_.edges)
+                if (sameCurve(static_cast<std::size_t>(e[0]), static_cast<std::size_t>(e[1])))
+                    for (Index u : e) count[static_cast<std::size_t>(u)] = static_cast<std::uint8_t>(std::min(2, count[static_cast<std::size_t>(u)] + 1));
+            for (std::size_t v = 0; v < N; ++v) chainEnd[v] = mode_[v] == Mode::Curve && count[v] < 2;
+        }
+        auto endsAt = [&](std::size_t a, std::size_t b) {
+            return chainEnd[a] && mesh_.nodeClass[b].kind == NodeKind::Fixed && topo_.nodeOnBoundary[b];
+        };
+        auto joins = [&](const std::array<Index, 2>& e) {
+            const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+            return sameCurve(a, b) || endsAt(a, b) || endsAt(b, a);
+        };
+        // Only curve nodes get rows (a fixed end node never moves).
+        auto isCurve = [&](Index v) { return mode_[static_cast<std::size_t>(v)] == Mode::Curve; };
+        for (const auto& e : topo_.edges)
+            if (joins(e)) {
+                if (isCurve(e[0])) ++c.offsets[static_cast<std::size_t>(e[0]) + 1];
+                if (isCurve(e[1])) ++c.offsets[static_cast<std::size_t>(e[1]) + 1];
+            }
+        for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
+        c.items.resize(static_cast<std::size_t>(c.offsets[N]));
+        std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+        for (const auto& e : topo_.edges)
+            if (joins(e)) {
+                if (isCurve(e[0])) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[0])]++)] = e[1];
+                if (isCurve(e[1])) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(e[1])]++)] = e[0];
+            }
     }
 
     buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
@@ -415,9 +466,11 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
 void Smoother::returnToSurface() {
     auto& buf = buffers_->local();
     for (std::size_t v = 0; v < released_.size(); ++v) {
-        if (!released_[v] || mode_[v] != Mode::Surface) continue;  // no projector for curves
+        if (!released_[v]) continue;
+        if (mode_[v] == Mode::Curve && !projector_->hasCurves()) continue;  // nowhere to return to
         const Vec3& x = mesh_.nodes[v];
-        const Vec3 y = projector_->project(mesh_.nodeClass[v].id, x);
+        const Vec3 y = mode_[v] == Mode::Curve ? projector_->projectToCurve(mesh_.nodeClass[v].id, x)
+                                               : projector_->project(mesh_.nodeClass[v].id, x);
         const Vector3 full(y[0] - x[0], y[1] - x[1], y[2] - x[2]);
         if (!full.allFinite()) continue;
         const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, static_cast<Index>(v), buf.data());
@@ -430,6 +483,41 @@ void Smoother::returnToSurface() {
                 break;
             }
     }
+}
+
+Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r;
+    const auto sv = static_cast<std::size_t>(v);
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double L = r.length = localEdgeLength(buf.data(), n);
+    NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+    const double f0 = objective.value(Vector3::Zero());
+    r.move.before = r.move.after = f0;
+    const std::size_t k = nodeCurveNeighbours_.size(sv);
+    if (!std::isfinite(f0) || k == 0) return r;
+    const Vec3& xv = mesh_.nodes[sv];
+    const Vector3 x(xv[0], xv[1], xv[2]);
+    Vector3 target = Vector3::Zero();
+    for (const Index* u = nodeCurveNeighbours_.begin(sv); u != nodeCurveNeighbours_.end(sv); ++u) {
+        const Vec3& p = mesh_.nodes[static_cast<std::size_t>(*u)];
+        target += Vector3(p[0], p[1], p[2]);
+    }
+    const Vector3 delta = target / static_cast<double>(k) - x;
+    if (!(delta.norm() > opt_.moveTolerance * L)) return r;
+    double omega = opt_.surfaceRelaxation;
+    for (int i = 0; i <= opt_.surfaceHalvings; ++i, omega *= 0.5) {
+        const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, omega * delta));
+        const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+        if (!d.allFinite()) continue;
+        const double f = objective.value(d);
+        if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+        r.move.displacement = d;
+        r.move.after = f;
+        r.move.steps = 1;
+        r.position = y;
+        return r;
+    }
+    return r;
 }
 
 void Smoother::untanglePhase() {
@@ -566,9 +654,11 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         std::atomic<std::size_t> updates{0};
         sweepColours(colouring_.classes, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
-            if (!active[sv] || mode_[sv] == Mode::Curve) return;
+            if (!active[sv] || (mode_[sv] == Mode::Curve && !projector_->hasCurves())) return;
             auto& buf = buffers_->local();
-            const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf) : interiorStep(v, buf);
+            const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf)
+                            : mode_[sv] == Mode::Curve ? curveStep(v, buf)
+                                                       : interiorStep(v, buf);
             if (r.move.steps == 0) return;
             mesh_.nodes[sv] = r.position;
             gain[sv] = r.move.before - r.move.after;

@@ -14,6 +14,16 @@ struct SurfaceProjector {
     // so it must be thread-safe, and deterministic so that smoothing results do
     // not depend on the thread count.
     virtual Vec3 project(std::int32_t surfaceId, const Vec3& x) const = 0;
+
+    // Curves (NodeKind::Curve, NodeClass::id names the curve): a projector
+    // that knows them answers true here and gives the point of curve
+    // `curveId` closest to `x`; the smoother then slides curve nodes along
+    // their curve. Projectors that do not (the default) keep curve nodes fixed.
+    virtual bool hasCurves() const { return false; }
+    virtual Vec3 projectToCurve(std::int32_t curveId, const Vec3& x) const {
+        (void)curveId;
+        return x;
+    }
 };
 
 }  // namespace isohex::smoothing

@@ -1,0 +1,102 @@
+// isohex insert-sheet --mesh IN --surface S.stl [--surface T.stl ...] -o OUT:
+// the seed's sheet insertion along triangle surfaces into an existing hex mesh
+// (section 5.4), several surfaces in turn (chapter 6), then smoothing with
+// surface nodes on their triangles and curve nodes on their curves.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "Commands.hpp"
+#include "Progress.hpp"
+#include "SheetMethod.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Validate.hpp"
+#include "isohex/sheets/SheetInsertion.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+
+namespace isohex::cli {
+
+namespace {
+struct InsertSheetArgs {
+    std::string mesh, output;
+    std::vector<std::string> surfaces;
+    std::string keep = "both", intersected = "auto";
+    bool optimize = true, force = false, quiet = false;
+    int threads = 0;
+};
+}  // namespace
+
+void addInsertSheetCommand(CLI::App& app) {
+    auto a = std::make_shared<InsertSheetArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "insert-sheet", "Insert two hex sheets along closed triangle surfaces into a hex mesh (seed 5.4, chapter 6)");
+    cmd->add_option("--mesh", a->mesh, "Hex mesh to cut (.vtu .msh .exo .inp .mesh)")->required();
+    cmd->add_option("--surface", a->surfaces,
+                    "Closed triangle surface (.stl .obj .ply .off); repeat to insert several in turn")
+        ->required();
+    cmd->add_option("-o,--output", a->output, "Where to write the result; the format follows the extension")->required();
+    cmd->add_option("--keep", a->keep, "Which side of each surface to keep: inside, outside or both (default)")
+        ->check(CLI::IsMember({"inside", "outside", "both"}));
+    cmd->add_option("--intersected", a->intersected,
+                    "Hexes cut by the surface join: auto (the side of their centroid, default), side1 (inside) "
+                    "or side2 (outside)")
+        ->check(CLI::IsMember({"auto", "side1", "side2"}));
+    cmd->add_flag("!--no-optimize", a->optimize, "Skip untangling and optimisation");
+    cmd->add_flag("--force", a->force, "Overwrite an existing output");
+    cmd->add_flag("-q,--quiet", a->quiet, "No progress output");
+    cmd->add_option("--threads", a->threads, "Worker threads (results do not depend on it)")->check(CLI::Range(1, 1024));
+    cmd->callback([a] {
+        applyThreads(a->threads);
+        const auto t0 = std::chrono::steady_clock::now();
+        io::formatFromPath(a->output);
+        if (!a->force && std::filesystem::exists(a->output))
+            throw Error(a->output + ": file exists; refusing to overwrite it (use --force to replace it)");
+        if (!std::filesystem::exists(a->mesh)) throw Error(a->mesh + ": no such file; check the path");
+        // Every surface is read and checked before any work.
+        std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;
+        for (const auto& s : a->surfaces) trees.push_back(loadTriangleTree(s));
+        HexMesh mesh = io::read(a->mesh);
+        sheets::SheetGeometry geometry;
+        sheets::adoptBoundary(mesh, geometry);
+        sheets::InsertOptions o;
+        o.keep = a->keep == "inside" ? sheets::Keep::Inside : a->keep == "outside" ? sheets::Keep::Outside : sheets::Keep::Both;
+        o.intersected = a->intersected == "side1"   ? sheets::Intersected::Side1
+                        : a->intersected == "side2" ? sheets::Intersected::Side2
+                                                    : sheets::Intersected::Auto;
+        for (const auto& t : trees) {
+            const sheets::InsertResult r = sheets::insertSheets(mesh, geometry, t, o);
+            std::printf("%s: %zu hexes cut, %zu moved for manifold sides (%zu edges, %zu nodes), %zu sheet hexes, "
+                        "%zu surface and %zu curve nodes, %.2f s\n",
+                        t->name().c_str(), r.intersectedHexes, r.hexesMoved, r.nonManifoldEdgesFixed,
+                        r.nonManifoldNodesFixed, r.sheetHexes, r.surfaceNodes, r.curveNodes, r.seconds);
+        }
+        std::size_t invertedBefore = 0, invertedAfter = 0;
+        if (a->optimize) {
+            ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
+            sink.begin("optimize");
+            const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, [&](std::string_view, double f) { sink.progress(f); });
+            sink.end("optimize", r.seconds);
+            invertedBefore = r.invertedBefore;
+            invertedAfter = r.invertedAfter;
+        }
+        const HexQuality q = computeQuality(mesh);
+        const QualitySummary s = summarize(mesh, q);
+        const ValidityReport v = validate(mesh);
+        io::WriteOptions w;
+        w.overwrite = a->force;
+        w.scaledJacobian = q.scaledJacobian;
+        io::write(mesh, a->output, w);
+        std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu inverted (%zu before smoothing), %s, %.1f s\n",
+                    a->output.c_str(), s.hexes, s.scaledJacobian.min, s.scaledJacobian.mean, s.inverted,
+                    invertedBefore, v.ok() ? "valid" : "validity defects",
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        (void)invertedAfter;
+        std::printf("wrote %s\n", a->output.c_str());
+        if (!v.ok()) std::printf("warning: validity defects: %s\n", toJson(v)["defects"].dump().c_str());
+    });
+}
+
+}  // namespace isohex::cli
