@@ -175,6 +175,13 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
 
 bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials(mat) == 0; }
 
+bool uniformBlock(const std::array<std::int32_t, 8>& mat) {
+    for (int c = 1; c < 8; ++c)
+        if (mat[c] != mat[0]) return false;
+    return true;
+}
+
+// Lowest-corner indices of the non-manifold blocks, sorted.
 std::vector<std::size_t> badBlocks(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
     tbb::enumerable_thread_specific<std::vector<std::size_t>> local;
@@ -182,16 +189,40 @@ std::vector<std::size_t> badBlocks(const Labels& l) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nz - 1), [&](const auto& r) {
         auto& out = local.local();
         for (int k = r.begin(); k != r.end(); ++k)
-            for (int j = 0; j < ny - 1; ++j)
+            for (int j = 0; j < ny - 1; ++j) {
+                // rows of the two z-layers of the blocks, x fastest
+                const std::int32_t* row[4] = {&l.material[l.grid.index(0, j, k)], &l.material[l.grid.index(0, j + 1, k)],
+                                              &l.material[l.grid.index(0, j, k + 1)],
+                                              &l.material[l.grid.index(0, j + 1, k + 1)]};
                 for (int i = 0; i < nx - 1; ++i) {
+                    const std::int32_t m0 = row[0][i];
+                    if (row[0][i + 1] == m0 && row[1][i] == m0 && row[1][i + 1] == m0 && row[2][i] == m0 &&
+                        row[2][i + 1] == m0 && row[3][i] == m0 && row[3][i + 1] == m0)
+                        continue;  // uniform: manifold
                     const BlockView b = block(l, i, j, k);
                     if (!blockManifold(b.mat)) out.push_back(l.grid.index(i, j, k));
                 }
+            }
     });
     std::vector<std::size_t> all;
     for (auto& v : local) all.insert(all.end(), v.begin(), v.end());
     std::sort(all.begin(), all.end());
     return all;
+}
+
+// The non-manifold blocks among `candidates` (lowest-corner indices), sorted.
+std::vector<std::size_t> badBlocksAmong(const Labels& l, std::vector<std::size_t> candidates) {
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    const auto [nx, ny, nz] = l.grid.dims;
+    std::vector<std::size_t> out;
+    for (std::size_t b : candidates) {
+        const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+        if (i >= nx - 1 || j >= ny - 1 || k >= nz - 1) continue;
+        const BlockView v = block(l, i, j, k);
+        if (!uniformBlock(v.mat) && !blockManifold(v.mat)) out.push_back(b);
+    }
+    return out;
 }
 
 }  // namespace
@@ -251,8 +282,12 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
     std::vector<std::uint8_t> flips(labels.material.size(), 0);
     constexpr int kMaxRounds = 200;
     constexpr int kMaxFlipsPerPoint = 4;
+    // A block can only turn bad when one of its points changes, so after the
+    // first full scan each round looks at the blocks still bad and the blocks
+    // around the points the previous round changed (the same set a full scan finds).
+    std::vector<std::size_t> bad = badBlocks(labels);
     for (int round = 0;; ++round) {
-        const std::vector<std::size_t> bad = badBlocks(labels);
+        if (round > 0) bad = badBlocksAmong(labels, std::move(bad));
         if (round == 0) rep.nonManifoldBefore = bad.size();
         if (bad.empty()) {
             rep.rounds = round;
@@ -330,6 +365,13 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             labels.material[p] = bestMat;
             ++flips[p];
             touched.insert(p);
+        }
+        for (std::size_t p : touched) {
+            const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+            for (int c = 0; c < 8; ++c) {
+                const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+                if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
+            }
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +

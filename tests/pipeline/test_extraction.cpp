@@ -1,0 +1,335 @@
+// The extraction (octree labels + dual contouring, before the sheet and the
+// optimiser) on the phantoms and the real scans, checked against things
+// isohex does not compute itself:
+//  * the topology (components, Euler characteristic) of every material's
+//    boundary against that of OpenVDB's volumeToMesh surface of the same
+//    field sampled at the grid points isohex uses;
+//  * the distance of boundary corners to the field's zero set;
+//  * validate() on ch2bet at 2 mm and 1 mm with --keep-largest.
+// Figures are printed with the prefix "[figures]" (bench and reports quote them).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <numeric>
+#include <set>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/VolumeToMesh.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "Pipeline.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/core/Validate.hpp"
+
+using namespace isohex;
+
+namespace {
+
+std::string sharedData() {
+    if (const char* env = std::getenv("ISOHEX_SHARED_DATA")) return env;
+    return "../shared/data";
+}
+std::string phantoms() {
+    if (const char* env = std::getenv("ISOHEX_PHANTOMS")) return env;
+    return ISOHEX_PHANTOMS_DIR;
+}
+
+struct QuietSink : cli::StageSink {
+    void begin(std::string_view) override {}
+    void progress(double) override {}
+    void end(std::string_view, double) override {}
+    void note(std::string_view, const std::string&) override {}
+};
+
+struct Extracted {
+    cli::Prepared p;
+    HexMesh mesh;
+};
+
+Extracted extractOnly(const std::string& input, cli::MeshSettings s) {
+    if (!std::filesystem::exists(input)) throw std::runtime_error("missing input " + input);
+    s.pillow = false;
+    s.optimize = false;
+    QuietSink sink;
+    Extracted r;
+    r.p = cli::prepare(input, s, sink);
+    r.mesh = cli::extract(r.p, s, sink);
+    return r;
+}
+
+// Components and Euler characteristic V - E + F of a polygon surface given
+// by vertex ids (vertices shared between polygons by id).
+struct SurfaceTopology {
+    std::size_t components = 0;
+    long long euler = 0;
+    std::size_t faces = 0;
+};
+
+template <class Polygons>
+SurfaceTopology polygonTopology(const Polygons& polys) {
+    std::map<std::size_t, std::size_t> vid;  // compact vertex ids
+    std::vector<std::size_t> parent;
+    auto id = [&](std::size_t v) {
+        auto [it, fresh] = vid.emplace(v, parent.size());
+        if (fresh) parent.push_back(parent.size());
+        return it->second;
+    };
+    auto find = [&](std::size_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    std::set<std::pair<std::size_t, std::size_t>> edges;
+    SurfaceTopology t;
+    for (const auto& poly : polys) {
+        ++t.faces;
+        const std::size_t n = poly.size();
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::size_t a = id(poly[i]), b = id(poly[(i + 1) % n]);
+            edges.emplace(std::min(a, b), std::max(a, b));
+            const std::size_t ra = find(a), rb = find(b);
+            if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+        }
+    }
+    for (std::size_t v = 0; v < parent.size(); ++v) t.components += find(v) == v;
+    t.euler = static_cast<long long>(parent.size()) - static_cast<long long>(edges.size()) +
+              static_cast<long long>(t.faces);
+    return t;
+}
+
+// The boundary of material m's hexes: boundary quads of its hexes and the
+// interface quads it shares with another material.
+SurfaceTopology meshRegionTopology(const HexMesh& mesh, const Topology& topo, std::int32_t m) {
+    std::vector<std::vector<std::size_t>> polys;
+    for (const Quad& q : topo.quads) {
+        const std::int32_t a = mesh.material[q.hex[0]];
+        const std::int32_t b = q.boundary() ? -1 : mesh.material[q.hex[1]];
+        if (a == b || (a != m && b != m)) continue;
+        polys.push_back({q.nodes[0], q.nodes[1], q.nodes[2], q.nodes[3]});
+    }
+    return polygonTopology(polys);
+}
+
+// The field sampled at the extraction grid's points (the grid's outer layer
+// outside, as sampleLabels does), as an OpenVDB grid with the grid's own
+// (possibly anisotropic, oblique) transform.
+openvdb::FloatGrid::Ptr sampleOnGrid(const octree::Grid& g, const imaging::ImplicitField& f) {
+    openvdb::math::Mat4d mat = openvdb::math::Mat4d::identity();
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) mat(a, c) = g.axes[a][c];
+    for (int c = 0; c < 3; ++c) mat(3, c) = g.origin[c];
+    auto grid = openvdb::FloatGrid::create(1.0f);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(mat));
+    const auto [nx, ny, nz] = g.dims;
+    std::vector<float> v(g.size(), 1.0f);
+    tbb::parallel_for(1, nz - 1, [&](int k) {
+        for (int j = 1; j < ny - 1; ++j)
+            for (int i = 1; i < nx - 1; ++i) v[g.index(i, j, k)] = static_cast<float>(f.value(g.point(i, j, k)));
+    });
+    auto acc = grid->getAccessor();
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) acc.setValue(openvdb::Coord(i, j, k), v[g.index(i, j, k)]);
+    return grid;
+}
+
+SurfaceTopology vdbTopology(const openvdb::FloatGrid& grid) {
+    std::vector<openvdb::Vec3s> pts;
+    std::vector<openvdb::Vec3I> tris;
+    std::vector<openvdb::Vec4I> quads;
+    openvdb::tools::volumeToMesh(grid, pts, tris, quads, 0.0);
+    std::vector<std::vector<std::size_t>> polys;
+    for (const auto& t : tris) polys.push_back({t[0], t[1], t[2]});
+    for (const auto& q : quads) polys.push_back({q[0], q[1], q[2], q[3]});
+    return polygonTopology(polys);
+}
+
+// Distances (in voxels of the scan) of the corners of every boundary quad
+// against the outside to their material's zero set, split by why a corner
+// may be off: the labels of its cell's 8 grid points differ from a fresh
+// sampling of the scan (non-manifold repair or --keep-largest changed them),
+// or the cell holds three or more materials, or neither ("plain").
+struct CornerFigures {
+    std::size_t plain = 0, changed = 0, multi = 0;
+    std::size_t plainOver = 0, changedOver = 0, multiOver = 0;  // beyond 0.1 voxel
+    double plainMax = 0, changedMax = 0, multiMax = 0, plainMean = 0, allMean = 0;
+};
+
+CornerFigures cornerDistances(const Extracted& r) {
+    const HexMesh& mesh = r.mesh;
+    const Topology topo = buildTopology(mesh);
+    const octree::Grid& g = r.p.labels.grid;
+    const octree::Labels fresh = octree::sampleLabels(*r.p.domain, g);
+    // node -> the material whose outer boundary it is a corner of (first seen)
+    std::vector<std::int32_t> boundaryOf(mesh.nodeCount(), 0);
+    for (Index q : topo.boundaryQuads)
+        for (Index v : topo.quads[q].nodes)
+            if (boundaryOf[v] == 0) boundaryOf[v] = mesh.material[topo.quads[q].hex[0]];
+    std::vector<Index> nodes;
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+        if (boundaryOf[v] > 0) nodes.push_back(static_cast<Index>(v));
+    // world -> cell: cell c spans grid points c-1 .. c
+    const double* ax[3] = {g.axes[0].data(), g.axes[1].data(), g.axes[2].data()};
+    const double det = g.determinant();
+    double inv[3][3];
+    for (int a = 0; a < 3; ++a) {
+        const double* u = ax[(a + 1) % 3];
+        const double* w = ax[(a + 2) % 3];
+        inv[a][0] = (u[1] * w[2] - u[2] * w[1]) / det;
+        inv[a][1] = (u[2] * w[0] - u[0] * w[2]) / det;
+        inv[a][2] = (u[0] * w[1] - u[1] * w[0]) / det;
+    }
+    const auto& sel = *r.p.selection;
+    std::vector<double> dist(nodes.size());
+    std::vector<int> kind(nodes.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size()), [&](const auto& range) {
+        for (std::size_t n = range.begin(); n != range.end(); ++n) {
+            const Vec3& x = mesh.nodes[nodes[n]];
+            const imaging::ImplicitField* f = nullptr;
+            for (const auto& m : sel.materials)
+                if (m.id == boundaryOf[nodes[n]]) f = &m.field;
+            imaging::ProjectOptions o;
+            o.maxDistanceVoxels = 20;
+            const imaging::Projection pr = f->projectDetailed(x, o);
+            // not converged: no surface within 20 voxels (a flat field around the corner)
+            dist[n] = pr.converged ? pr.distance / f->voxelSize() : 20.0;
+            int c[3];
+            const Vec3 d{x[0] - g.origin[0], x[1] - g.origin[1], x[2] - g.origin[2]};
+            for (int a = 0; a < 3; ++a) c[a] = static_cast<int>(std::floor(inv[a][0] * d[0] + inv[a][1] * d[1] + inv[a][2] * d[2])) + 1;
+            bool changed = false;
+            std::set<std::int32_t> mats;
+            for (int k = 0; k < 8; ++k) {
+                const int i = c[0] - 1 + (k & 1), j = c[1] - 1 + (k >> 1 & 1), l = c[2] - 1 + (k >> 2 & 1);
+                const bool in = i >= 0 && j >= 0 && l >= 0 && i < g.dims[0] && j < g.dims[1] && l < g.dims[2];
+                const std::int32_t now = in ? r.p.labels.material[g.index(i, j, l)] : 0;
+                const std::int32_t was = in ? fresh.material[g.index(i, j, l)] : 0;
+                changed = changed || now != was;
+                mats.insert(now);
+            }
+            kind[n] = changed ? 1 : mats.size() > 2 ? 2 : 0;
+            if (std::getenv("ISOHEX_DEBUG_CORNERS") && kind[n] == 0 && dist[n] > 0.1) {
+                std::string line = "[debug] x " + std::to_string(x[0]) + " " + std::to_string(x[1]) + " " + std::to_string(x[2]) +
+                                   " d " + std::to_string(dist[n]) + " F(x) " + std::to_string(f->value(x)) + " u";
+                for (int a = 0; a < 3; ++a) line += " " + std::to_string(inv[a][0] * d[0] + inv[a][1] * d[1] + inv[a][2] * d[2] - (c[a] - 1));
+                line += " corners";
+                for (int k = 0; k < 8; ++k) {
+                    const Vec3 q = g.point(c[0] - 1 + (k & 1), c[1] - 1 + (k >> 1 & 1), c[2] - 1 + (k >> 2 & 1));
+                    line += " " + std::to_string(f->value(q));
+                }
+                line += "\n";
+                std::cout << line;
+            }
+        }
+    });
+    CornerFigures f;
+    for (std::size_t n = 0; n < nodes.size(); ++n) {
+        const double d = dist[n];
+        const bool over = d > 0.1;
+        f.allMean += d;
+        if (kind[n] == 1) {
+            ++f.changed;
+            f.changedOver += over;
+            f.changedMax = std::max(f.changedMax, d);
+        } else if (kind[n] == 2) {
+            ++f.multi;
+            f.multiOver += over;
+            f.multiMax = std::max(f.multiMax, d);
+        } else {
+            ++f.plain;
+            f.plainOver += over;
+            f.plainMax = std::max(f.plainMax, d);
+            f.plainMean += d;
+        }
+    }
+    f.allMean /= std::max<std::size_t>(nodes.size(), 1);
+    f.plainMean /= std::max<std::size_t>(f.plain, 1);
+    return f;
+}
+
+void print(const std::string& name, const CornerFigures& c) {
+    std::cout << "[figures] " << name << " corners: plain " << c.plain << " (>0.1 vox: " << c.plainOver
+              << ", max " << c.plainMax << ", mean " << c.plainMean << "), changed-by-repair " << c.changed
+              << " (>0.1: " << c.changedOver << ", max " << c.changedMax << "), 3+ materials " << c.multi
+              << " (>0.1: " << c.multiOver << ", max " << c.multiMax << "), mean all " << c.allMean << "\n";
+}
+
+bool topologicallyValid(const HexMesh& m, std::size_t* inverted = nullptr) {
+    ValidityReport v = validate(m);
+    if (inverted) *inverted = v.defects.count("inverted_hex") ? v.defects.at("inverted_hex").count : 0;
+    v.defects.erase("inverted_hex");
+    if (!v.ok()) ADD_FAILURE() << toJson(v).dump();
+    return v.ok();
+}
+
+struct Case {
+    std::string name;
+    std::string input;
+    cli::MeshSettings settings;
+};
+
+cli::MeshSettings intensity(std::optional<double> iso, std::optional<double> size, bool keepLargest = false) {
+    cli::MeshSettings s;
+    s.select.iso = iso;
+    s.size = size;
+    s.keepLargest = keepLargest;
+    return s;
+}
+cli::MeshSettings labels() {
+    cli::MeshSettings s;
+    s.load.labels = true;
+    return s;
+}
+
+std::vector<Case> cases() {
+    const std::string ph = phantoms() + "/", sd = sharedData() + "/";
+    return {{"sphere", ph + "sphere.nii.gz", intensity(50, 1.5)},
+            {"torus", ph + "torus.nii.gz", intensity(50, 1.5)},
+            {"two_spheres", ph + "two_spheres.nii.gz", intensity(50, 1.5)},
+            {"thin_plate", ph + "thin_plate.nii.gz", intensity(50, 1.5)},
+            {"skull_ct", sd + "skull_ct.nii.gz", intensity(2.9, std::nullopt)},
+            {"ch2bet_2mm", sd + "ch2bet.nii.gz", intensity(std::nullopt, 2.0)},
+            {"jhu_labels", sd + "JHU-WhiteMatter-labels-2mm.nii.gz", labels()}};
+}
+
+class Extraction : public ::testing::TestWithParam<Case> {};
+
+}  // namespace
+
+// On every input: a topologically valid mesh; the components and Euler
+// characteristic of every material's boundary equal those of OpenVDB's
+// polygonisation of the same field at the same grid points; and the corners of
+// the boundary quads lie on the isosurface (0.1 voxel) wherever the labels of
+// their cell are the scan's own (see CornerFigures).
+TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
+    const Case& c = GetParam();
+    const Extracted r = extractOnly(c.input, c.settings);
+    std::size_t inverted = 0;
+    EXPECT_TRUE(topologicallyValid(r.mesh, &inverted));
+    EXPECT_EQ(octree::countNonManifoldBlocks(r.p.labels), 0u);
+    const Topology topo = buildTopology(r.mesh);
+    std::cout << "[figures] " << c.name << " labels as sampled: "
+              << octree::describe(octree::regionTopology(octree::sampleLabels(*r.p.domain, r.p.labels.grid)))
+              << "; repaired: " << octree::describe(octree::regionTopology(r.p.labels)) << "\n";
+    for (const auto& m : r.p.selection->materials) {
+        const SurfaceTopology ours = meshRegionTopology(r.mesh, topo, m.id);
+        const SurfaceTopology vdb = vdbTopology(*sampleOnGrid(r.p.labels.grid, m.field));
+        std::cout << "[figures] " << c.name << " material " << m.id << ": isohex " << ours.components
+                  << " components, chi " << ours.euler << "; volumeToMesh " << vdb.components << " components, chi "
+                  << vdb.euler << "\n";
+        EXPECT_EQ(ours.components, vdb.components) << c.name << " material " << m.id;
+        EXPECT_EQ(ours.euler, vdb.euler) << c.name << " material " << m.id;
+    }
+    const CornerFigures f = cornerDistances(r);
+    print(c.name, f);
+    std::cout << "[figures] " << c.name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted << "\n";
+    EXPECT_EQ(f.plainOver, 0u) << c.name << ": max " << f.plainMax;
+}
+
+INSTANTIATE_TEST_SUITE_P(Inputs, Extraction, ::testing::ValuesIn(cases()),
+                         [](const auto& info) { return info.param.name; });
