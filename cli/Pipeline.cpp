@@ -86,6 +86,9 @@ public:
         return best;
     }
     const imaging::ImplicitField& field(std::int32_t material) const {
+        // the octree asks for every sample: skip the map for a single material
+        if (selection_->materials.size() == 1 && selection_->materials.front().id == material)
+            return selection_->materials.front().field;
         const auto it = slot_.find(material);
         if (it == slot_.end()) throw Error("internal: no field for material " + std::to_string(material));
         return selection_->materials[it->second].field;

@@ -273,17 +273,26 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     // 1. Which cells carry a node: those around a hexed point. Numbered in cell order.
     std::vector<Index> node(cg.size(), kNone);
     std::vector<std::size_t> perSlab(static_cast<std::size_t>(nz) + 2, 0);
+    // hexedPair(j, k)[ci]: point ci-1 or ci of grid row (j, k) is hexed
+    auto hexedPair = [&](int j, int k, std::vector<std::uint8_t>& out) {
+        std::fill(out.begin(), out.end(), 0);
+        if (j < 0 || k < 0 || j >= ny || k >= nz) return;
+        const std::int32_t* row = &labels.material[g.index(0, j, k)];
+        for (int i = 0; i < nx; ++i)
+            if (opt.meshExterior || row[i] != 0) out[i] = out[i + 1] = 1;
+    };
     tbb::parallel_for(0, nz + 1, [&](int ck) {
         std::size_t count = 0;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                bool need = false;
-                for (int c = 0; c < 8 && !need; ++c) need = hexed(ci - 1 + (c & 1), cj - 1 + (c >> 1 & 1), ck - 1 + (c >> 2 & 1));
-                if (need) {
+        std::array<std::vector<std::uint8_t>, 4> rows;
+        for (auto& r : rows) r.resize(static_cast<std::size_t>(nx) + 1);
+        for (int cj = 0; cj <= ny; ++cj) {
+            for (int r = 0; r < 4; ++r) hexedPair(cj - 1 + (r & 1), ck - 1 + (r >> 1), rows[r]);
+            for (int ci = 0; ci <= nx; ++ci)
+                if (rows[0][ci] | rows[1][ci] | rows[2][ci] | rows[3][ci]) {
                     node[cg.index(ci, cj, ck)] = 0;
                     ++count;
                 }
-            }
+        }
         perSlab[static_cast<std::size_t>(ck) + 1] = count;
     });
     for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
