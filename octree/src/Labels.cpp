@@ -225,6 +225,42 @@ std::vector<std::size_t> badBlocksAmong(const Labels& l, std::vector<std::size_t
     return out;
 }
 
+// Change of the Euler characteristic of material m's solid (the union of the
+// closed cubes around its points) when point (i, j, k) joins it (`add`) or
+// leaves it: the point's cube meets the cubes of its m-neighbours in a complex
+// K of its faces, edges and vertices, and chi changes by +-(1 - chi(K)). The
+// boundary surface's chi is twice the solid's, so 0 means the flip keeps the
+// Euler characteristic that regionTopology reports.
+int eulerChange(const Labels& l, int i, int j, int k, std::int32_t m, bool add) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    bool in[3][3][3];
+    for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b)
+            for (int c = -1; c <= 1; ++c) {
+                const int x = i + a, y = j + b, z = k + c;
+                const bool inside = x >= 0 && y >= 0 && z >= 0 && x < nx && y < ny && z < nz;
+                in[a + 1][b + 1][c + 1] = (a || b || c) && inside && l.material[l.grid.index(x, y, z)] == m;
+            }
+    int chi = 0;
+    // The cells of the point's cube are indexed by offsets s != 0 in {-1,0,1}^3:
+    // a face (one non-zero axis), an edge (two) or a vertex (three). A cell is
+    // in K when an m-neighbour at offset t shares it: t != 0 with t_a in
+    // {0, s_a} on every axis.
+    for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b)
+            for (int c = -1; c <= 1; ++c) {
+                const int nonzero = (a != 0) + (b != 0) + (c != 0);
+                if (nonzero == 0) continue;
+                bool inK = false;
+                for (int ta = std::min(a, 0); ta <= std::max(a, 0) && !inK; ++ta)
+                    for (int tb = std::min(b, 0); tb <= std::max(b, 0) && !inK; ++tb)
+                        for (int tc = std::min(c, 0); tc <= std::max(c, 0) && !inK; ++tc)
+                            inK = in[ta + 1][tb + 1][tc + 1];
+                if (inK) chi += nonzero == 1 ? 1 : nonzero == 2 ? -1 : 1;
+            }
+    return add ? 1 - chi : chi - 1;
+}
+
 }  // namespace
 
 std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labels).size(); }
@@ -311,6 +347,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             present.erase(std::unique(present.begin(), present.end()), present.end());
             double bestCost = 0;
             int bestCorner = -1, bestScore = 1 << 30;
+            bool bestKeeps = false;
             std::int32_t bestMat = 0;
             for (int c = 0; c < 8; ++c) {
                 const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
@@ -325,8 +362,15 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
                     if (score >= badNow) continue;
                     const std::int32_t judged = t != 0 ? t : v.mat[c];
                     const double cost = std::abs(domain.value(judged, x));
-                    if (score < bestScore || (score == bestScore && cost < bestCost)) {
+                    // among flips that mend the block as much, prefer those that
+                    // keep every region's Euler characteristic (no handle or
+                    // component made or lost), then the one nearest the surface
+                    const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
+                                            (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
+                    if (score < bestScore || (score == bestScore && keepsEuler > bestKeeps) ||
+                        (score == bestScore && keepsEuler == bestKeeps && cost < bestCost)) {
                         bestScore = score;
+                        bestKeeps = keepsEuler;
                         bestCost = cost;
                         bestCorner = c;
                         bestMat = t;
