@@ -21,6 +21,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "Pipeline.hpp"
@@ -249,18 +250,6 @@ CornerFigures cornerDistances(const Extracted& r) {
                 mats.insert(now);
             }
             kind[n] = changed ? 1 : mats.size() > 2 ? 2 : 0;
-            if (std::getenv("ISOHEX_DEBUG_CORNERS") && kind[n] == 0 && dist[n] > 0.1) {
-                std::string line = "[debug] x " + std::to_string(x[0]) + " " + std::to_string(x[1]) + " " + std::to_string(x[2]) +
-                                   " d " + std::to_string(dist[n]) + " F(x) " + std::to_string(f->value(x)) + " u";
-                for (int a = 0; a < 3; ++a) line += " " + std::to_string(inv[a][0] * d[0] + inv[a][1] * d[1] + inv[a][2] * d[2] - (c[a] - 1));
-                line += " corners";
-                for (int k = 0; k < 8; ++k) {
-                    const Vec3 q = g.point(c[0] - 1 + (k & 1), c[1] - 1 + (k >> 1 & 1), c[2] - 1 + (k >> 2 & 1));
-                    line += " " + std::to_string(f->value(q));
-                }
-                line += "\n";
-                std::cout << line;
-            }
         }
     });
     CornerFigures f;
@@ -314,6 +303,15 @@ struct Case {
     // sharing an edge touch), so the repair joins or drops them and the counts
     // differ. The boundary's topology is then checked against the labels'.
     bool sameTopologyAsVolumeToMesh = true;
+    // Corners off the isosurface (> 0.1 voxel) allowed where the labels are not
+    // the scan's own, as a fraction of all boundary corners: where the repair
+    // changed a grid point the surface may not cross the cell at all, and the
+    // vertex stays in its cell. For label maps also the cells where three or
+    // more labels meet: the labels' 0.5-isosurfaces do not meet there (they
+    // leave gaps between them), so no point lies on all of them; pulling such
+    // nodes onto the nearest least-squares point was tried and shrank the
+    // volume by 2% and inverted 60% more hexes.
+    double offSurfaceFraction = 0.01;
 };
 
 cli::MeshSettings intensity(std::optional<double> iso, std::optional<double> size, bool keepLargest = false) {
@@ -337,7 +335,7 @@ std::vector<Case> cases() {
             {"thin_plate", ph + "thin_plate.nii.gz", intensity(50, 1.5)},
             {"skull_ct", sd + "skull_ct.nii.gz", intensity(2.9, std::nullopt)},
             {"ch2bet_2mm", sd + "ch2bet.nii.gz", intensity(std::nullopt, 2.0), false},
-            {"jhu_labels", sd + "JHU-WhiteMatter-labels-2mm.nii.gz", labels()}};
+            {"jhu_labels", sd + "JHU-WhiteMatter-labels-2mm.nii.gz", labels(), true, 0.12}};
 }
 
 class Extraction : public ::testing::TestWithParam<Case> {};
@@ -381,6 +379,9 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
     print(c.name, f);
     std::cout << "[figures] " << c.name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted << "\n";
     EXPECT_EQ(f.plainOver, 0u) << c.name << ": max " << f.plainMax;
+    EXPECT_LE(static_cast<double>(f.changedOver + f.multiOver),
+              c.offSurfaceFraction * static_cast<double>(f.plain + f.changed + f.multi))
+        << c.name;
 }
 
 // Label maps: each label's surface is the 0.5 level of its trilinear
@@ -450,7 +451,25 @@ TEST(Ch2bet, KeepLargestIsManifoldAndValidAtTwoAndOneMillimetre) {
         std::cout << "[figures] " << name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted << ", "
                   << ours.components << " boundary components, chi " << ours.euler << "\n";
         EXPECT_EQ(f.plainOver, 0u) << name << ": max " << f.plainMax;
+        EXPECT_LE(static_cast<double>(f.changedOver), 0.01 * static_cast<double>(f.plain + f.changed)) << name;
     }
+}
+
+// The extraction of a real scan is the same for any thread count (the field is
+// sampled through per-thread accessors, the repair and the classification run
+// in a fixed order).
+TEST(Ch2bet, SameExtractionForOneAndTwoThreads) {
+    Extracted one;
+    {
+        tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
+        one = extractOnly(sharedData() + "/ch2bet.nii.gz", intensity(std::nullopt, 2.0, true));
+    }
+    tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
+    const Extracted two = extractOnly(sharedData() + "/ch2bet.nii.gz", intensity(std::nullopt, 2.0, true));
+    EXPECT_EQ(one.p.labels.material, two.p.labels.material);
+    EXPECT_EQ(one.mesh.hexes, two.mesh.hexes);
+    EXPECT_EQ(one.mesh.nodes, two.mesh.nodes);
+    EXPECT_EQ(one.mesh.nodeClass, two.mesh.nodeClass);
 }
 
 INSTANTIATE_TEST_SUITE_P(Inputs, Extraction, ::testing::ValuesIn(cases()),
