@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
 
@@ -313,6 +314,9 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     const double surfaceTolerance = 1e-3 * std::min({spacing[0], spacing[1], spacing[2]});
 
     // 2. Node positions: QEF minimiser in crossed cells, centre elsewhere.
+    // Nodes moved onto the surface keep their QEF position here, per slab in
+    // node order, in case the move inverts a hex (step 4).
+    std::vector<std::vector<std::pair<Index, Vec3>>> qefSlab(static_cast<std::size_t>(nz) + 1);
     tbb::parallel_for(0, nz + 1, [&](int ck) {
         Index next = static_cast<Index>(perSlab[static_cast<std::size_t>(ck)]);
         std::size_t localCrossed = 0, localClamped = 0;
@@ -393,7 +397,9 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     }
                 if (opt.projectVertices && two) {
                     if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
+                    const Eigen::Vector3d qef = x;
                     x = ontoSurface(domain, ma, mb, x, CellFrame{lower, axes, toCell, opt.cellMargin}, p, surfaceTolerance);
+                    if (x != qef) qefSlab[static_cast<std::size_t>(ck)].emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
                 }
                 mesh.nodes[id] = {x(0), x(1), x(2)};
             }
@@ -432,9 +438,81 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                 ++h;
             }
     });
+    // 4. A move onto the surface must not invert a hex. Where a hex with moved
+    // corners is inverted, its moved corners are pulled back towards their QEF
+    // positions, x = qef + s (surface point - qef), with the largest s in
+    // 1/2, 1/4, 1/8, 0 that makes it valid (none helps: the hex is inverted
+    // with the QEF positions too, and the corners stay on the surface). A node
+    // takes the smallest s any of its hexes asks for; pulling back can invert
+    // a neighbour, so repeat (s only decreases). Each round decides from the
+    // positions at its start, so the result does not depend on the thread count.
+    std::vector<Index> heldBack;
+    {
+        std::vector<std::pair<Index, Vec3>> qef;
+        for (auto& v : qefSlab) qef.insert(qef.end(), v.begin(), v.end());
+        qefSlab.clear();
+        std::vector<Vec3> onSurface(qef.size());
+        for (std::size_t i = 0; i < qef.size(); ++i) onSurface[i] = mesh.nodes[static_cast<std::size_t>(qef[i].first)];
+        // level l: s = 2^-l, 4 = back at the QEF position; 255 = not moved
+        std::vector<std::uint8_t> level(nodeCount, 255), wanted;
+        for (const auto& [id, x] : qef) level[static_cast<std::size_t>(id)] = 0;
+        auto slot = [&](Index id) {
+            return static_cast<std::size_t>(
+                std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.first < v; }) - qef.begin());
+        };
+        auto at = [&](std::size_t i, int l) {
+            const double sc = l >= 4 ? 0.0 : std::ldexp(1.0, -l);
+            const Vec3& a = qef[i].second;
+            const Vec3& b = onSurface[i];
+            return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
+        };
+        for (int round = 0; round < 16 && !qef.empty(); ++round) {
+            wanted = level;
+            std::atomic<bool> changed{false};
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.hexes.size(), 4096), [&](const auto& r) {
+                for (std::size_t h = r.begin(); h != r.end(); ++h) {
+                    const Hex& hex = mesh.hexes[h];
+                    bool movable = false;
+                    for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < 4;
+                    if (!movable) continue;
+                    const HexCoords x0 = hexCoords(mesh, static_cast<Index>(h));
+                    if (minCornerDeterminant(x0) > 0) continue;
+                    int found = -1;
+                    for (int extra = 1; extra <= 4 && found < 0; ++extra) {
+                        HexCoords x = x0;
+                        for (int c = 0; c < 8; ++c) {
+                            const std::uint8_t l = level[static_cast<std::size_t>(hex[c])];
+                            if (l < 4) x[c] = at(slot(hex[c]), std::min(4, l + extra));
+                        }
+                        if (minCornerDeterminant(x) > 0) found = extra;
+                    }
+                    if (found < 0) continue;  // inverted with the QEF positions too: keep the surface
+                    for (Index v : hex) {
+                        const std::uint8_t l = level[static_cast<std::size_t>(v)];
+                        if (l >= 4) continue;
+                        const auto want = static_cast<std::uint8_t>(std::min(4, l + found));
+                        std::atomic_ref<std::uint8_t> w(wanted[static_cast<std::size_t>(v)]);
+                        std::uint8_t cur = w.load(std::memory_order_relaxed);
+                        while (cur < want && !w.compare_exchange_weak(cur, want, std::memory_order_relaxed)) {
+                        }
+                        changed = true;
+                    }
+                }
+            });
+            if (!changed) break;
+            level.swap(wanted);
+            for (std::size_t i = 0; i < qef.size(); ++i) {
+                const auto id = static_cast<std::size_t>(qef[i].first);
+                mesh.nodes[id] = at(i, level[id]);
+            }
+        }
+        for (const auto& [id, x] : qef)
+            if (level[static_cast<std::size_t>(id)] > 0) heldBack.push_back(id);
+    }
     if (stats) {
         stats->crossedCells = crossed;
         stats->clampedVertices = clamped;
+        stats->heldBack = std::move(heldBack);
     }
     classifyFromGrid(mesh, labels, hexed, node, cg);
     return mesh;
