@@ -87,6 +87,9 @@ public:
         return best;
     }
     const imaging::ImplicitField& field(std::int32_t material) const {
+        // the octree asks for every sample: skip the map for a single material
+        if (selection_->materials.size() == 1 && selection_->materials.front().id == material)
+            return selection_->materials.front().field;
         const auto it = slot_.find(material);
         if (it == slot_.end()) throw Error("internal: no field for material " + std::to_string(material));
         return selection_->materials[it->second].field;
@@ -387,10 +390,16 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
     // Compare with the voxel-resolution topology when the user forced the grid.
     if ((size || settings.level) && vol.voxelCount() <= 60'000'000) {
-        octree::Labels fine = octree::sampleLabels(*domain, gridFor(vol, solid, {1, 1, 1}, 2));
-        if (settings.keepLargest) octree::keepLargestComponents(fine);
-        octree::repairNonManifold(fine, *domain);
-        const auto ref = octree::regionTopology(fine);
+        // At the voxel spacing the grid is the voxel grid itself: nothing to compare.
+        const octree::Grid fineGrid = gridFor(vol, solid, {1, 1, 1}, 2);
+        const bool same = fineGrid.dims == g.dims && fineGrid.origin == g.origin && fineGrid.axes == g.axes;
+        std::vector<octree::RegionTopology> ref = topo;
+        if (!same) {
+            octree::Labels fine = octree::sampleLabels(*domain, fineGrid);
+            if (settings.keepLargest) octree::keepLargestComponents(fine);
+            octree::repairNonManifold(fine, *domain);
+            ref = octree::regionTopology(fine);
+        }
         for (const auto& r : ref) {
             const auto it = std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == r.material; });
             if (it == topo.end())

@@ -1,6 +1,10 @@
 #include "isohex/imaging/ImplicitField.hpp"
 
+#include <array>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <optional>
 #include <limits>
 
 #include <openvdb/tools/Interpolation.h>
@@ -16,10 +20,34 @@ using ConstAccessor = openvdb::tree::ValueAccessor<const openvdb::FloatTree, /*I
 
 double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+// Every field gets an id that no other field ever gets; copies share it (and
+// the grid, which never changes). Each thread keeps accessors for the last few
+// fields it sampled, so consecutive queries reuse the accessor's cached path
+// to the leaf instead of descending from the root every time. An entry of a
+// field that no longer exists is never looked up again (its id is not reused).
+std::atomic<std::uint64_t> gNextFieldId{1};
+
+struct AccessorCache {
+    static constexpr int kSlots = 4;
+    std::array<std::uint64_t, kSlots> id{};
+    std::array<std::optional<ConstAccessor>, kSlots> acc;
+    int next = 0;
+    ConstAccessor& get(std::uint64_t fieldId, const openvdb::FloatTree& tree) {
+        for (int s = 0; s < kSlots; ++s)
+            if (id[s] == fieldId) return *acc[s];
+        const int s = next;
+        next = (next + 1) % kSlots;
+        id[s] = fieldId;
+        acc[s].emplace(tree);
+        return *acc[s];
+    }
+};
+thread_local AccessorCache tAccessors;
+
 }  // namespace
 
 ImplicitField::ImplicitField(openvdb::FloatGrid::ConstPtr grid, Interpolation interpolation)
-    : grid_(std::move(grid)), interpolation_(interpolation) {
+    : grid_(std::move(grid)), interpolation_(interpolation), id_(gNextFieldId++) {
     if (!grid_) throw Error("ImplicitField: no grid given.");
     const auto& xf = grid_->transform();
     if (!xf.isLinear()) {
@@ -59,7 +87,7 @@ Vec3 ImplicitField::toIndex(const Vec3& x) const {
 }
 
 double ImplicitField::sampleIndex(const openvdb::Vec3d& p, openvdb::Vec3d* grad) const {
-    ConstAccessor acc(grid_->tree());
+    ConstAccessor& acc = tAccessors.get(id_, grid_->tree());
     if (interpolation_ == Interpolation::Quadratic) {
         auto sample = [&](const openvdb::Vec3d& q) {
             float v = 0.0f;

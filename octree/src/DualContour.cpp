@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
+#include <set>
 
 #include <Eigen/Dense>
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
 
@@ -48,34 +52,49 @@ double edgeFunction(const Domain& dom, std::int32_t a, std::int32_t b, const Vec
     return f;
 }
 
-// Hermite datum on the segment p (material a) - q (material b).
+// Root of F on the segment p..q given F(p) = f0 < 0 < F(q) = f1 (or the other
+// way round): Illinois false position, superlinear and never leaving the
+// bracket. Returns the parameter t in [0, 1].
+template <class Fn>
+double rootOnSegment(const Fn& F, const Vec3& p, const Vec3& q, double f0, double f1) {
+    const double sign = f0 > 0 ? -1.0 : 1.0;  // orient so that f0 < 0 < f1
+    f0 *= sign;
+    f1 *= sign;
+    const Vec3 d = sub(q, p);
+    // |F| this small is the surface to about 1e-8 of the segment's length
+    const double ftol = 1e-8 * std::max(-f0, f1);
+    double t0 = 0, t1 = 1, t = 0.5;
+    int side = 0;
+    for (int it = 0; it < 40; ++it) {
+        t = (t0 * f1 - t1 * f0) / (f1 - f0);
+        const Vec3 x{p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
+        const double f = sign * F(x);
+        if (std::abs(t1 - t0) < 1e-9 || std::abs(f) <= ftol) break;
+        if (f < 0) {
+            t0 = t;
+            f0 = f;
+            if (side == -1) f1 *= 0.5;
+            side = -1;
+        } else {
+            t1 = t;
+            f1 = f;
+            if (side == 1) f0 *= 0.5;
+            side = 1;
+        }
+    }
+    return t;
+}
+
+// Hermite datum on the segment p (material a) - q (material b). Where the
+// labels differ but the field does not change sign (non-manifold repair or
+// --keep-largest changed a point) there is no crossing: the midpoint stands in.
 void crossing(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& p, const Vec3& q, Vec3& point,
               Vec3& normal) {
     const Vec3 d = sub(q, p);
-    double t0 = 0, t1 = 1;
-    double f0 = edgeFunction(dom, a, b, p, nullptr), f1 = edgeFunction(dom, a, b, q, nullptr);
+    const double f0 = edgeFunction(dom, a, b, p, nullptr), f1 = edgeFunction(dom, a, b, q, nullptr);
     double t = 0.5;
-    if (f0 < 0 && f1 > 0) {
-        // Illinois false position: superlinear, and it never leaves the bracket.
-        int side = 0;
-        for (int it = 0; it < 40; ++it) {
-            t = (t0 * f1 - t1 * f0) / (f1 - f0);
-            const Vec3 x{p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
-            const double f = edgeFunction(dom, a, b, x, nullptr);
-            if (std::abs(t1 - t0) < 1e-9 || f == 0) break;
-            if (f < 0) {
-                t0 = t;
-                f0 = f;
-                if (side == -1) f1 *= 0.5;
-                side = -1;
-            } else {
-                t1 = t;
-                f1 = f;
-                if (side == 1) f0 *= 0.5;
-                side = 1;
-            }
-        }
-    }
+    if ((f0 < 0 && f1 > 0) || (f0 > 0 && f1 < 0))
+        t = rootOnSegment([&](const Vec3& x) { return edgeFunction(dom, a, b, x, nullptr); }, p, q, f0, f1);
     point = {p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
     Vec3 g;
     edgeFunction(dom, a, b, point, &g);
@@ -85,6 +104,159 @@ void crossing(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& p, 
         len = std::sqrt(dot(d, d));
     }
     normal = {g[0] / len, g[1] / len, g[2] / len};
+}
+
+// A cell, in world coordinates: x = lower + axes * u with u in [0, 1]^3.
+struct CellFrame {
+    Eigen::Vector3d lower;
+    const Eigen::Matrix3d& axes;
+    const Eigen::Matrix3d& toCell;
+    double margin;
+    bool contains(const Eigen::Vector3d& x) const {
+        const Eigen::Vector3d u = toCell * (x - lower);
+        return (u.array() >= margin).all() && (u.array() <= 1.0 - margin).all();
+    }
+};
+
+// Moves x onto the zero set of F = f_a - f_b without leaving the cell shrunk
+// by the margin. First Newton steps along the gradient, each halved until it
+// stays inside; if they stall short of the surface (the step would leave the
+// cell, or the field is flat), the root closest to x on the segments from x to
+// those corners of the shrunken cell where F has the other sign. If there is
+// none, the surface crosses the cell only within the margin of a grid point
+// (a grid value within a hair of the iso value: a speck of one point, or a
+// dimple): x goes to the shrunken cell's corner next to the grid point of the
+// other sign whose value is closest to the surface, as near to it as the
+// margin allows. When no grid point of the cell has the other sign either (the
+// repair or --keep-largest changed the labels: no surface crosses the cell),
+// x stays where the QEF put it. `tol` is in world units.
+Eigen::Vector3d ontoSurface(const Domain& dom, std::int32_t a, std::int32_t b, Eigen::Vector3d x,
+                            const CellFrame& cell, const std::array<Vec3, 8>& corner, double tol) {
+    auto F = [&](const Eigen::Vector3d& y, Vec3* g) { return edgeFunction(dom, a, b, {y(0), y(1), y(2)}, g); };
+    auto newton = [&](Eigen::Vector3d& y) {
+        for (int it = 0; it < 8; ++it) {
+            Vec3 grad;
+            const double f = F(y, &grad);
+            const Eigen::Vector3d gr(grad[0], grad[1], grad[2]);
+            const double g2 = gr.squaredNorm();
+            if (!std::isfinite(f) || !(g2 > 0)) return false;
+            if (std::abs(f) < tol * std::sqrt(g2)) return true;
+            const Eigen::Vector3d step = -f / g2 * gr;
+            double s = 1;
+            while (!cell.contains(y + s * step) && s > 1.0 / 32) s *= 0.5;
+            if (!cell.contains(y + s * step)) return false;
+            y += s * step;
+        }
+        return false;
+    };
+    if (newton(x)) return x;
+    const double f = F(x, nullptr);
+    if (!std::isfinite(f) || f == 0) return x;
+    auto other = [&](double v) { return (f < 0 && v > 0) || (f > 0 && v < 0); };
+    auto shrunk = [&](int c) {
+        const Eigen::Vector3d u(c & 1 ? 1 - cell.margin : cell.margin, c >> 1 & 1 ? 1 - cell.margin : cell.margin,
+                                c >> 2 & 1 ? 1 - cell.margin : cell.margin);
+        return Eigen::Vector3d(cell.lower + cell.axes * u);
+    };
+    const Vec3 xv{x(0), x(1), x(2)};
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d bestPoint = x;
+    for (int c = 0; c < 8; ++c) {
+        const Eigen::Vector3d q = shrunk(c);
+        const double fq = F(q, nullptr);
+        if (!other(fq)) continue;
+        const Vec3 qv{q(0), q(1), q(2)};
+        const double t = rootOnSegment([&](const Vec3& y) { return edgeFunction(dom, a, b, y, nullptr); }, xv, qv, f, fq);
+        const double dist = t * (q - x).norm();
+        if (dist < best) {
+            best = dist;
+            bestPoint = x + t * (q - x);
+        }
+    }
+    if (best < std::numeric_limits<double>::infinity()) return bestPoint;
+    int nearest = -1;
+    double nearestValue = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+        const double v = edgeFunction(dom, a, b, corner[c], nullptr);
+        if (other(v) && std::abs(v) < nearestValue) {
+            nearestValue = std::abs(v);
+            nearest = c;
+        }
+    }
+    if (nearest < 0) return x;
+    Eigen::Vector3d y = shrunk(nearest);
+    newton(y);
+    return y;
+}
+
+// What classifyBoundaryNodes finds from the hexes' faces, straight from the
+// grid and without building the mesh's topology: the quad dual to the grid
+// edge p..p+e_d separates the hexes of p and p+e_d, and its 4 nodes are the
+// cells around that edge. So a cell's node lies on the surfaces of the 12 grid
+// edges of its cell. Surfaces are (material, -1) against the outside and
+// (smaller, larger) between two materials, sorted, as surfacePatches has them.
+template <class Hexed>
+void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, const std::vector<Index>& node,
+                      const CellGrid& cg) {
+    using Tag = std::pair<std::int32_t, std::int32_t>;
+    const auto [nx, ny, nz] = labels.grid.dims;
+    // The surfaces of the (up to 12) grid edges of cell c; returns how many.
+    auto cellTags = [&](int ci, int cj, int ck, std::array<Tag, 12>& out) {
+        std::array<bool, 8> h;
+        std::array<std::int32_t, 8> m;
+        bool uniform = true;
+        for (int c = 0; c < 8; ++c) {
+            const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
+            h[c] = hexed(i, j, k);
+            m[c] = labelAt(labels, i, j, k);
+            uniform = uniform && h[c] == h[0] && m[c] == m[0];
+        }
+        if (uniform) return 0;
+        int n = 0;
+        for (int c = 0; c < 8; ++c)
+            for (int d = 0; d < 3; ++d) {
+                const int e = c | (1 << d);
+                if (e == c) continue;
+                if (h[c] && h[e]) {
+                    if (m[c] != m[e]) out[n++] = {std::min(m[c], m[e]), std::max(m[c], m[e])};
+                } else if (h[c] || h[e]) {
+                    out[n++] = {h[c] ? m[c] : m[e], -1};
+                }
+            }
+        return n;
+    };
+    tbb::enumerable_thread_specific<std::set<Tag>> local;
+    tbb::parallel_for(0, nz + 1, [&](int ck) {
+        auto& set = local.local();
+        std::array<Tag, 12> t;
+        for (int cj = 0; cj <= ny; ++cj)
+            for (int ci = 0; ci <= nx; ++ci) {
+                if (node[cg.index(ci, cj, ck)] == kNone) continue;
+                const int n = cellTags(ci, cj, ck, t);
+                for (int e = 0; e < n; ++e) set.insert(t[e]);
+            }
+    });
+    std::set<Tag> all;
+    for (const auto& s : local) all.insert(s.begin(), s.end());
+    const std::vector<Tag> tags(all.begin(), all.end());
+    mesh.surfaces.clear();
+    for (const auto& [in, out] : tags) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
+    tbb::parallel_for(0, nz + 1, [&](int ck) {
+        std::array<Tag, 12> t;
+        for (int cj = 0; cj <= ny; ++cj)
+            for (int ci = 0; ci <= nx; ++ci) {
+                const Index id = node[cg.index(ci, cj, ck)];
+                if (id == kNone) continue;
+                const int n = cellTags(ci, cj, ck, t);
+                NodeClass cls{};
+                for (int e = 0; e < n; ++e) {
+                    const auto s = static_cast<std::int32_t>(std::lower_bound(tags.begin(), tags.end(), t[e]) - tags.begin());
+                    if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
+                    else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
+                }
+                mesh.nodeClass[id] = cls;
+            }
+    });
 }
 
 }  // namespace
@@ -102,17 +274,26 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     // 1. Which cells carry a node: those around a hexed point. Numbered in cell order.
     std::vector<Index> node(cg.size(), kNone);
     std::vector<std::size_t> perSlab(static_cast<std::size_t>(nz) + 2, 0);
+    // hexedPair(j, k)[ci]: point ci-1 or ci of grid row (j, k) is hexed
+    auto hexedPair = [&](int j, int k, std::vector<std::uint8_t>& out) {
+        std::fill(out.begin(), out.end(), 0);
+        if (j < 0 || k < 0 || j >= ny || k >= nz) return;
+        const std::int32_t* row = &labels.material[g.index(0, j, k)];
+        for (int i = 0; i < nx; ++i)
+            if (opt.meshExterior || row[i] != 0) out[i] = out[i + 1] = 1;
+    };
     tbb::parallel_for(0, nz + 1, [&](int ck) {
         std::size_t count = 0;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                bool need = false;
-                for (int c = 0; c < 8 && !need; ++c) need = hexed(ci - 1 + (c & 1), cj - 1 + (c >> 1 & 1), ck - 1 + (c >> 2 & 1));
-                if (need) {
+        std::array<std::vector<std::uint8_t>, 4> rows;
+        for (auto& r : rows) r.resize(static_cast<std::size_t>(nx) + 1);
+        for (int cj = 0; cj <= ny; ++cj) {
+            for (int r = 0; r < 4; ++r) hexedPair(cj - 1 + (r & 1), ck - 1 + (r >> 1), rows[r]);
+            for (int ci = 0; ci <= nx; ++ci)
+                if (rows[0][ci] | rows[1][ci] | rows[2][ci] | rows[3][ci]) {
                     node[cg.index(ci, cj, ck)] = 0;
                     ++count;
                 }
-            }
+        }
         perSlab[static_cast<std::size_t>(ck) + 1] = count;
     });
     for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
@@ -128,8 +309,14 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     for (int a = 0; a < 3; ++a)
         for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
     const Eigen::Matrix3d toCell = axes.inverse();
+    // vertices count as on the surface within this distance (world units)
+    const auto spacing = g.spacing();
+    const double surfaceTolerance = 1e-3 * std::min({spacing[0], spacing[1], spacing[2]});
 
     // 2. Node positions: QEF minimiser in crossed cells, centre elsewhere.
+    // Nodes moved onto the surface keep their QEF position here, per slab in
+    // node order, in case the move inverts a hex (step 4).
+    std::vector<std::vector<std::pair<Index, Vec3>>> qefSlab(static_cast<std::size_t>(nz) + 1);
     tbb::parallel_for(0, nz + 1, [&](int ck) {
         Index next = static_cast<Index>(perSlab[static_cast<std::size_t>(ck)]);
         std::size_t localCrossed = 0, localClamped = 0;
@@ -210,20 +397,9 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     }
                 if (opt.projectVertices && two) {
                     if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
-                    for (int it = 0; it < 6; ++it) {
-                        Vec3 grad;
-                        const Vec3 xv{x(0), x(1), x(2)};
-                        const double F = edgeFunction(domain, ma, mb, xv, &grad);
-                        const Eigen::Vector3d gr(grad[0], grad[1], grad[2]);
-                        const double g2 = gr.squaredNorm();
-                        if (!(g2 > 0) || !std::isfinite(F)) break;
-                        Eigen::Vector3d step = -F / g2 * gr;
-                        const Eigen::Vector3d next = x + step;
-                        const Eigen::Vector3d un = toCell * (next - lower);
-                        if ((un.array() < opt.cellMargin).any() || (un.array() > 1.0 - opt.cellMargin).any()) break;
-                        x = next;
-                        if ((toCell * step).norm() < 1e-7) break;
-                    }
+                    const Eigen::Vector3d qef = x;
+                    x = ontoSurface(domain, ma, mb, x, CellFrame{lower, axes, toCell, opt.cellMargin}, p, surfaceTolerance);
+                    if (x != qef) qefSlab[static_cast<std::size_t>(ck)].emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
                 }
                 mesh.nodes[id] = {x(0), x(1), x(2)};
             }
@@ -262,11 +438,83 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                 ++h;
             }
     });
+    // 4. A move onto the surface must not invert a hex. Where a hex with moved
+    // corners is inverted, its moved corners are pulled back towards their QEF
+    // positions, x = qef + s (surface point - qef), with the largest s in
+    // 1/2, 1/4, 1/8, 0 that makes it valid (none helps: the hex is inverted
+    // with the QEF positions too, and the corners stay on the surface). A node
+    // takes the smallest s any of its hexes asks for; pulling back can invert
+    // a neighbour, so repeat (s only decreases). Each round decides from the
+    // positions at its start, so the result does not depend on the thread count.
+    std::vector<Index> heldBack;
+    {
+        std::vector<std::pair<Index, Vec3>> qef;
+        for (auto& v : qefSlab) qef.insert(qef.end(), v.begin(), v.end());
+        qefSlab.clear();
+        std::vector<Vec3> onSurface(qef.size());
+        for (std::size_t i = 0; i < qef.size(); ++i) onSurface[i] = mesh.nodes[static_cast<std::size_t>(qef[i].first)];
+        // level l: s = 2^-l, 4 = back at the QEF position; 255 = not moved
+        std::vector<std::uint8_t> level(nodeCount, 255), wanted;
+        for (const auto& [id, x] : qef) level[static_cast<std::size_t>(id)] = 0;
+        auto slot = [&](Index id) {
+            return static_cast<std::size_t>(
+                std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.first < v; }) - qef.begin());
+        };
+        auto at = [&](std::size_t i, int l) {
+            const double sc = l >= 4 ? 0.0 : std::ldexp(1.0, -l);
+            const Vec3& a = qef[i].second;
+            const Vec3& b = onSurface[i];
+            return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
+        };
+        for (int round = 0; round < 16 && !qef.empty(); ++round) {
+            wanted = level;
+            std::atomic<bool> changed{false};
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.hexes.size(), 4096), [&](const auto& r) {
+                for (std::size_t h = r.begin(); h != r.end(); ++h) {
+                    const Hex& hex = mesh.hexes[h];
+                    bool movable = false;
+                    for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < 4;
+                    if (!movable) continue;
+                    const HexCoords x0 = hexCoords(mesh, static_cast<Index>(h));
+                    if (minCornerDeterminant(x0) > 0) continue;
+                    int found = -1;
+                    for (int extra = 1; extra <= 4 && found < 0; ++extra) {
+                        HexCoords x = x0;
+                        for (int c = 0; c < 8; ++c) {
+                            const std::uint8_t l = level[static_cast<std::size_t>(hex[c])];
+                            if (l < 4) x[c] = at(slot(hex[c]), std::min(4, l + extra));
+                        }
+                        if (minCornerDeterminant(x) > 0) found = extra;
+                    }
+                    if (found < 0) continue;  // inverted with the QEF positions too: keep the surface
+                    for (Index v : hex) {
+                        const std::uint8_t l = level[static_cast<std::size_t>(v)];
+                        if (l >= 4) continue;
+                        const auto want = static_cast<std::uint8_t>(std::min(4, l + found));
+                        std::atomic_ref<std::uint8_t> w(wanted[static_cast<std::size_t>(v)]);
+                        std::uint8_t cur = w.load(std::memory_order_relaxed);
+                        while (cur < want && !w.compare_exchange_weak(cur, want, std::memory_order_relaxed)) {
+                        }
+                        changed = true;
+                    }
+                }
+            });
+            if (!changed) break;
+            level.swap(wanted);
+            for (std::size_t i = 0; i < qef.size(); ++i) {
+                const auto id = static_cast<std::size_t>(qef[i].first);
+                mesh.nodes[id] = at(i, level[id]);
+            }
+        }
+        for (const auto& [id, x] : qef)
+            if (level[static_cast<std::size_t>(id)] > 0) heldBack.push_back(id);
+    }
     if (stats) {
         stats->crossedCells = crossed;
         stats->clampedVertices = clamped;
+        stats->heldBack = std::move(heldBack);
     }
-    classifyBoundaryNodes(mesh);
+    classifyFromGrid(mesh, labels, hexed, node, cg);
     return mesh;
 }
 

@@ -175,6 +175,13 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
 
 bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials(mat) == 0; }
 
+bool uniformBlock(const std::array<std::int32_t, 8>& mat) {
+    for (int c = 1; c < 8; ++c)
+        if (mat[c] != mat[0]) return false;
+    return true;
+}
+
+// Lowest-corner indices of the non-manifold blocks, sorted.
 std::vector<std::size_t> badBlocks(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
     tbb::enumerable_thread_specific<std::vector<std::size_t>> local;
@@ -182,16 +189,76 @@ std::vector<std::size_t> badBlocks(const Labels& l) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nz - 1), [&](const auto& r) {
         auto& out = local.local();
         for (int k = r.begin(); k != r.end(); ++k)
-            for (int j = 0; j < ny - 1; ++j)
+            for (int j = 0; j < ny - 1; ++j) {
+                // rows of the two z-layers of the blocks, x fastest
+                const std::int32_t* row[4] = {&l.material[l.grid.index(0, j, k)], &l.material[l.grid.index(0, j + 1, k)],
+                                              &l.material[l.grid.index(0, j, k + 1)],
+                                              &l.material[l.grid.index(0, j + 1, k + 1)]};
                 for (int i = 0; i < nx - 1; ++i) {
+                    const std::int32_t m0 = row[0][i];
+                    if (row[0][i + 1] == m0 && row[1][i] == m0 && row[1][i + 1] == m0 && row[2][i] == m0 &&
+                        row[2][i + 1] == m0 && row[3][i] == m0 && row[3][i + 1] == m0)
+                        continue;  // uniform: manifold
                     const BlockView b = block(l, i, j, k);
                     if (!blockManifold(b.mat)) out.push_back(l.grid.index(i, j, k));
                 }
+            }
     });
     std::vector<std::size_t> all;
     for (auto& v : local) all.insert(all.end(), v.begin(), v.end());
     std::sort(all.begin(), all.end());
     return all;
+}
+
+// The non-manifold blocks among `candidates` (lowest-corner indices), sorted.
+std::vector<std::size_t> badBlocksAmong(const Labels& l, std::vector<std::size_t> candidates) {
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    const auto [nx, ny, nz] = l.grid.dims;
+    std::vector<std::size_t> out;
+    for (std::size_t b : candidates) {
+        const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+        if (i >= nx - 1 || j >= ny - 1 || k >= nz - 1) continue;
+        const BlockView v = block(l, i, j, k);
+        if (!uniformBlock(v.mat) && !blockManifold(v.mat)) out.push_back(b);
+    }
+    return out;
+}
+
+// Change of the Euler characteristic of material m's solid (the union of the
+// closed cubes around its points) when point (i, j, k) joins it (`add`) or
+// leaves it: the point's cube meets the cubes of its m-neighbours in a complex
+// K of its faces, edges and vertices, and chi changes by +-(1 - chi(K)). The
+// boundary surface's chi is twice the solid's, so 0 means the flip keeps the
+// Euler characteristic that regionTopology reports.
+int eulerChange(const Labels& l, int i, int j, int k, std::int32_t m, bool add) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    bool in[3][3][3];
+    for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b)
+            for (int c = -1; c <= 1; ++c) {
+                const int x = i + a, y = j + b, z = k + c;
+                const bool inside = x >= 0 && y >= 0 && z >= 0 && x < nx && y < ny && z < nz;
+                in[a + 1][b + 1][c + 1] = (a || b || c) && inside && l.material[l.grid.index(x, y, z)] == m;
+            }
+    int chi = 0;
+    // The cells of the point's cube are indexed by offsets s != 0 in {-1,0,1}^3:
+    // a face (one non-zero axis), an edge (two) or a vertex (three). A cell is
+    // in K when an m-neighbour at offset t shares it: t != 0 with t_a in
+    // {0, s_a} on every axis.
+    for (int a = -1; a <= 1; ++a)
+        for (int b = -1; b <= 1; ++b)
+            for (int c = -1; c <= 1; ++c) {
+                const int nonzero = (a != 0) + (b != 0) + (c != 0);
+                if (nonzero == 0) continue;
+                bool inK = false;
+                for (int ta = std::min(a, 0); ta <= std::max(a, 0) && !inK; ++ta)
+                    for (int tb = std::min(b, 0); tb <= std::max(b, 0) && !inK; ++tb)
+                        for (int tc = std::min(c, 0); tc <= std::max(c, 0) && !inK; ++tc)
+                            inK = in[ta + 1][tb + 1][tc + 1];
+                if (inK) chi += nonzero == 1 ? 1 : nonzero == 2 ? -1 : 1;
+            }
+    return add ? 1 - chi : chi - 1;
 }
 
 }  // namespace
@@ -251,8 +318,12 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
     std::vector<std::uint8_t> flips(labels.material.size(), 0);
     constexpr int kMaxRounds = 200;
     constexpr int kMaxFlipsPerPoint = 4;
+    // A block can only turn bad when one of its points changes, so after the
+    // first full scan each round looks at the blocks still bad and the blocks
+    // around the points the previous round changed (the same set a full scan finds).
+    std::vector<std::size_t> bad = badBlocks(labels);
     for (int round = 0;; ++round) {
-        const std::vector<std::size_t> bad = badBlocks(labels);
+        if (round > 0) bad = badBlocksAmong(labels, std::move(bad));
         if (round == 0) rep.nonManifoldBefore = bad.size();
         if (bad.empty()) {
             rep.rounds = round;
@@ -276,6 +347,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             present.erase(std::unique(present.begin(), present.end()), present.end());
             double bestCost = 0;
             int bestCorner = -1, bestScore = 1 << 30;
+            bool bestKeeps = false;
             std::int32_t bestMat = 0;
             for (int c = 0; c < 8; ++c) {
                 const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
@@ -290,8 +362,15 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
                     if (score >= badNow) continue;
                     const std::int32_t judged = t != 0 ? t : v.mat[c];
                     const double cost = std::abs(domain.value(judged, x));
-                    if (score < bestScore || (score == bestScore && cost < bestCost)) {
+                    // among flips that mend the block as much, prefer those that
+                    // keep every region's Euler characteristic (no handle or
+                    // component made or lost), then the one nearest the surface
+                    const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
+                                            (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
+                    if (score < bestScore || (score == bestScore && keepsEuler > bestKeeps) ||
+                        (score == bestScore && keepsEuler == bestKeeps && cost < bestCost)) {
                         bestScore = score;
+                        bestKeeps = keepsEuler;
                         bestCost = cost;
                         bestCorner = c;
                         bestMat = t;
@@ -330,6 +409,13 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             labels.material[p] = bestMat;
             ++flips[p];
             touched.insert(p);
+        }
+        for (std::size_t p : touched) {
+            const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+            for (int c = 0; c < 8; ++c) {
+                const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+                if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
+            }
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +

@@ -321,3 +321,97 @@ TEST(LbieCellTests, SmoothLargeShapePassesAndThinFeatureFails) {
     const AnalyticDomain plate({box({3, 3, 14.6}, {29, 29, 15.4})});
     EXPECT_GT(lbieFailures(sampleLabels(plate, unitGrid(33))), 0u);
 }
+
+TEST(DualContour, NodeClassesFromTheGridEqualThoseFromTheHexFaces) {
+    // dualContourHexes classifies nodes from the grid labels; classifyBoundaryNodes
+    // finds them from the hexes' faces. Both must agree: several materials,
+    // interfaces, curves where they meet the boundary, and a meshed exterior.
+    const AnalyticDomain d({box({3, 3, 3}, {9.5, 13, 13}), box({9.5, 3, 3}, {15, 13, 13}), sphere({9, 8, 8}, 3.3)});
+    for (bool exterior : {false, true}) {
+        Labels l = sampleLabels(d, unitGrid(18));
+        repairNonManifold(l, d);
+        ExtractOptions opt;
+        opt.meshExterior = exterior;
+        const HexMesh m = dualContourHexes(l, d, opt);
+        HexMesh again = m;
+        classifyBoundaryNodes(again);
+        EXPECT_EQ(m.surfaces, again.surfaces) << "exterior " << exterior;
+        EXPECT_EQ(m.nodeClass, again.nodeClass) << "exterior " << exterior;
+        std::size_t curves = 0;
+        for (const auto& c : m.nodeClass) curves += c.kind == NodeKind::Curve;
+        EXPECT_GT(curves, 0u);
+        EXPECT_GE(m.surfaces.size(), exterior ? 4u : 5u);
+    }
+}
+
+TEST(DualContour, BoundaryCornersOfCurvedAndThinShapesLieOnTheSurface) {
+    // Every corner of a boundary quad within 0.1 grid step of the zero set, on
+    // shapes whose QEF minimisers fall off the surface or out of their cells:
+    // a small sphere (strong curvature), a thin plate, a thin torus, two balls
+    // almost touching, on grids whose points do not sit on the surfaces.
+    const std::vector<std::pair<const char*, Sdf>> shapes = {
+        {"small sphere", sphere({7.3, 7.1, 6.9}, 2.7)},
+        {"thin plate", box({3.2, 3.4, 7.7}, {13.1, 12.6, 8.9})},
+        {"thin torus", torus({9.2, 9.1, 8.8}, 5.3, 1.4)},
+        {"two balls", unite(sphere({5.6, 8.2, 8.1}, 3.05), sphere({12.3, 8.2, 8.1}, 3.05))}};
+    for (const auto& [name, f] : shapes) {
+        const AnalyticDomain d({f});
+        Labels l = sampleLabels(d, unitGrid(19));
+        const Labels fresh = l;
+        repairNonManifold(l, d);
+        ExtractStats st;
+        const HexMesh m = dualContourHexes(l, d, {}, &st);
+        EXPECT_TRUE(topologicallyValid(m)) << name;
+        const Topology t = buildTopology(m);
+        // corners of cells whose labels the repair left alone, unless held
+        // back from the surface because the move would invert a hex (those
+        // stay in their cell)
+        double worst = 0, worstHeld = 0;
+        for (Index v : t.boundaryNodes) {
+            if (std::binary_search(st.heldBack.begin(), st.heldBack.end(), v)) {
+                worstHeld = std::max(worstHeld, std::abs(f(m.nodes[v])));
+                continue;
+            }
+            const Vec3& x = m.nodes[v];
+            const int ci = static_cast<int>(std::floor(x[0])) + 1, cj = static_cast<int>(std::floor(x[1])) + 1,
+                      ck = static_cast<int>(std::floor(x[2])) + 1;
+            bool changed = false;
+            for (int c = 0; c < 8; ++c) {
+                const std::size_t p = l.grid.index(ci - 1 + (c & 1), cj - 1 + (c >> 1 & 1), ck - 1 + (c >> 2 & 1));
+                changed = changed || l.material[p] != fresh.material[p];
+            }
+            if (!changed) worst = std::max(worst, std::abs(f(x)));
+        }
+        EXPECT_LT(worst, 0.1) << name;
+        EXPECT_LT(worstHeld, std::sqrt(3.0)) << name;
+    }
+}
+
+TEST(DualContour, MovesOntoTheSurfaceInvertNoHexTheQefVerticesKeepValid) {
+    // Every hex the extraction leaves inverted is inverted with the plain QEF
+    // vertices too: a move onto the surface that would invert a hex is held back.
+    const std::vector<std::pair<const char*, Sdf>> shapes = {
+        {"torus", torus({12.2, 12.1, 11.9}, 7.3, 2.9)},
+        {"two balls", unite(sphere({7.6, 10.2, 10.1}, 4.05), sphere({16.3, 10.2, 10.1}, 4.05))},
+        {"thin plate", box({3.2, 3.4, 9.7}, {19.1, 18.6, 10.6})}};
+    for (const auto& [name, f] : shapes) {
+        const AnalyticDomain d({f});
+        Labels l = sampleLabels(d, unitGrid(25));
+        repairNonManifold(l, d);
+        ExtractOptions plain;
+        plain.projectVertices = false;
+        const HexMesh q = dualContourHexes(l, d, plain);
+        ExtractStats st;
+        const HexMesh m = dualContourHexes(l, d, {}, &st);
+        ASSERT_EQ(m.hexes, q.hexes);
+        std::size_t invertedMoved = 0, invertedPlain = 0;
+        for (std::size_t h = 0; h < m.hexCount(); ++h) {
+            const bool inverted = minCornerDeterminant(hexCoords(m, h)) <= 0;
+            const bool invertedQef = minCornerDeterminant(hexCoords(q, h)) <= 0;
+            invertedMoved += inverted;
+            invertedPlain += invertedQef;
+            EXPECT_FALSE(inverted && !invertedQef) << name << " hex " << h;
+        }
+        EXPECT_LE(invertedMoved, invertedPlain) << name;
+    }
+}

@@ -6,9 +6,13 @@
 // (iso - intensity), or (intensity - iso) with "inside below", so its units
 // are intensity units, not millimetres; for a surface it is a signed distance.
 //
-// Thread safety: every query builds its own read-only accessor on the stack
-// (an unregistered accessor, cheap to make), so any number of threads may
-// query one field at once. The grid is never modified after construction.
+// Thread safety: queries use read-only, unregistered accessors that belong to
+// the calling thread (each thread keeps one for the last few fields it
+// queried, so consecutive queries near each other skip the descent from the
+// tree's root), so any number of threads may query one field at once. The
+// grid is never modified after construction.
+#include <cstdint>
+
 #include <openvdb/openvdb.h>
 
 #include "isohex/core/HexMesh.hpp"  // Vec3
@@ -78,6 +82,7 @@ private:
     double inv_[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};   // index = inv * (world - origin)
     double origin_[3] = {0, 0, 0};
     double voxelSize_ = 1.0;
+    std::uint64_t id_ = 0;  // identifies the grid for the per-thread accessors
 };
 
 }  // namespace isohex::imaging

@@ -79,6 +79,9 @@ struct ExtractOptions {
 struct ExtractStats {
     std::size_t crossedCells = 0;
     std::size_t clampedVertices = 0;  // QEF minimisers that fell outside their cell
+    // Nodes (ascending) whose move onto the surface was shortened because it
+    // inverted a hex that their QEF positions leave valid.
+    std::vector<Index> heldBack;
 };
 
 // One hex per labelled point (also material-0 points with meshExterior), in
