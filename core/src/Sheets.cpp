@@ -202,15 +202,19 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             }
     for (std::size_t h = H; h < mesh.hexCount(); ++h) watch.push_back(static_cast<Index>(h));
     std::vector<double> scale(C, 1.0);
-    std::vector<std::uint8_t> bad(watch.size());
+    std::vector<std::uint8_t> bad(watch.size()), shrink(C, 1);
     for (int round = 0; round <= opt.maxHalvings; ++round) {
+        // Only hexes with a copy that moved since the last check can change.
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
-            for (std::size_t i = r.begin(); i != r.end(); ++i)
-                bad[i] = !(minJacobianDeterminant(hexCoords(mesh, watch[i])) > 0);
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                bool moved = false;
+                for (Index v : mesh.hexes[watch[i]]) moved = moved || (v >= static_cast<Index>(N) && shrink[v - N]);
+                if (moved) bad[i] = !(minJacobianDeterminant(hexCoords(mesh, watch[i])) > 0);
+            }
         });
         res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
         if (res.invertedAtStart == 0 || round == opt.maxHalvings) break;
-        std::vector<std::uint8_t> shrink(C, 0);
+        std::fill(shrink.begin(), shrink.end(), std::uint8_t{0});
         for (std::size_t i = 0; i < watch.size(); ++i)
             if (bad[i])
                 for (Index v : mesh.hexes[watch[i]])
