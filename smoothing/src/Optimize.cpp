@@ -737,8 +737,8 @@ SmoothingResult Smoother::run(bool meanRatio) {
         anchor_ = mesh_.nodes;
         releaseSurface_ = true;
         // Guarded first, then (undone if it ends worse) unguarded, each
-        // followed by mean-ratio sweeps; the second pass lets nodes go twice as far.
-        for (int pass = 0; pass < 2 && invertedCount(mesh_) > 0; ++pass) {
+        // followed by mean-ratio sweeps; pass k lets nodes go k times as far.
+        for (int pass = 0; pass < opt_.releasePasses && invertedCount(mesh_) > 0; ++pass) {
             releaseLimit_ = opt_.releaseDistance * (pass + 1);
             for (const bool guard : {true, false}) {
                 const std::size_t left = invertedCount(mesh_);

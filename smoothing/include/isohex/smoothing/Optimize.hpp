@@ -63,8 +63,9 @@ struct SmoothingOptions {
     // hexes allow. Validity before fidelity; the count is reported.
     bool releaseSurfaceToUntangle = true;
     // How far (in local edge lengths) a released node may go from its place
-    // on the surface.
+    // on the surface in the first release pass; pass k allows k times that.
     double releaseDistance = 0.5;
+    int releasePasses = 3;
 
     // --- mean-ratio optimisation
     int maxSweeps = 100;
