@@ -499,7 +499,14 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     double isoTotal = 0, meshTotal = 0, voxTotal = 0;
     const double voxelVolume = p.volume->spacing[0] * p.volume->spacing[1] * p.volume->spacing[2];
     std::map<std::int32_t, double> meshVolume;
-    for (std::size_t h = 0; h < mesh.hexCount(); ++h) meshVolume[mesh.material[h]] += hexVolume(hexCoords(mesh, static_cast<Index>(h)));
+    {
+        // Volumes in parallel, summed in hex order: the same total for any thread count.
+        std::vector<double> vol(mesh.hexCount());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, vol.size(), 4096), [&](const auto& r) {
+            for (std::size_t h = r.begin(); h != r.end(); ++h) vol[h] = hexVolume(hexCoords(mesh, static_cast<Index>(h)));
+        });
+        for (std::size_t h = 0; h < vol.size(); ++h) meshVolume[mesh.material[h]] += vol[h];
+    }
     for (const auto& m : p.selection->materials) {
         std::vector<openvdb::Vec3s> pts;
         std::vector<openvdb::Vec3I> tris;

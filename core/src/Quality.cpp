@@ -100,30 +100,35 @@ double edgeRatio(const HexCoords& x) {
 }
 
 double hexVolume(const HexCoords& x) {
-    // Reference corners in VTK order and the two Gauss points on [0,1].
-    static constexpr int ref[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
-                                      {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-    const double g[2] = {0.5 - 0.5 / std::sqrt(3.0), 0.5 + 0.5 / std::sqrt(3.0)};
+    // The trilinear map in monomial form, x(u,v,w) = x0 + b u + c v + d w +
+    // e uv + f uw + g vw + h uvw (VTK corner order), so each Jacobian column is
+    // a few multiply-adds; det J has degree at most 2 in each parameter, so the
+    // 2x2x2 Gauss rule on [0,1]^3 integrates it exactly.
+    Vec3 b, c, d, e, f, g, h;
+    for (int k = 0; k < 3; ++k) {
+        b[k] = x[1][k] - x[0][k];
+        c[k] = x[3][k] - x[0][k];
+        d[k] = x[4][k] - x[0][k];
+        e[k] = x[2][k] - x[1][k] - x[3][k] + x[0][k];
+        f[k] = x[5][k] - x[1][k] - x[4][k] + x[0][k];
+        g[k] = x[7][k] - x[3][k] - x[4][k] + x[0][k];
+        h[k] = x[6][k] - x[2][k] - x[5][k] - x[7][k] + x[1][k] + x[3][k] + x[4][k] - x[0][k];
+    }
+    constexpr double lo = 0.21132486540518713, hi = 0.78867513459481287;  // 1/2 -+ 1/(2 sqrt 3)
+    constexpr double gp[2] = {lo, hi};
     double vol = 0;
-    for (double u : g)
-        for (double v : g)
-            for (double w : g) {
-                const double p[3] = {u, v, w};
-                Vec3 J[3] = {};  // J[d] = dx/d(param d)
-                for (int i = 0; i < 8; ++i) {
-                    double shape[3];  // derivative of the trilinear shape function of node i
-                    for (int d = 0; d < 3; ++d) {
-                        double s = ref[i][d] ? 1.0 : -1.0;
-                        for (int e = 0; e < 3; ++e)
-                            if (e != d) s *= ref[i][e] ? p[e] : 1.0 - p[e];
-                        shape[d] = s;
-                    }
-                    for (int d = 0; d < 3; ++d)
-                        for (int c = 0; c < 3; ++c) J[d][c] += shape[d] * x[i][c];
+    for (double u : gp)
+        for (double v : gp)
+            for (double w : gp) {
+                Vec3 ju, jv, jw;
+                for (int k = 0; k < 3; ++k) {
+                    ju[k] = b[k] + e[k] * v + f[k] * w + h[k] * v * w;
+                    jv[k] = c[k] + e[k] * u + g[k] * w + h[k] * u * w;
+                    jw[k] = d[k] + f[k] * u + g[k] * v + h[k] * u * v;
                 }
-                vol += dot(J[0], cross(J[1], J[2])) / 8.0;
+                vol += dot(ju, cross(jv, jw));
             }
-    return vol;
+    return vol / 8.0;
 }
 
 double minCornerDeterminant(const HexCoords& x) {

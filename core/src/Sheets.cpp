@@ -139,16 +139,18 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     const std::size_t C = res.copyOf.size();
 
     // Averaged outward normal (area weighted) and local edge length per split node.
-    std::vector<Vec3> normal(N, Vec3{0, 0, 0});
-    std::vector<double> edgeSum(N, 0.0);
-    std::vector<int> edgeCount(N, 0);
+    // (indexed by copy: only split nodes need them)
+    std::vector<Vec3> normal(C, Vec3{0, 0, 0});
+    std::vector<double> edgeSum(C, 0.0);
+    std::vector<int> edgeCount(C, 0);
     for (const auto& q : quadNodes) {
         const Vec3 n = 0.5 * cross(mesh.nodes[q[2]] - mesh.nodes[q[0]], mesh.nodes[q[3]] - mesh.nodes[q[1]]);
         for (int i = 0; i < 4; ++i) {
-            normal[q[i]] = normal[q[i]] + n;
-            edgeSum[q[i]] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]) +
-                             norm(mesh.nodes[q[(i + 3) % 4]] - mesh.nodes[q[i]]);
-            edgeCount[q[i]] += 2;
+            const std::size_t c = static_cast<std::size_t>(copy[q[i]] - static_cast<Index>(N));
+            normal[c] = normal[c] + n;
+            edgeSum[c] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]) +
+                          norm(mesh.nodes[q[(i + 3) % 4]] - mesh.nodes[q[i]]);
+            edgeCount[c] += 2;
         }
     }
     // Each copy starts at its node plus `push`, an inward step of `inset`
@@ -166,14 +168,14 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 n += 8;
             }
             const Vec3 toCentre = (1.0 / n) * c - mesh.nodes[v];
-            const double len = norm(normal[v]);
-            Vec3 dir = len > 0 ? (-1.0 / len) * normal[v] : Vec3{0, 0, 0};
+            const double len = norm(normal[i]);
+            Vec3 dir = len > 0 ? (-1.0 / len) * normal[i] : Vec3{0, 0, 0};
             if (dot(dir, toCentre) <= 0) {
                 const double l = norm(toCentre);
                 dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
             }
             base[i] = mesh.nodes[v];
-            push[i] = (opt.inset * edgeSum[v] / edgeCount[v]) * dir;
+            push[i] = (opt.inset * edgeSum[i] / edgeCount[i]) * dir;
         }
     });
 
