@@ -167,6 +167,7 @@ private:
     bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
     std::vector<std::uint8_t> released_;
     std::vector<Vec3> anchor_;  // surface positions when the release began
+    std::vector<double> anchorLength_;  // local edge length there and then
     double releaseLimit_ = 0;   // current bound on a released node's distance from its anchor, edge lengths
     SmoothingResult result_;
 };
@@ -590,7 +591,7 @@ void Smoother::untanglePhase() {
                 for (int k = 0; k <= 6; ++k, t *= 0.5) {
                     to = displaced(x, t * d);
                     const double dx = to[0] - a[0], dy = to[1] - a[1], dz = to[2] - a[2];
-                    if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * r.length) break;
+                    if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[sv]) break;
                 }
                 if (t < 1.0 / 64) return;
                 released_[sv] = 1;
@@ -735,6 +736,17 @@ SmoothingResult Smoother::run(bool meanRatio) {
         invertedCount(mesh_) > 0) {
         released_.assign(mesh_.nodeCount(), 0);
         anchor_ = mesh_.nodes;
+        // The bound is in edge lengths measured now: with the current length a
+        // node next to one that went far could go as far again, and so on.
+        anchorLength_.assign(mesh_.nodeCount(), 0.0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh_.nodeCount(), 1024), [&](const auto& r) {
+            auto& buf = buffers_->local();
+            for (std::size_t v = r.begin(); v != r.end(); ++v)
+                if (mode_[v] == Mode::Surface || mode_[v] == Mode::Curve) {
+                    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, static_cast<Index>(v), buf.data());
+                    anchorLength_[v] = localEdgeLength(buf.data(), n);
+                }
+        });
         releaseSurface_ = true;
         // Guarded first, then (undone if it ends worse) unguarded, each
         // followed by mean-ratio sweeps; pass k lets nodes go k times as far.
@@ -758,6 +770,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
         result_.surfaceNodesReleased =
             static_cast<std::size_t>(std::count(released_.begin(), released_.end(), std::uint8_t{1}));
         anchor_ = {};
+        anchorLength_ = {};
     }
 
     const ObjectiveSum s = objectiveSum(mesh_);
