@@ -80,14 +80,29 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             std::uint8_t mask = 0;
             for (int f = 0; f < 6; ++f) {
                 const auto& lf = hexcell::kFaces[f];
+                // Another hex holding the face holds both ends of its diagonal
+                // lf[0]-lf[2]: walk the two (sorted) rows together, then check
+                // the other diagonal only for the hexes they share.
                 int sharers = 0;
-                for (const Index* it = nodeS.begin(hx[lf[0]]); it != nodeS.end(hx[lf[0]]); ++it) {
-                    const Index other = hexOf(*it);
-                    if (other == S[i]) continue;
-                    const Hex& ho = mesh.hexes[other];
-                    bool all = true;
-                    for (int k = 1; k < 4 && all; ++k) all = std::find(ho.begin(), ho.end(), hx[lf[k]]) != ho.end();
-                    sharers += all;
+                const Index* a = nodeS.begin(hx[lf[0]]);
+                const Index* ae = nodeS.end(hx[lf[0]]);
+                const Index* b = nodeS.begin(hx[lf[2]]);
+                const Index* be = nodeS.end(hx[lf[2]]);
+                while (a != ae && b != be) {
+                    const Index ha = hexOf(*a), hb = hexOf(*b);
+                    if (ha < hb) {
+                        ++a;
+                    } else if (hb < ha) {
+                        ++b;
+                    } else {
+                        if (ha != S[i]) {
+                            const Hex& ho = mesh.hexes[ha];
+                            sharers += std::find(ho.begin(), ho.end(), hx[lf[1]]) != ho.end() &&
+                                       std::find(ho.begin(), ho.end(), hx[lf[3]]) != ho.end();
+                        }
+                        ++a;
+                        ++b;
+                    }
                 }
                 if (sharers == 0) mask |= static_cast<std::uint8_t>(1u << f);
                 if (sharers > 1) {
@@ -183,9 +198,11 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     mesh.nodes.reserve(N + C);
     mesh.nodeClass.reserve(N + C);
     for (std::size_t i = 0; i < C; ++i) mesh.addNode(base[i] + push[i], NodeClass{});
-    for (Index h : S)
-        for (Index& v : mesh.hexes[h])
-            if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i)
+            for (Index& v : mesh.hexes[S[i]])
+                if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
+    });
     mesh.hexes.reserve(H + faces.size());
     mesh.material.reserve(H + faces.size());
     for (std::size_t i = 0; i < faces.size(); ++i) {
