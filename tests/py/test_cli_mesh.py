@@ -8,34 +8,17 @@ import sys
 import unittest
 
 import numpy as np
-import vtk
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
-
-
-def read(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def vtk_sj(grid):
-    q = vtk.vtkMeshQuality()
-    q.SetInputData(grid)
-    q.SetHexQualityMeasureToScaledJacobian()
-    q.Update()
-    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
+from vtk_tools import read_vtu as read, vtk_sj, vtk_volumes  # noqa: E402
 
 
 def vtk_volume(grid):
-    f = vtk.vtkCellSizeFilter()
-    f.SetInputData(grid)
-    f.ComputeVolumeOn()
-    f.Update()
-    return float(ns.vtk_to_numpy(f.GetOutput().GetCellData().GetArray("Volume")).sum())
+    return float(vtk_volumes(grid).sum())
+
+
 
 
 class Phantoms(unittest.TestCase):

@@ -16,34 +16,12 @@ from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import SOURCE, run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "samples"))
 from make_phantoms import ramp, write_nifti  # noqa: E402
 
 STAGES = ["load", "select", "octree", "extract", "pillow", "optimize", "fidelity", "write"]
-
-
-def read_vtu(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def vtk_sj(grid):
-    q = vtk.vtkMeshQuality()
-    q.SetInputData(grid)
-    q.SetHexQualityMeasureToScaledJacobian()
-    q.Update()
-    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
-
-
-def vtk_volumes(grid):
-    f = vtk.vtkCellSizeFilter()
-    f.SetInputData(grid)
-    f.ComputeVolumeOn()
-    f.Update()
-    return ns.vtk_to_numpy(f.GetOutput().GetCellData().GetArray("Volume")).astype(float)
 
 
 def trilinear_volumes(grid):

@@ -19,22 +19,11 @@ import sys
 import unittest
 
 import numpy as np
-import vtk
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
-
-
-def vtk_sj(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    q = vtk.vtkMeshQuality()
-    q.SetInputData(r.GetOutput())
-    q.SetHexQualityMeasureToScaledJacobian()
-    q.Update()
-    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
+from vtk_tools import read_vtu, vtk_sj  # noqa: E402
 
 
 class SmoothingOnRealInputs(unittest.TestCase):
@@ -112,12 +101,8 @@ class SmoothingOnRealInputs(unittest.TestCase):
         src = os.path.join(SHARED_DATA, "skull_ct.nii.gz")
         a, ra = self.mesh("skull_t1", src, "--iso", "2.9", threads=1)
         b, rb = self.mesh("skull_t2", src, "--iso", "2.9", threads=2)
-        ga, gb = [vtk.vtkXMLUnstructuredGridReader() for _ in range(2)]
-        for g, p in ((ga, a), (gb, b)):
-            g.SetFileName(p)
-            g.Update()
-        pa = ns.vtk_to_numpy(ga.GetOutput().GetPoints().GetData())
-        pb = ns.vtk_to_numpy(gb.GetOutput().GetPoints().GetData())
+        pa = ns.vtk_to_numpy(read_vtu(a).GetPoints().GetData())
+        pb = ns.vtk_to_numpy(read_vtu(b).GetPoints().GetData())
         np.testing.assert_array_equal(pa, pb)
         self.assertEqual(ra["optimization"]["sweeps"], rb["optimization"]["sweeps"])
 
