@@ -18,25 +18,13 @@
 #include "isohex/core/QuadSurface.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/core/VecMath.hpp"
 
 namespace isohex {
 
 namespace {
 
-Vec3 operator-(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 operator+(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 operator*(double s, const Vec3& a) { return {s * a[0], s * a[1], s * a[2]}; }
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-
-std::string at(const Vec3& p) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "(%.6g, %.6g, %.6g)", p[0], p[1], p[2]);
-    return buf;
-}
+using namespace vec;
 
 // Reference coordinates of the VTK hex corners.
 constexpr int kRef[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
@@ -172,7 +160,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // local edge lengths that the loop below halves where it inverts a hex.
     // Inward is the averaged inward normal, or towards the centroid of the
     // shrink-set hexes around the node where the normal points away from them.
-    std::vector<Vec3> base(C), push(C);
+    std::vector<Vec3> push(C);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Index v = res.copyOf[i];
@@ -189,7 +177,6 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 const double l = norm(toCentre);
                 dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
             }
-            base[i] = mesh.nodes[v];
             push[i] = (opt.inset * edgeSum[i] / edgeCount[i]) * dir;
         }
     });
@@ -197,7 +184,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
     mesh.nodes.reserve(N + C);
     mesh.nodeClass.reserve(N + C);
-    for (std::size_t i = 0; i < C; ++i) mesh.addNode(base[i] + push[i], NodeClass{});
+    for (std::size_t i = 0; i < C; ++i) mesh.addNode(mesh.nodes[res.copyOf[i]] + push[i], NodeClass{});
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i)
             for (Index& v : mesh.hexes[S[i]])
@@ -241,7 +228,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         for (std::size_t i = 0; i < C; ++i)
             if (shrink[i]) {
                 scale[i] *= 0.5;
-                mesh.nodes[N + i] = base[i] + scale[i] * push[i];
+                mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + scale[i] * push[i];
             }
     }
     return res;

@@ -16,25 +16,13 @@
 #include "isohex/core/QuadSurface.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/core/VecMath.hpp"
 
 namespace isohex::sheets {
 
 namespace {
 
-Vec3 operator-(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 operator+(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 operator*(double s, const Vec3& a) { return {s * a[0], s * a[1], s * a[2]}; }
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-
-std::string at(const Vec3& p) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "(%.6g, %.6g, %.6g)", p[0], p[1], p[2]);
-    return buf;
-}
+using namespace vec;
 
 Vec3 centroid(const HexMesh& mesh, Index h) {
     Vec3 c{0, 0, 0};
