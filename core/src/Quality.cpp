@@ -141,17 +141,17 @@ double minCornerDeterminant(const HexCoords& x) {
 }
 
 double centreDeterminant(const HexCoords& x) {
-    Vec3 a[3];
-    for (int k = 0; k < 3; ++k) {
-        a[k] = {0, 0, 0};
-        for (int e = 4 * k; e < 4 * k + 4; ++e)
-            for (int c = 0; c < 3; ++c)
-                a[k][c] += 0.25 * (x[hexcell::kEdges[e][1]][c] - x[hexcell::kEdges[e][0]][c]);
-    }
-    return dot(a[0], cross(a[1], a[2]));
+    // frames() gives the centre axes as sums of four edges: scale back to means.
+    const NineFrames f = frames(x);
+    return dot(f.v[0][0], cross(f.v[0][1], f.v[0][2])) / 64.0;
 }
 
-double minJacobianDeterminant(const HexCoords& x) { return std::min(minCornerDeterminant(x), centreDeterminant(x)); }
+double minJacobianDeterminant(const HexCoords& x) {
+    const NineFrames f = frames(x);
+    double m = dot(f.v[0][0], cross(f.v[0][1], f.v[0][2])) / 64.0;
+    for (int k = 1; k < 9; ++k) m = std::min(m, dot(f.v[k][0], cross(f.v[k][1], f.v[k][2])));
+    return m;
+}
 
 HexCoords hexCoords(const HexMesh& mesh, Index hex) {
     HexCoords x;
