@@ -491,6 +491,23 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     return j;
 }
 
+double isosurfaceVolume(const openvdb::FloatGrid& grid) {
+    std::vector<openvdb::Vec3s> pts;
+    std::vector<openvdb::Vec3I> tris;
+    std::vector<openvdb::Vec4I> quads;
+    openvdb::tools::volumeToMesh(grid, pts, tris, quads, 0.0);
+    double v = 0;
+    auto add = [&](const openvdb::Vec3s& a, const openvdb::Vec3s& b, const openvdb::Vec3s& c) {
+        v += openvdb::Vec3d(a).dot(openvdb::Vec3d(b).cross(openvdb::Vec3d(c))) / 6.0;
+    };
+    for (const auto& t : tris) add(pts[t[0]], pts[t[1]], pts[t[2]]);
+    for (const auto& q : quads) {
+        add(pts[q[0]], pts[q[1]], pts[q[2]]);
+        add(pts[q[0]], pts[q[2]], pts[q[3]]);
+    }
+    return std::abs(v);
+}
+
 nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     nlohmann::json j;
@@ -508,20 +525,7 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
         for (std::size_t h = 0; h < vol.size(); ++h) meshVolume[mesh.material[h]] += vol[h];
     }
     for (const auto& m : p.selection->materials) {
-        std::vector<openvdb::Vec3s> pts;
-        std::vector<openvdb::Vec3I> tris;
-        std::vector<openvdb::Vec4I> quads;
-        openvdb::tools::volumeToMesh(m.field.grid(), pts, tris, quads, 0.0);
-        double v = 0;
-        auto add = [&](const openvdb::Vec3s& a, const openvdb::Vec3s& b, const openvdb::Vec3s& c) {
-            v += openvdb::Vec3d(a).dot(openvdb::Vec3d(b).cross(openvdb::Vec3d(c))) / 6.0;
-        };
-        for (const auto& t : tris) add(pts[t[0]], pts[t[1]], pts[t[2]]);
-        for (const auto& q : quads) {
-            add(pts[q[0]], pts[q[1]], pts[q[2]]);
-            add(pts[q[0]], pts[q[2]], pts[q[3]]);
-        }
-        v = std::abs(v);
+        const double v = isosurfaceVolume(m.field.grid());
         const double mv = meshVolume.count(m.id) ? meshVolume[m.id] : 0.0;
         isoTotal += v;
         meshTotal += mv;

@@ -67,6 +67,9 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
 // Volume enclosed by each selected material's isosurface vs the mesh's, and
 // the distance of boundary and interface nodes to their surfaces.
 nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p);
+// Volume enclosed by OpenVDB's polygonisation (volumeToMesh) of a field's
+// zero set, by the divergence theorem over its polygons.
+double isosurfaceVolume(const openvdb::FloatGrid& grid);
 
 struct MeshOutcome {
     HexMesh mesh;

@@ -142,25 +142,6 @@ openvdb::FloatGrid::Ptr sampleOnGrid(const octree::Grid& g, const imaging::Impli
     return grid;
 }
 
-// Volume enclosed by OpenVDB's polygonisation of a field's zero set
-// (divergence theorem over its polygons).
-double vdbVolume(const openvdb::FloatGrid& grid) {
-    std::vector<openvdb::Vec3s> pts;
-    std::vector<openvdb::Vec3I> tris;
-    std::vector<openvdb::Vec4I> quads;
-    openvdb::tools::volumeToMesh(grid, pts, tris, quads, 0.0);
-    double v = 0;
-    auto add = [&](const openvdb::Vec3s& a, const openvdb::Vec3s& b, const openvdb::Vec3s& c) {
-        v += openvdb::Vec3d(a).dot(openvdb::Vec3d(b).cross(openvdb::Vec3d(c))) / 6.0;
-    };
-    for (const auto& t : tris) add(pts[t[0]], pts[t[1]], pts[t[2]]);
-    for (const auto& q : quads) {
-        add(pts[q[0]], pts[q[1]], pts[q[2]]);
-        add(pts[q[0]], pts[q[2]], pts[q[3]]);
-    }
-    return std::abs(v);
-}
-
 SurfaceTopology vdbTopology(const openvdb::FloatGrid& grid) {
     std::vector<openvdb::Vec3s> pts;
     std::vector<openvdb::Vec3I> tris;
@@ -427,11 +408,11 @@ TEST(Labels, JhuVolumeAgainstTheUnionIsosurfaceAndTheVoxels) {
         box.expand(1);
         for (auto it = box.begin(); it; ++it) out.setValue(*it, selected.count(in.getValue(*it)) ? -0.5f : 0.5f);
     }
-    const double unionIso = vdbVolume(*unionField);
+    const double unionIso = cli::isosurfaceVolume(*unionField);
     const double voxel = vol.spacing[0] * vol.spacing[1] * vol.spacing[2];
     double meshTotal = 0, labelIsoTotal = 0, voxelTotal = 0, worstVoxelChange = 0;
     for (const auto& m : r.p.selection->materials) {
-        const double iso = vdbVolume(m.field.grid());
+        const double iso = cli::isosurfaceVolume(m.field.grid());
         const double vox = static_cast<double>(m.voxels) * voxel;
         meshTotal += meshVolume[m.id];
         labelIsoTotal += iso;
