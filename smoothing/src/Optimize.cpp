@@ -109,6 +109,10 @@ public:
 private:
     void setUp();
     void untanglePhase();
+    // One untangling phase, with the valid-corner guard or without it; a phase
+    // without it that ends with more than `before` inverted hexes is undone
+    // (returns false then).
+    bool untangleRound(bool guard, std::size_t before);
     void returnToSurface();
     // With `onlyTouched`, only nodes that untangling moved since the last
     // mean-ratio phase (and their neighbours) start active: the rest is
@@ -521,6 +525,16 @@ Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const
     return r;
 }
 
+bool Smoother::untangleRound(bool guard, std::size_t before) {
+    guarded_ = guard && opt_.untangleKeepsValidCorners;
+    const std::vector<Vec3> saved = guarded_ ? std::vector<Vec3>{} : mesh_.nodes;
+    untanglePhase();
+    guarded_ = opt_.untangleKeepsValidCorners;
+    if (saved.empty() || invertedCount(mesh_) <= before) return true;
+    mesh_.nodes = saved;
+    return false;
+}
+
 void Smoother::untanglePhase() {
     const auto t0 = Clock::now();
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
@@ -712,12 +726,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
         // summed over the region may still fall by trading one deep inversion
         // for shallow ones that the next guarded round removes. A round that
         // ends with more inverted hexes is undone.
-        guarded_ = opt_.untangleKeepsValidCorners && (round % 2 == 1);
-        const std::vector<Vec3> saved = guarded_ ? std::vector<Vec3>{} : mesh_.nodes;
-        untanglePhase();
-        guarded_ = opt_.untangleKeepsValidCorners;
-        if (!saved.empty() && invertedCount(mesh_) > left) {
-            mesh_.nodes = saved;
+        if (!untangleRound(round % 2 == 1, left)) {
             if (++stalls >= 2) break;
             continue;
         }
@@ -755,11 +764,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
             for (const bool guard : {true, false}) {
                 const std::size_t left = invertedCount(mesh_);
                 if (left == 0) break;
-                guarded_ = guard && opt_.untangleKeepsValidCorners;
-                const std::vector<Vec3> saved = guard ? std::vector<Vec3>{} : mesh_.nodes;
-                untanglePhase();
-                guarded_ = opt_.untangleKeepsValidCorners;
-                if (!saved.empty() && invertedCount(mesh_) > left) mesh_.nodes = saved;
+                untangleRound(guard, left);
             }
             releaseSurface_ = false;
             if (meanRatio && opt_.maxSweeps > 0) meanRatioPhase(objectiveSum(mesh_), true);
