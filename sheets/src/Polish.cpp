@@ -25,18 +25,39 @@ double usableSJ(const HexCoords& x) {
     return s > 1.0 + 1e-9 ? -2.0 : s;
 }
 
-// The smallest scaled Jacobian of the hexes around node v with v at p.
-double minAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p) {
-    double m = std::numeric_limits<double>::infinity();
+// The scaled Jacobians of the hexes around node v with v at p, summarised:
+// the smallest, and the summed squared shortfall below `target`.
+struct Around {
+    double min = std::numeric_limits<double>::infinity();
+    double shortfall = 0;
+};
+
+Around around(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p, double target) {
+    Around a;
     for (const Index* h = topo.nodeHexes.begin(static_cast<std::size_t>(v)); h != topo.nodeHexes.end(static_cast<std::size_t>(v));
          ++h) {
         HexCoords x = hexCoords(mesh, *h);
         const Hex& hx = mesh.hexes[static_cast<std::size_t>(*h)];
         for (int i = 0; i < 8; ++i)
             if (hx[i] == v) x[i] = p;
-        m = std::min(m, usableSJ(x));
+        const double s = usableSJ(x);
+        a.min = std::min(a.min, s);
+        if (s < target) a.shortfall += (target - s) * (target - s);
     }
-    return m;
+    return a;
+}
+
+double minAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p) {
+    return around(mesh, topo, v, p, 0.0).min;
+}
+
+// A trial is better when it raises the smallest value, or keeps it and
+// lowers the shortfall (several hexes at about the same poor value: one
+// node alone cannot lift them all, but it can even them out so that the
+// next node can).
+bool better(const Around& trial, const Around& current) {
+    if (trial.min > current.min + 1e-12) return true;
+    return trial.min >= current.min && trial.shortfall < current.shortfall * (1 - 1e-9) - 1e-15;
 }
 
 // Mean length of the hex edges at v.
@@ -142,23 +163,23 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector*
             }
             const double L = edgeLengthAt(mesh, topo, v);
             if (!(L > 0)) continue;
-            double best = minAround(mesh, topo, v, mesh.nodes[sv]);
+            Around best = around(mesh, topo, v, mesh.nodes[sv], opt.target);
             double step = opt.firstStep * L;
             int moves = 0;
             while (step >= opt.lastStep * L && moves < opt.maxMovesPerVisit) {
                 Vec3 bestPos = mesh.nodes[sv];
-                double bestValue = best;
+                Around bestValue = best;
                 for (const Vec3& d : dirs) {
                     Vec3 p = mesh.nodes[sv] + step * d;
                     if (surface) p = projector->project(mesh.nodeClass[sv].id, p);
                     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
-                    const double f = minAround(mesh, topo, v, p);
-                    if (f > bestValue + 1e-12) {
+                    const Around f = around(mesh, topo, v, p, opt.target);
+                    if (better(f, bestValue)) {
                         bestValue = f;
                         bestPos = p;
                     }
                 }
-                if (bestValue > best) {
+                if (better(bestValue, best)) {
                     mesh.nodes[sv] = bestPos;
                     best = bestValue;
                     ++moves;

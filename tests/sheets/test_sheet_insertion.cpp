@@ -384,16 +384,20 @@ TEST(WorstHexes, FixedNodesDoNotMove) {
 
 TEST(WorstHexes, SurfaceNodesStayOnTheirSurfaceAndNoHexGetsWorse) {
     MeshedBall b = meshedBall();
-    // Slide one surface node along the sphere most of the way to a surface
-    // neighbour: the quads around it close up.
+    // Slide one surface node along the sphere most of the way to the far
+    // corner of one of its quads: that quad's angle at the node opens
+    // towards 180 degrees.
     const Topology t = buildTopology(b.mesh);
     const Index v = t.boundaryNodes[t.boundaryNodes.size() / 2];
     Index w = kNone;
-    for (const auto& e : t.edges)
-        if ((e[0] == v || e[1] == v) && t.nodeOnBoundary[e[0]] && t.nodeOnBoundary[e[1]]) w = e[0] == v ? e[1] : e[0];
+    for (Index q : t.boundaryQuads) {
+        const auto& n = t.quads[q].nodes;
+        for (int i = 0; i < 4; ++i)
+            if (n[i] == v) w = n[(i + 2) % 4];
+    }
     ASSERT_NE(w, kNone);
     const Vec3 x = b.mesh.nodes[v], y = b.mesh.nodes[w];
-    b.mesh.nodes[v] = b.surface->closestPoint({x[0] + 0.7 * (y[0] - x[0]), x[1] + 0.7 * (y[1] - x[1]), x[2] + 0.7 * (y[2] - x[2])});
+    b.mesh.nodes[v] = b.surface->closestPoint({x[0] + 0.8 * (y[0] - x[0]), x[1] + 0.8 * (y[1] - x[1]), x[2] + 0.8 * (y[2] - x[2])});
     const double poor = minScaledJacobian(b.mesh);
     ASSERT_LT(poor, WorstHexOptions{}.target);
     const WorstHexResult r = raiseWorstHexes(b.mesh, &b.geometry);

@@ -61,7 +61,7 @@ struct VolumeFitOptions {
     // value before and this.
     double keepScaledJacobian = 0.3;
     // Largest offset, in local edge lengths.
-    double maxOffset = 0.25;
+    double maxOffset = 0.1;
 };
 
 struct VolumeFitResult {
