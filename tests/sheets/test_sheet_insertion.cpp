@@ -269,8 +269,10 @@ TEST(SheetInsertion, SameResultForAnyThreadCount) {
         SheetGeometry geo;
         InsertOptions o;
         o.keep = Keep::Inside;
-        insertSheets(m, geo, s, o);
+        const InsertResult r = insertSheets(m, geo, s, o);
         smoothing::optimizeMesh(m, &geo);
+        raiseWorstHexes(m, &geo);
+        fitSurfaceVolume(m, *s, r.surfaceId);
         return m;
     };
     const HexMesh a = run(1), b = run(2);

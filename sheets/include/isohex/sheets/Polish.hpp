@@ -8,8 +8,9 @@
 //    maximises, node by node, the smallest scaled Jacobian of the node's hexes
 //    (a compass search: interior nodes in 3-D, surface nodes in their tangent
 //    plane and projected back onto their surface), only around hexes below a
-//    target. A move is kept only if that smallest value rises, so no hex ends
-//    below the worst value the node's hexes had.
+//    target. A move is kept if that smallest value rises, or stays and the
+//    summed squared shortfall below the target drops; so no hex ends below
+//    the worst value the node's hexes had.
 //
 //  * fitSurfaceVolume: boundary quads whose corners lie on the triangles are
 //    chords: on a convex surface they cut inside it, and the mesh loses volume
