@@ -11,6 +11,7 @@
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/sheets/Polish.hpp"
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
 
 namespace isohex::cli {
 
@@ -95,8 +96,8 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
         // max-min pass, then the surface nodes are fitted so the boundary
         // quads enclose the triangles' volume instead of cutting chords.
         if (!settings.fixBoundary) {
-            const auto wr = stage(sink, "worst_hexes", [&] { return sheets::raiseWorstHexes(out.mesh, &geometry); });
-            out.report["worst_hexes"] = {{"target", sheets::WorstHexOptions{}.target},
+            const auto wr = stage(sink, "worst_hexes", [&] { return smoothing::raiseWorstHexes(out.mesh, &geometry); });
+            out.report["worst_hexes"] = {{"target", smoothing::WorstHexOptions{}.target},
                                          {"min_scaled_jacobian_before", wr.minBefore},
                                          {"min_scaled_jacobian_after", wr.minAfter},
                                          {"below_target_before", wr.belowBefore},

@@ -21,9 +21,13 @@
 #include "isohex/sheets/Polish.hpp"
 #include "isohex/sheets/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
 
 using namespace isohex;
 using namespace isohex::sheets;
+using isohex::smoothing::raiseWorstHexes;
+using isohex::smoothing::WorstHexOptions;
+using isohex::smoothing::WorstHexResult;
 
 namespace {
 

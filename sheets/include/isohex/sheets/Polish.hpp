@@ -1,16 +1,7 @@
 #pragma once
-// Two finishing steps for a mesh whose boundary was captured by sheet
-// insertion, run after the mean-ratio optimiser (smoothing::optimizeMesh):
-//
-//  * raiseWorstHexes: the optimiser minimises a sum, so a few hexes can stay
-//    poor where the triangles have detail smaller than an element (a spur or
-//    pit under a surface node: its quads close up like a cone). This pass
-//    maximises, node by node, the smallest scaled Jacobian of the node's hexes
-//    (a compass search: interior nodes in 3-D, surface nodes in their tangent
-//    plane and projected back onto their surface), only around hexes below a
-//    target. A move is kept if that smallest value rises, or stays and the
-//    summed squared shortfall below the target drops; so no hex ends below
-//    the worst value the node's hexes had.
+// A finishing step for a mesh whose boundary was captured by sheet insertion,
+// run after the mean-ratio optimiser and smoothing::raiseWorstHexes
+// (WorstHexes.hpp, which the scan pipeline uses too):
 //
 //  * fitSurfaceVolume: boundary quads whose corners lie on the triangles are
 //    chords: on a convex surface they cut inside it, and the mesh loses volume
@@ -22,7 +13,7 @@
 //    which also lowers the largest distance of the boundary from the triangles
 //    (the middle of a chord was off by the whole depth).
 //
-// Both are sequential over few nodes, in index order, so the result does not
+// Sequential over the surface nodes, in index order, so the result does not
 // depend on the thread count.
 #include <cstddef>
 #include <cstdint>
@@ -32,28 +23,6 @@
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
 namespace isohex::sheets {
-
-struct WorstHexOptions {
-    // Hexes with a scaled Jacobian below this are worked on (their movable nodes).
-    double target = 0.3;
-    // Rounds over the nodes of the hexes still below the target.
-    int maxRounds = 20;
-    // First and last step of the compass search, in local edge lengths.
-    double firstStep = 0.25, lastStep = 1.0 / 128.0;
-    int maxMovesPerVisit = 40;
-};
-
-struct WorstHexResult {
-    double minBefore = 0, minAfter = 0;     // smallest scaled Jacobian of the mesh
-    std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
-    std::size_t nodesMoved = 0;
-    int rounds = 0;
-};
-
-// Surface nodes move only with a projector; Curve and Fixed nodes, and
-// Interior-classified nodes on the mesh boundary, never move.
-WorstHexResult raiseWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector* projector,
-                               const WorstHexOptions& options = {});
 
 struct VolumeFitOptions {
     int iterations = 4;
