@@ -2,11 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <atomic>
 #include <limits>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/VecMath.hpp"
+#include "isohex/smoothing/Colouring.hpp"
 
 namespace isohex::smoothing {
 
@@ -129,6 +134,60 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             for (int c = -1; c <= 1; c += 2)
                 dirs3.push_back((1.0 / std::sqrt(3.0)) * Vec3{double(a), double(b), double(c)});
 
+    // One node's compass search; true if it moved.
+    auto visit = [&](Index v, const std::vector<Vec3>& normal) {
+        const auto sv = static_cast<std::size_t>(v);
+        const bool surface = mesh.nodeClass[sv].kind == NodeKind::Surface;
+        std::vector<Vec3> dirs = dirs3;
+        if (surface) {
+            const Vec3 n = normal[sv];
+            if (!(norm(n) > 0)) return false;
+            const Vec3 helper = std::abs(n[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+            Vec3 t1 = cross(n, helper);
+            t1 = (1.0 / norm(t1)) * t1;
+            const Vec3 t2 = cross(n, t1);
+            dirs.clear();
+            for (int k = 0; k < 8; ++k) {
+                const double a = k * M_PI / 4.0;
+                dirs.push_back(std::cos(a) * t1 + std::sin(a) * t2);
+            }
+        }
+        const double L = meanEdgeLengthAt(mesh, topo, v);
+        if (!(L > 0)) return false;
+        Around best = around(mesh, topo, v, mesh.nodes[sv], opt.target);
+        double step = opt.firstStep * L;
+        int moves = 0;
+        while (step >= opt.lastStep * L && moves < opt.maxMovesPerVisit) {
+            Vec3 bestPos = mesh.nodes[sv];
+            Around bestValue = best;
+            for (const Vec3& d : dirs) {
+                Vec3 p = mesh.nodes[sv] + step * d;
+                if (surface) p = projector->project(mesh.nodeClass[sv].id, p);
+                if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
+                const Around f = around(mesh, topo, v, p, opt.target);
+                if (better(f, bestValue)) {
+                    bestValue = f;
+                    bestPos = p;
+                }
+            }
+            if (better(bestValue, best)) {
+                mesh.nodes[sv] = bestPos;
+                best = bestValue;
+                ++moves;
+            } else {
+                step *= 0.5;
+            }
+        }
+        if (!moves) return false;
+        everMoved[sv] = 1;
+        for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
+            sj[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh, *h));
+        return true;
+    };
+
+    // Tangent planes from the surfaces as they are at the start (the nodes
+    // move by fractions of an element).
+    const std::vector<Vec3> normal = surfaceNormals(mesh, topo);
     for (int round = 0; round < opt.maxRounds; ++round) {
         std::vector<Index> nodes;
         for (std::size_t h = 0; h < sj.size(); ++h)
@@ -138,58 +197,18 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
         if (nodes.empty()) break;
-        std::vector<Vec3> normal;
-        bool anyMove = false;
-        for (Index v : nodes) {
-            const auto sv = static_cast<std::size_t>(v);
-            const bool surface = mesh.nodeClass[sv].kind == NodeKind::Surface;
-            std::vector<Vec3> dirs = dirs3;
-            if (surface) {
-                if (normal.empty()) normal = surfaceNormals(mesh, topo);
-                const Vec3 n = normal[sv];
-                if (!(norm(n) > 0)) continue;
-                const Vec3 helper = std::abs(n[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-                Vec3 t1 = cross(n, helper);
-                t1 = (1.0 / norm(t1)) * t1;
-                const Vec3 t2 = cross(n, t1);
-                dirs.clear();
-                for (int k = 0; k < 8; ++k) {
-                    const double a = k * M_PI / 4.0;
-                    dirs.push_back(std::cos(a) * t1 + std::sin(a) * t2);
-                }
-            }
-            const double L = meanEdgeLengthAt(mesh, topo, v);
-            if (!(L > 0)) continue;
-            Around best = around(mesh, topo, v, mesh.nodes[sv], opt.target);
-            double step = opt.firstStep * L;
-            int moves = 0;
-            while (step >= opt.lastStep * L && moves < opt.maxMovesPerVisit) {
-                Vec3 bestPos = mesh.nodes[sv];
-                Around bestValue = best;
-                for (const Vec3& d : dirs) {
-                    Vec3 p = mesh.nodes[sv] + step * d;
-                    if (surface) p = projector->project(mesh.nodeClass[sv].id, p);
-                    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
-                    const Around f = around(mesh, topo, v, p, opt.target);
-                    if (better(f, bestValue)) {
-                        bestValue = f;
-                        bestPos = p;
-                    }
-                }
-                if (better(bestValue, best)) {
-                    mesh.nodes[sv] = bestPos;
-                    best = bestValue;
-                    ++moves;
-                    everMoved[sv] = 1;
-                    anyMove = true;
-                } else {
-                    step *= 0.5;
-                }
-            }
-            if (moves)
-                for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
-                    sj[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh, *h));
-        }
+        // Nodes sharing no hex move at once: one colour class per parallel
+        // loop, classes in order, so the result is the same for any number
+        // of threads.
+        std::vector<std::uint8_t> pick(N, 0);
+        for (Index v : nodes) pick[static_cast<std::size_t>(v)] = 1;
+        const NodeColouring colouring = colourNodes(mesh, topo.nodeHexes, pick);
+        std::atomic<bool> anyMove{false};
+        for (const std::vector<Index>& cls : colouring.classes)
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cls.size(), 16), [&](const auto& range) {
+                for (std::size_t i = range.begin(); i != range.end(); ++i)
+                    if (visit(cls[i], normal)) anyMove = true;
+            });
         res.rounds = round + 1;
         if (!anyMove) break;
     }

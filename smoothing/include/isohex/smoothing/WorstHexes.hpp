@@ -15,8 +15,9 @@
 // so the next node can). So no hex around a node turns inverted, and none ends
 // below the worst value that node's hexes had.
 //
-// Sequential over the few nodes involved, in index order: the result does not
-// depend on the thread count.
+// Each round colours the nodes involved so that nodes of one colour share no
+// hex, and moves each colour's nodes in parallel, colours in order: the
+// result does not depend on the thread count.
 #include <cstddef>
 #include <vector>
 
