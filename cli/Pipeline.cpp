@@ -481,6 +481,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
                             {"below_target_before", w.belowBefore},
                             {"below_target_after", w.belowAfter},
                             {"nodes_moved", w.nodesMoved},
+                            {"surface_nodes_released", w.surfaceNodesReleased},
                             {"rounds", w.rounds},
                             {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
     }

@@ -116,10 +116,11 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     const Topology topo = buildTopology(mesh);
     auto movable = [&](Index v) {
         const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
+        // (Interior-classified nodes on the boundary and Curve/Fixed nodes never move.)
         if (c.kind == NodeKind::Interior) return !topo.nodeOnBoundary[static_cast<std::size_t>(v)];
         return c.kind == NodeKind::Surface && projector != nullptr;
     };
-    std::vector<std::uint8_t> everMoved(N, 0);
+    std::vector<std::uint8_t> everMoved(N, 0), released(N, 0);
     // Directions of the compass search: the 6 axes and 8 cube diagonals in
     // 3-D; 8 directions 45 degrees apart in a tangent plane.
     std::vector<Vec3> dirs3;
@@ -135,11 +136,14 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 dirs3.push_back((1.0 / std::sqrt(3.0)) * Vec3{double(a), double(b), double(c)});
 
     // One node's compass search; true if it moved.
-    auto visit = [&](Index v, const std::vector<Vec3>& normal) {
+    // With `release`, a surface node moves in 3-D, off its surface, but stays
+    // within releaseDistance local edge lengths of it.
+    auto visit = [&](Index v, const std::vector<Vec3>& normal, bool release) {
         const auto sv = static_cast<std::size_t>(v);
         const bool surface = mesh.nodeClass[sv].kind == NodeKind::Surface;
+        const bool onSurface = surface && !release;
         std::vector<Vec3> dirs = dirs3;
-        if (surface) {
+        if (onSurface) {
             const Vec3 n = normal[sv];
             if (!(norm(n) > 0)) return false;
             const Vec3 helper = std::abs(n[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
@@ -162,8 +166,11 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             Around bestValue = best;
             for (const Vec3& d : dirs) {
                 Vec3 p = mesh.nodes[sv] + step * d;
-                if (surface) p = projector->project(mesh.nodeClass[sv].id, p);
+                if (onSurface) p = projector->project(mesh.nodeClass[sv].id, p);
                 if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
+                if (surface && release &&
+                    !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))
+                    continue;
                 const Around f = around(mesh, topo, v, p, opt.target);
                 if (better(f, bestValue)) {
                     bestValue = f;
@@ -180,6 +187,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         }
         if (!moves) return false;
         everMoved[sv] = 1;
+        if (surface && release) released[sv] = 1;
         for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
             sj[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh, *h));
         return true;
@@ -188,15 +196,19 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     // Tangent planes from the surfaces as they are at the start (the nodes
     // move by fractions of an element).
     const std::vector<Vec3> normal = surfaceNormals(mesh, topo);
-    for (int round = 0; round < opt.maxRounds; ++round) {
+    // Rounds over the nodes of the hexes below the target until nothing moves;
+    // then, if hexes are still inverted, rounds over theirs only, where
+    // surface nodes may leave their surface (validity before fidelity: a fold
+    // of the surface within one element cannot be opened along it).
+    auto runRound = [&](bool release) {
         std::vector<Index> nodes;
         for (std::size_t h = 0; h < sj.size(); ++h)
-            if (sj[h] < opt.target)
+            if (release ? !(sj[h] > 0) : sj[h] < opt.target)
                 for (Index v : mesh.hexes[h])
                     if (movable(v)) nodes.push_back(v);
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-        if (nodes.empty()) break;
+        if (nodes.empty()) return false;
         // Nodes sharing no hex move at once: one colour class per parallel
         // loop, classes in order, so the result is the same for any number
         // of threads.
@@ -207,14 +219,21 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         for (const std::vector<Index>& cls : colouring.classes)
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cls.size(), 16), [&](const auto& range) {
                 for (std::size_t i = range.begin(); i != range.end(); ++i)
-                    if (visit(cls[i], normal)) anyMove = true;
+                    if (visit(cls[i], normal, release)) anyMove = true;
             });
-        res.rounds = round + 1;
-        if (!anyMove) break;
+        ++res.rounds;
+        return anyMove.load();
+    };
+    for (int round = 0; round < opt.maxRounds && runRound(false); ++round) {
     }
+    if (projector != nullptr && opt.releaseDistance > 0 &&
+        std::any_of(sj.begin(), sj.end(), [](double s) { return !(s > 0); }))
+        for (int round = 0; round < opt.maxRounds && runRound(true); ++round) {
+        }
     res.minAfter = *std::min_element(sj.begin(), sj.end());
     res.belowAfter = countBelow();
     res.nodesMoved = static_cast<std::size_t>(std::count(everMoved.begin(), everMoved.end(), 1));
+    res.surfaceNodesReleased = static_cast<std::size_t>(std::count(released.begin(), released.end(), 1));
     return res;
 }
 

@@ -36,12 +36,16 @@ struct WorstHexOptions {
     // First and last step of the compass search, in local edge lengths.
     double firstStep = 0.25, lastStep = 1.0 / 128.0;
     int maxMovesPerVisit = 40;
+    // When the rounds stall with hexes still inverted, their surface nodes
+    // may leave the surface by up to this many local edge lengths (0: never).
+    double releaseDistance = 0.5;
 };
 
 struct WorstHexResult {
     double minBefore = 0, minAfter = 0;           // smallest scaled Jacobian of the mesh
     std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
     std::size_t nodesMoved = 0;
+    std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
     int rounds = 0;
 };
 
