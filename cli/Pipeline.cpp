@@ -495,6 +495,8 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;
     j["mean_inverse_mean_ratio_after"] = r.objectiveAfter;
     j["converged"] = r.converged;
+    j["seconds"] = {{"setup", r.setupSeconds}, {"untangle", r.untangleSeconds},
+                    {"mean_ratio", r.meanRatioSeconds}, {"total", r.seconds}};
     for (const auto& f : r.untangleFailures) {
         j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
         if (j["untangle_failures"].size() >= 20) break;
