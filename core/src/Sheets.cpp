@@ -184,9 +184,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     quadNodes.push_back({hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]});
                 }
     };
-    findBoundary(false);
+    findBoundary(opt.exactBoundary);
     ManifoldCheck mc = checkManifold(quadNodes, N, true);
-    if (!mc.ok()) {
+    if (!mc.ok() && !opt.exactBoundary) {
         findBoundary(true);
         mc = checkManifold(quadNodes, N, true);
     }
