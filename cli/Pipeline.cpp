@@ -489,6 +489,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
     j["nodes_moved"] = r.nodesMoved;
+    j["node_updates"] = r.nodeUpdates;
     j["surface_nodes_off_surface"] = r.surfaceNodesReleased;
     j["inverted_before"] = r.invertedBefore;
     j["inverted_after"] = r.invertedAfter;
