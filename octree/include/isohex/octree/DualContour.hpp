@@ -79,9 +79,13 @@ struct ExtractOptions {
 struct ExtractStats {
     std::size_t crossedCells = 0;
     std::size_t clampedVertices = 0;  // QEF minimisers that fell outside their cell
-    // Nodes (ascending) whose move onto the surface was shortened because it
-    // inverted a hex that their QEF positions leave valid.
+    // Nodes (ascending) whose move onto the surface inverts a hex that their
+    // QEF positions leave valid. The mesh has them on the surface; heldBackAt
+    // (same order) is the position between the QEF point and the surface
+    // point, as near the surface as keeps every hex around valid (the mesher
+    // starts its sheet and optimiser from there).
     std::vector<Index> heldBack;
+    std::vector<Vec3> heldBackAt;
 };
 
 // One hex per labelled point (also material-0 points with meshExterior), in
