@@ -462,7 +462,12 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
     }
     const CornerFigures f = cornerDistances(r);
     print(c.name, f);
-    std::cout << "[figures] " << c.name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted << "\n";
+    HexMesh heldBack = r.mesh;  // as the pipeline goes on: held-back vertices at their valid positions
+    for (std::size_t i = 0; i < r.stats.heldBack.size(); ++i) heldBack.nodes[r.stats.heldBack[i]] = r.stats.heldBackAt[i];
+    const ValidityReport vh = validate(heldBack);
+    std::cout << "[figures] " << c.name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted
+              << " (with the held-back positions "
+              << (vh.defects.count("inverted_hex") ? vh.defects.at("inverted_hex").count : 0) << ")\n";
     expectOnTheIsosurface(c.name, f);
 }
 
@@ -515,7 +520,8 @@ TEST(Labels, JhuVolumeAgainstTheUnionIsosurfaceAndTheVoxels) {
 
 // Issue 4: the brain with --keep-largest at 2 mm and 1 mm (about 1.7 million
 // hexes) has no non-manifold place left, a valid mesh, a boundary whose
-// topology is that of the repaired labels, and corners on the isosurface.
+// topology is that of the repaired labels and of volumeToMesh of the repaired
+// field, and corners on the isosurface.
 TEST(Ch2bet, KeepLargestIsManifoldAndValidAtTwoAndOneMillimetre) {
     for (double size : {2.0, 1.0}) {
         const std::string name = "ch2bet_keep_largest_" + std::to_string(static_cast<int>(size)) + "mm";
@@ -528,10 +534,16 @@ TEST(Ch2bet, KeepLargestIsManifoldAndValidAtTwoAndOneMillimetre) {
         const SurfaceTopology ours = meshRegionTopology(r.mesh, buildTopology(r.mesh), 1);
         EXPECT_EQ(ours.components, labelsTopology[0].components) << name;
         EXPECT_EQ(ours.euler, labelsTopology[0].euler) << name;
+        const octree::Domain& repaired = r.p.extractionDomain();
+        const SurfaceTopology vdb =
+            vdbTopology(*sampleOnGrid(r.p.labels.grid, [&](const Vec3& x) { return repaired.value(1, x); }));
+        EXPECT_EQ(ours.components, vdb.components) << name;
+        EXPECT_EQ(ours.euler, vdb.euler) << name;
         const CornerFigures f = cornerDistances(r);
         print(name, f);
         std::cout << "[figures] " << name << " hexes " << r.mesh.hexCount() << ", inverted " << inverted << ", "
-                  << ours.components << " boundary components, chi " << ours.euler << "\n";
+                  << ours.components << " boundary components, chi " << ours.euler
+                  << "; volumeToMesh of the repaired field " << vdb.components << ", chi " << vdb.euler << "\n";
         expectOnTheIsosurface(name, f);
     }
 }
