@@ -342,6 +342,8 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     mesh.nodes[id] = centre;
                     continue;
                 }
+                // every query below stays in this cell
+                const Domain& cellDomain = domain.within(centre);
                 // Hermite data on the 12 cell edges whose ends differ.
                 Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
                 Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();
@@ -351,7 +353,7 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     for (int d = 0; d < 3; ++d) {
                         const int e = c | (1 << d);
                         if (e == c || m[c] == m[e]) continue;
-                        crossing(domain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
+                        crossing(cellDomain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
                         mass += Eigen::Vector3d(data[n].first[0], data[n].first[1], data[n].first[2]);
                         ++n;
                     }
@@ -403,17 +405,17 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                 if (!two && !opt.meshExterior) {
                     bool outside = false;
                     for (int c = 0; c < 8; ++c) outside = outside || m[c] == 0;
-                    outerJunction = outside && std::isfinite(domain.unionValue(Vec3{x(0), x(1), x(2)}));
+                    outerJunction = outside && std::isfinite(cellDomain.unionValue(Vec3{x(0), x(1), x(2)}));
                 }
                 if (opt.projectVertices && (two || outerJunction)) {
                     if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
                     const Eigen::Vector3d qef = x;
                     const CellFrame frame{lower, axes, toCell, opt.cellMargin};
                     if (two)
-                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return edgeFunction(domain, ma, mb, y, gr); }, x,
+                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return edgeFunction(cellDomain, ma, mb, y, gr); }, x,
                                         frame, p, surfaceTolerance);
                     else
-                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return domain.unionValue(y, gr); }, x, frame, p,
+                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return cellDomain.unionValue(y, gr); }, x, frame, p,
                                         surfaceTolerance);
                     if (x != qef) qefSlab[static_cast<std::size_t>(ck)].emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
                 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <tbb/parallel_for.h>
+
 #include "isohex/core/Error.hpp"
 
 namespace isohex::octree {
@@ -31,39 +33,78 @@ RepairedDomain::RepairedDomain(const Domain& base, const Labels& sampled, const 
         toGrid_[r] = {(u[1] * w[2] - u[2] * w[1]) / det, (u[2] * w[0] - u[0] * w[2]) / det,
                       (u[0] * w[1] - u[1] * w[0]) / det};
     }
-    changed_.assign(g.size(), 0);
+    // the points whose label changed, in grid order (parallel over slabs)
     const auto [nx, ny, nz] = g.dims;
-    for (int k = 0; k < nz; ++k)
+    std::vector<std::vector<std::size_t>> slab(static_cast<std::size_t>(nz));
+    tbb::parallel_for(0, nz, [&](int k) {
         for (int j = 0; j < ny; ++j)
             for (int i = 0; i < nx; ++i) {
                 const std::size_t p = g.index(i, j, k);
-                const std::int32_t was = sampled.material[p], now = repaired.material[p];
-                if (was == now) continue;
-                const Vec3 x = g.point(i, j, k);
-                // each material of the point before and after, and the union of
-                // all materials where the point left it or joined it
-                for (const std::int32_t m : {now, was, kUnion}) {
-                    if (m == 0 || (m == kUnion && (was != 0) == (now != 0))) continue;
-                    const bool wantInside = m == kUnion ? now != 0 : m == now;
-                    const double f = at(m, x, nullptr);
-                    if (!std::isfinite(f) || (f < 0) == wantInside) continue;
-                    // the field's step to the grid neighbours, for a point that sits on the iso value
-                    double step = 0;
-                    int n = 0;
-                    for (int d = 0; d < 3; ++d)
-                        for (int s = -1; s <= 1; s += 2) {
-                            int q[3] = {i, j, k};
-                            q[d] += s;
-                            if (q[d] < 0 || q[d] >= g.dims[d]) continue;
-                            step += std::abs(at(m, g.point(q[0], q[1], q[2]), nullptr) - f);
-                            ++n;
-                        }
-                    const double size = std::max({std::abs(f), n ? 0.1 * step / n : 0.0, 1e-12});
-                    hat_[key(p, m)] = (wantInside ? -size : size) - f;
-                    changed_[p] = 1;
-                }
+                if (sampled.material[p] != repaired.material[p]) slab[static_cast<std::size_t>(k)].push_back(p);
             }
-    changedCount_ = static_cast<std::size_t>(std::count(changed_.begin(), changed_.end(), std::uint8_t{1}));
+    });
+    std::vector<std::size_t> points;
+    for (const auto& v : slab) points.insert(points.end(), v.begin(), v.end());
+    if (points.empty()) return;
+    // Hats per point: each material of the point before and after, and the
+    // union of all materials where the point left it or joined it.
+    struct Hat {
+        std::int32_t material = 0;
+        double height = 0;
+        bool used = false;
+    };
+    std::vector<std::array<Hat, 3>> hats(points.size());
+    tbb::parallel_for(std::size_t{0}, points.size(), [&](std::size_t n) {
+        const std::size_t p = points[n];
+        const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+        const std::int32_t was = sampled.material[p], now = repaired.material[p];
+        const Vec3 x = g.point(i, j, k);
+        int slot = 0;
+        for (const std::int32_t m : {now, was, kUnion}) {
+            if (m == 0 || (m == kUnion && (was != 0) == (now != 0))) continue;
+            const bool wantInside = m == kUnion ? now != 0 : m == now;
+            const double f = at(m, x, nullptr);
+            if (!std::isfinite(f) || (f < 0) == wantInside) continue;
+            // the field's step to the grid neighbours, for a point that sits on the iso value
+            double step = 0;
+            int count = 0;
+            for (int d = 0; d < 3; ++d)
+                for (int s = -1; s <= 1; s += 2) {
+                    int q[3] = {i, j, k};
+                    q[d] += s;
+                    if (q[d] < 0 || q[d] >= g.dims[d]) continue;
+                    step += std::abs(at(m, g.point(q[0], q[1], q[2]), nullptr) - f);
+                    ++count;
+                }
+            const double size = std::max({std::abs(f), count ? 0.1 * step / count : 0.0, 1e-12});
+            hats[n][slot++] = {m, (wantInside ? -size : size) - f, true};
+        }
+    });
+    changed_.assign(g.size(), 0);
+    hatCell_.assign(g.size(), 0);
+    for (std::size_t n = 0; n < points.size(); ++n) {
+        const std::size_t p = points[n];
+        bool any = false;
+        for (const Hat& h : hats[n])
+            if (h.used) {
+                hat_[key(p, h.material)] = h.height;
+                any = true;
+            }
+        if (!any) continue;
+        changed_[p] = 1;
+        ++changedCount_;
+        // the 8 cells around p (each indexed by its lowest grid point)
+        const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+        for (int c = 0; c < 8; ++c) {
+            const int ci = i - (c & 1), cj = j - (c >> 1 & 1), ck = k - (c >> 2 & 1);
+            if (ci >= 0 && cj >= 0 && ck >= 0) hatCell_[g.index(ci, cj, ck)] = 1;
+        }
+    }
+}
+
+bool RepairedDomain::cellHasHat(int i0, int j0, int k0) const {
+    if (i0 < 0 || j0 < 0 || k0 < 0 || i0 >= grid_.dims[0] || j0 >= grid_.dims[1] || k0 >= grid_.dims[2]) return false;
+    return hatCell_[grid_.index(i0, j0, k0)] != 0;
 }
 
 std::array<double, 3> RepairedDomain::gridCoords(const Vec3& x) const {
@@ -76,14 +117,8 @@ std::array<double, 3> RepairedDomain::gridCoords(const Vec3& x) const {
 bool RepairedDomain::nearChange(const Vec3& x) const {
     if (changedCount_ == 0) return false;
     const auto u = gridCoords(x);
-    const int i0 = static_cast<int>(std::floor(u[0])), j0 = static_cast<int>(std::floor(u[1])),
-              k0 = static_cast<int>(std::floor(u[2]));
-    for (int c = 0; c < 8; ++c) {
-        const int i = i0 + (c & 1), j = j0 + (c >> 1 & 1), k = k0 + (c >> 2 & 1);
-        if (i < 0 || j < 0 || k < 0 || i >= grid_.dims[0] || j >= grid_.dims[1] || k >= grid_.dims[2]) continue;
-        if (changed_[grid_.index(i, j, k)]) return true;
-    }
-    return false;
+    return cellHasHat(static_cast<int>(std::floor(u[0])), static_cast<int>(std::floor(u[1])),
+                      static_cast<int>(std::floor(u[2])));
 }
 
 double RepairedDomain::at(std::int32_t material, const Vec3& x, Vec3* gradient) const {
@@ -102,6 +137,7 @@ double RepairedDomain::withHats(std::int32_t material, const Vec3& x, Vec3* grad
     const auto u = gridCoords(x);
     const int i0 = static_cast<int>(std::floor(u[0])), j0 = static_cast<int>(std::floor(u[1])),
               k0 = static_cast<int>(std::floor(u[2]));
+    if (!cellHasHat(i0, j0, k0)) return f;
     std::array<double, 3> gu{0, 0, 0};
     for (int c = 0; c < 8; ++c) {
         const int o[3] = {c & 1, c >> 1 & 1, c >> 2 & 1};

@@ -30,6 +30,14 @@ public:
         (void)gradient;
         return std::numeric_limits<double>::quiet_NaN();
     }
+    // The domain to ask about points of the extraction grid's cell holding x
+    // (x its centre): one that changes the field only near some grid points
+    // answers with the domain underneath elsewhere, so the many queries of a
+    // cell skip its bookkeeping. Default: this domain.
+    virtual const Domain& within(const Vec3& x) const {
+        (void)x;
+        return *this;
+    }
     // The material x would belong to if it were not in `material` (for
     // non-manifold repair that removes a point from a region). Default: 0.
     virtual std::int32_t materialOtherThan(std::int32_t material, const Vec3& x) const {

@@ -31,6 +31,9 @@ public:
     std::int32_t materialAt(const Vec3& x) const override { return base_.materialAt(x); }
     double value(std::int32_t material, const Vec3& x, Vec3* gradient = nullptr) const override;
     double unionValue(const Vec3& x, Vec3* gradient = nullptr) const override;
+    // Itself in cells with a changed grid point, the scan's domain elsewhere
+    // (where the two are equal).
+    const Domain& within(const Vec3& x) const override { return nearChange(x) ? *this : base_.within(x); }
     std::int32_t materialOtherThan(std::int32_t material, const Vec3& x) const override {
         return base_.materialOtherThan(material, x);
     }
@@ -44,11 +47,13 @@ private:
     Grid grid_;
     std::array<std::array<double, 3>, 3> toGrid_;  // world offset -> grid coordinates
     std::vector<std::uint8_t> changed_;             // per grid point
+    std::vector<std::uint8_t> hatCell_;             // per cell, by its lowest grid point
     std::unordered_map<std::uint64_t, double> hat_; // (point, material) -> hat height
     std::size_t changedCount_ = 0;
     // hats of the union of all materials are stored under this material id
     static constexpr std::int32_t kUnion = std::numeric_limits<std::int32_t>::min();
     std::array<double, 3> gridCoords(const Vec3& x) const;
+    bool cellHasHat(int i0, int j0, int k0) const;
     double at(std::int32_t material, const Vec3& x, Vec3* gradient) const;  // the base's field
     double withHats(std::int32_t material, const Vec3& x, Vec3* gradient) const;
 };
