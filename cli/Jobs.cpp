@@ -79,6 +79,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     report["timings_s"] = timings;
     report["peak_memory_mb"] = peakMemoryMb();
+    report["huge_pages"] = hugePagesRequested();
     report["outputs"] = job.outputs;
     report["versions"] = versionsJson();
     if (!job.plot.empty())

@@ -56,6 +56,9 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
     cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
         ->group(grid);
     cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
+    cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
+                  "After the mean-ratio optimisation, do not run the max-min pass on hexes below 0.3")
+        ->group(grid);
 }
 
 void addRunOptions(CLI::App* cmd, MeshArgs& a) {

@@ -23,6 +23,7 @@
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
 
 namespace isohex::cli {
 
@@ -516,6 +517,22 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     const smoothing::SmoothingResult r =
         smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt,
                                 [&](std::string_view, double f) { sink.progress(f); });
+    // The optimiser minimises a sum over all corners; the few hexes it leaves
+    // poor (surface folds, spurs thinner than an element) get a max-min pass.
+    if (settings.worstHexPass) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const smoothing::WorstHexOptions wo;
+        const auto w = smoothing::raiseWorstHexes(mesh, settings.fixBoundary ? nullptr : &projector, wo);
+        j["worst_hexes"] = {{"target", wo.target},
+                            {"min_scaled_jacobian_before", w.minBefore},
+                            {"min_scaled_jacobian_after", w.minAfter},
+                            {"below_target_before", w.belowBefore},
+                            {"below_target_after", w.belowAfter},
+                            {"nodes_moved", w.nodesMoved},
+                            {"surface_nodes_released", w.surfaceNodesReleased},
+                            {"rounds", w.rounds},
+                            {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
+    }
     j["fix_boundary"] = settings.fixBoundary;
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
@@ -526,6 +543,8 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;
     j["mean_inverse_mean_ratio_after"] = r.objectiveAfter;
     j["converged"] = r.converged;
+    j["seconds"] = {{"setup", r.setupSeconds}, {"untangle", r.untangleSeconds},
+                    {"mean_ratio", r.meanRatioSeconds}, {"total", r.seconds}};
     for (const auto& f : r.untangleFailures) {
         j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
         if (j["untangle_failures"].size() >= 20) break;

@@ -31,6 +31,7 @@ struct MeshSettings {
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     bool fixBoundary = false;
+    bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below 0.3
     int randomSheetSeed = 1;
 };
 

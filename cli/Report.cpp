@@ -1,6 +1,7 @@
 #include "Report.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -17,6 +18,11 @@ double peakMemoryMb() {
     rusage u{};
     getrusage(RUSAGE_SELF, &u);
     return static_cast<double>(u.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+bool hugePagesRequested() {
+    const char* t = std::getenv("GLIBC_TUNABLES");
+    return t && std::string(t).find("glibc.malloc.hugetlb=1") != std::string::npos;
 }
 
 namespace {

@@ -10,6 +10,9 @@
 namespace isohex::cli {
 
 double peakMemoryMb();
+// Whether malloc was told to use transparent huge pages (main.cpp restarts
+// isohex with glibc.malloc.hugetlb=1 unless ISOHEX_HUGEPAGES=0).
+bool hugePagesRequested();
 // Human-readable quality and validity summary for a terminal.
 std::string formatQuality(const QualitySummary& q, const ValidityReport& v);
 // Writes JSON text to `path` atomically (refusing to clobber unless overwrite).

@@ -9,7 +9,9 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
+#include "isohex/sheets/Polish.hpp"
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
 
 namespace isohex::cli {
 
@@ -89,6 +91,29 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
                                       {"sweeps", sr.sweeps},
                                       {"untangle_sweeps", sr.untangleSweeps},
                                       {"seconds", sr.seconds}};
+        // The optimiser minimises a sum; what it leaves below 0.3 (hexes
+        // whose surface quad sits on detail smaller than an element) gets a
+        // max-min pass, then the surface nodes are fitted so the boundary
+        // quads enclose the triangles' volume instead of cutting chords.
+        if (!settings.fixBoundary) {
+            const auto wr = stage(sink, "worst_hexes", [&] { return smoothing::raiseWorstHexes(out.mesh, &geometry); });
+            out.report["worst_hexes"] = {{"target", smoothing::WorstHexOptions{}.target},
+                                         {"min_scaled_jacobian_before", wr.minBefore},
+                                         {"min_scaled_jacobian_after", wr.minAfter},
+                                         {"below_target_before", wr.belowBefore},
+                                         {"below_target_after", wr.belowAfter},
+                                         {"nodes_moved", wr.nodesMoved},
+                                         {"rounds", wr.rounds}};
+            const auto fr =
+                stage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
+            out.report["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},
+                                         {"nodes", fr.nodes},
+                                         {"nodes_moved", fr.nodesMoved},
+                                         {"nodes_held_back", fr.nodesHeldBack},
+                                         {"max_offset", fr.maxOffset},
+                                         {"volume_before", fr.volumeBefore},
+                                         {"volume_after", fr.volumeAfter}};
+        }
     }
     // Fidelity: enclosed volumes and the distance of boundary nodes to the triangles.
     const HexQuality q = computeQuality(out.mesh);

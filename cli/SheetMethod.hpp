@@ -16,7 +16,9 @@ std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& 
 // A regular grid 5% larger than the surface's bounding box (element size
 // --size, default the surface's mean edge length), two sheets inserted along
 // the surface, the outside discarded, then untangling and optimisation with
-// surface nodes kept on the triangles.
+// surface nodes kept on the triangles; after it a max-min pass on the hexes
+// below 0.3 and the volume-balanced fit of the surface nodes (sheets/Polish.hpp),
+// which leaves them slightly off the triangles.
 MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink);
 
 }  // namespace isohex::cli

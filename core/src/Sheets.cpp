@@ -29,6 +29,31 @@ using namespace vec;
 // Reference coordinates of the VTK hex corners.
 constexpr int kRef[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
 
+// The three faces (hexcell::kFaces) that meet at each corner.
+constexpr int kCornerFaces[8][3] = {{0, 2, 4}, {1, 2, 4}, {1, 3, 4}, {0, 3, 4},
+                                    {0, 2, 5}, {1, 2, 5}, {1, 3, 5}, {0, 3, 5}};
+
+std::uint64_t mix64(std::uint64_t h) {  // splitmix64's finaliser
+    h ^= h >> 30;
+    h *= 0xBF58476D1CE4E5B9ull;
+    h ^= h >> 27;
+    h *= 0x94D049BB133111EBull;
+    return h ^ (h >> 31);
+}
+
+// A hash of the set of a quad's four nodes (the same for any order of them).
+std::uint64_t quadHash(Index a, Index b, Index c, Index d) {
+    if (a > b) std::swap(a, b);
+    if (c > d) std::swap(c, d);
+    if (a > c) std::swap(a, c);
+    if (b > d) std::swap(b, d);
+    if (b > c) std::swap(b, c);
+    const auto word = [](Index x, Index y) {
+        return static_cast<std::uint64_t>(static_cast<std::uint32_t>(x)) << 32 | static_cast<std::uint32_t>(y);
+    };
+    return mix64(mix64(word(a, b)) ^ word(c, d));
+}
+
 int cornerAt(int x, int y, int z) {
     for (int c = 0; c < 8; ++c)
         if (kRef[c][0] == x && kRef[c][1] == y && kRef[c][2] == z) return c;
@@ -52,70 +77,120 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     for (std::size_t h = 0; h < H; ++h)
         if (inS[h]) S.push_back(static_cast<Index>(h));
 
-    // Node -> shrink-set hexes (a counting sort over the shrink set only: the
-    // sheet needs no faces or edges of the rest of the mesh).
-    const Csr nodeS = detail::bucketItems(N, 8 * S.size(), [&](std::size_t i) { return mesh.hexes[S[i / 8]][i % 8]; });
-    auto hexOf = [&](Index item) { return S[static_cast<std::size_t>(item) / 8]; };
-
-    // Faces of shrink-set hexes that no other shrink-set hex shares: the
-    // boundary of the shrink set, seen from inside (outward normals), in
-    // (hex, face) order for any thread count.
-    std::vector<std::uint8_t> faceMask(S.size(), 0);
-    std::atomic<Index> overfull{kNone};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 1024), [&](const auto& r) {
+    // Nodes on the boundary of the shrink set, by parity: each face of a
+    // shrink-set hex XORs a 64-bit hash of its four nodes into each of them. A
+    // face two shrink-set hexes share cancels, so a node stays 0 unless a
+    // boundary face meets it (or, with chance 2^-64 per node, its boundary
+    // faces' hashes cancel: then the sheet misses faces, the manifold check
+    // below fails and the exact pass over the whole shrink set is used).
+    // Only the hexes that touch such nodes need the node -> hex adjacency.
+    std::vector<std::uint64_t> parity(N, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Hex& hx = mesh.hexes[S[i]];
-            std::uint8_t mask = 0;
+            std::uint64_t fh[6];
             for (int f = 0; f < 6; ++f) {
                 const auto& lf = hexcell::kFaces[f];
-                // Another hex holding the face holds both ends of its diagonal
-                // lf[0]-lf[2]: walk the two (sorted) rows together, then check
-                // the other diagonal only for the hexes they share.
-                int sharers = 0;
-                const Index* a = nodeS.begin(hx[lf[0]]);
-                const Index* ae = nodeS.end(hx[lf[0]]);
-                const Index* b = nodeS.begin(hx[lf[2]]);
-                const Index* be = nodeS.end(hx[lf[2]]);
-                while (a != ae && b != be) {
-                    const Index ha = hexOf(*a), hb = hexOf(*b);
-                    if (ha < hb) {
-                        ++a;
-                    } else if (hb < ha) {
-                        ++b;
-                    } else {
-                        if (ha != S[i]) {
-                            const Hex& ho = mesh.hexes[ha];
-                            sharers += std::find(ho.begin(), ho.end(), hx[lf[1]]) != ho.end() &&
-                                       std::find(ho.begin(), ho.end(), hx[lf[3]]) != ho.end();
-                        }
-                        ++a;
-                        ++b;
-                    }
-                }
-                if (sharers == 0) mask |= static_cast<std::uint8_t>(1u << f);
-                if (sharers > 1) {
-                    Index expected = kNone;
-                    overfull.compare_exchange_strong(expected, S[i]);
-                }
+                fh[f] = quadHash(hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]);
             }
-            faceMask[i] = mask;
+            for (int c = 0; c < 8; ++c)
+                std::atomic_ref<std::uint64_t>(parity[static_cast<std::size_t>(hx[c])])
+                    .fetch_xor(fh[kCornerFaces[c][0]] ^ fh[kCornerFaces[c][1]] ^ fh[kCornerFaces[c][2]],
+                               std::memory_order_relaxed);
         }
     });
-    if (overfull.load() != kNone)
-        throw Error("cannot pillow: a face of hex " + std::to_string(overfull.load()) +
-                    " is shared by more than two hexes; repair the mesh first");
+
     std::vector<std::pair<Index, int>> faces;
     std::vector<std::array<Index, 4>> quadNodes;
-    for (std::size_t i = 0; i < S.size(); ++i)
-        for (int f = 0; f < 6; ++f)
-            if (faceMask[i] >> f & 1) {
-                const Hex& hx = mesh.hexes[S[i]];
-                const auto& lf = hexcell::kFaces[f];
-                faces.emplace_back(S[i], f);
-                quadNodes.push_back({hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]});
+    std::vector<Index> T;  // positions in S of the hexes that hold a boundary node
+    Csr nodeS;             // node -> hexes of T, as items 8 * (position in T) + corner
+    auto hexOf = [&](Index item) { return S[static_cast<std::size_t>(T[static_cast<std::size_t>(item) / 8])]; };
+    auto findBoundary = [&](bool exact) {
+        std::vector<std::uint8_t> touches(S.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                bool t = exact;
+                for (Index v : mesh.hexes[S[i]]) t = t || parity[static_cast<std::size_t>(v)] != 0;
+                touches[i] = t;
             }
+        });
+        T.clear();
+        for (std::size_t i = 0; i < S.size(); ++i)
+            if (touches[i]) T.push_back(static_cast<Index>(i));
+        nodeS = detail::bucketItems(N, 8 * T.size(), [&](std::size_t i) {
+            return mesh.hexes[S[static_cast<std::size_t>(T[i / 8])]][i % 8];
+        });
+
+        // Faces of shrink-set hexes that no other shrink-set hex shares: the
+        // boundary of the shrink set, seen from inside (outward normals), in
+        // (hex, face) order for any thread count.
+        std::vector<std::uint8_t> faceMask(T.size(), 0);
+        std::atomic<Index> overfull{kNone};
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 1024), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const Index self = S[static_cast<std::size_t>(T[i])];
+                const Hex& hx = mesh.hexes[self];
+                std::uint8_t mask = 0;
+                for (int f = 0; f < 6; ++f) {
+                    const auto& lf = hexcell::kFaces[f];
+                    if (!exact && (parity[hx[lf[0]]] == 0 || parity[hx[lf[1]]] == 0 || parity[hx[lf[2]]] == 0 ||
+                                   parity[hx[lf[3]]] == 0))
+                        continue;  // a node of the face is interior: the face is shared
+                    // Another hex holding the face holds both ends of its diagonal
+                    // lf[0]-lf[2]: walk the two (sorted) rows together, then check
+                    // the other diagonal only for the hexes they share.
+                    int sharers = 0;
+                    const Index* a = nodeS.begin(hx[lf[0]]);
+                    const Index* ae = nodeS.end(hx[lf[0]]);
+                    const Index* b = nodeS.begin(hx[lf[2]]);
+                    const Index* be = nodeS.end(hx[lf[2]]);
+                    while (a != ae && b != be) {
+                        const Index ha = hexOf(*a), hb = hexOf(*b);
+                        if (ha < hb) {
+                            ++a;
+                        } else if (hb < ha) {
+                            ++b;
+                        } else {
+                            if (ha != self) {
+                                const Hex& ho = mesh.hexes[ha];
+                                sharers += std::find(ho.begin(), ho.end(), hx[lf[1]]) != ho.end() &&
+                                           std::find(ho.begin(), ho.end(), hx[lf[3]]) != ho.end();
+                            }
+                            ++a;
+                            ++b;
+                        }
+                    }
+                    if (sharers == 0) mask |= static_cast<std::uint8_t>(1u << f);
+                    if (sharers > 1) {
+                        Index expected = kNone;
+                        overfull.compare_exchange_strong(expected, self);
+                    }
+                }
+                faceMask[i] = mask;
+            }
+        });
+        if (overfull.load() != kNone)
+            throw Error("cannot pillow: a face of hex " + std::to_string(overfull.load()) +
+                        " is shared by more than two hexes; repair the mesh first");
+        faces.clear();
+        quadNodes.clear();
+        for (std::size_t i = 0; i < T.size(); ++i)
+            for (int f = 0; f < 6; ++f)
+                if (faceMask[i] >> f & 1) {
+                    const Index h = S[static_cast<std::size_t>(T[i])];
+                    const Hex& hx = mesh.hexes[h];
+                    const auto& lf = hexcell::kFaces[f];
+                    faces.emplace_back(h, f);
+                    quadNodes.push_back({hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]});
+                }
+    };
+    findBoundary(opt.exactBoundary);
+    ManifoldCheck mc = checkManifold(quadNodes, N, true);
+    if (!mc.ok() && !opt.exactBoundary) {
+        findBoundary(true);
+        mc = checkManifold(quadNodes, N, true);
+    }
     if (faces.empty()) throw Error("cannot pillow: the shrink set has no boundary");
-    const ManifoldCheck mc = checkManifold(quadNodes, N, true);
     if (!mc.ok()) {
         std::string msg = "cannot pillow: the boundary of the shrink set is not a closed 2-manifold (" +
                           std::to_string(mc.badEdges.size()) + " non-manifold edges, " +
@@ -199,37 +274,96 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     }
 
     // Shorten the inward step of copies where a hex around them inverted.
-    std::vector<Index> watch;  // hexes that contain a copy
-    for (Index h : S)
-        for (Index v : mesh.hexes[h])
+    std::vector<Index> watch;  // hexes that contain a copy (all among T)
+    for (Index t : T)
+        for (Index v : mesh.hexes[S[static_cast<std::size_t>(t)]])
             if (v >= static_cast<Index>(N)) {
-                watch.push_back(h);
+                watch.push_back(S[static_cast<std::size_t>(t)]);
                 break;
             }
     for (std::size_t h = H; h < mesh.hexCount(); ++h) watch.push_back(static_cast<Index>(h));
-    std::vector<double> scale(C, 1.0);
-    std::vector<std::uint8_t> bad(watch.size()), shrink(C, 1);
-    for (int round = 0; round <= opt.maxHalvings; ++round) {
-        // Only hexes with a copy that moved since the last check can change.
+    // Each round, every inverted hex around a copy that moved asks how many
+    // more halvings of its copies' steps (all together, up to maxHalvings) make
+    // it valid; a copy takes the most any of its hexes asks for, and the hexes
+    // around the copies that moved are checked again. A hex that no step length
+    // can fix (a shrink-set hex inverted before the split, or a sheet hex on a
+    // surface quad that folds against its copies' steps) asks for the shortest
+    // step at once. This settles in a few rounds over the few hexes involved,
+    // where halving once per round re-checked every hex maxHalvings times.
+    const int maxK = std::max(0, opt.maxHalvings);
+    std::vector<int> halvings(C, 0), want(C, 0);
+    std::vector<std::uint8_t> bad(watch.size()), hopeless(watch.size(), 0), ask(watch.size(), 0);
+    std::vector<std::uint8_t> moved(C, 1);  // round 0 checks every hex with a copy
+    auto place = [&](std::size_t c, int k) {
+        return mesh.nodes[res.copyOf[c]] + std::ldexp(1.0, -k) * push[c];
+    };
+    for (int round = 0; round <= maxK; ++round) {
+        std::atomic<std::size_t> triggers{0};
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
+            std::size_t t = 0;
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                bool moved = false;
-                for (Index v : mesh.hexes[watch[i]]) moved = moved || (v >= static_cast<Index>(N) && shrink[v - N]);
-                if (moved) bad[i] = !(minJacobianDeterminant(hexCoords(mesh, watch[i])) > 0);
+                ask[i] = 0;
+                const Hex& hx = mesh.hexes[watch[i]];
+                bool changed = false;
+                for (Index v : hx) changed = changed || (v >= static_cast<Index>(N) && moved[v - N]);
+                if (!changed) continue;
+                HexCoords x = hexCoords(mesh, watch[i]);
+                bad[i] = !(minJacobianDeterminant(x) > 0);
+                if (!bad[i]) continue;
+                if (round == 0) {
+                    // Shrink-set hex: its shape with the copies back on their
+                    // nodes. Sheet hex: its shape with the copies a hair inside
+                    // (each corner's sign there is that of the surface quad's
+                    // corner normal against the copy's step, whatever the step's
+                    // length, so halving cannot help if it is not positive).
+                    const bool sheetHex = static_cast<std::size_t>(watch[i]) >= H;
+                    HexCoords y = x;
+                    for (int c = 0; c < 8; ++c)
+                        if (hx[c] >= static_cast<Index>(N)) {
+                            const std::size_t cc = static_cast<std::size_t>(hx[c] - N);
+                            y[c] = mesh.nodes[res.copyOf[cc]];
+                            if (sheetHex) y[c] = y[c] + 1e-3 * push[cc];
+                        }
+                    hopeless[i] = !(minJacobianDeterminant(y) > 0);
+                }
+                if (hopeless[i]) {  // no length helps: the shortest at once
+                    ask[i] = static_cast<std::uint8_t>(maxK);
+                    ++t;
+                    continue;
+                }
+                int k = 1;
+                for (; k < maxK; ++k) {
+                    HexCoords y = x;
+                    for (int c = 0; c < 8; ++c)
+                        if (hx[c] >= static_cast<Index>(N)) {
+                            const std::size_t cc = static_cast<std::size_t>(hx[c] - N);
+                            y[c] = place(cc, std::min(maxK, halvings[cc] + k));
+                        }
+                    if (minJacobianDeterminant(y) > 0) break;
+                }
+                ask[i] = static_cast<std::uint8_t>(k);
+                ++t;
             }
+            triggers += t;
         });
         res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
-        if (res.invertedAtStart == 0 || round == opt.maxHalvings) break;
-        std::fill(shrink.begin(), shrink.end(), std::uint8_t{0});
+        if (triggers == 0 || round == maxK) break;
+        std::fill(want.begin(), want.end(), 0);
         for (std::size_t i = 0; i < watch.size(); ++i)
-            if (bad[i])
+            if (ask[i])
                 for (Index v : mesh.hexes[watch[i]])
-                    if (v >= static_cast<Index>(N)) shrink[v - N] = 1;
-        for (std::size_t i = 0; i < C; ++i)
-            if (shrink[i]) {
-                scale[i] *= 0.5;
-                mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + scale[i] * push[i];
+                    if (v >= static_cast<Index>(N)) want[v - N] = std::max(want[v - N], static_cast<int>(ask[i]));
+        bool any = false;
+        for (std::size_t c = 0; c < C; ++c) {
+            const int k = std::min(maxK, halvings[c] + want[c]);
+            moved[c] = k != halvings[c];
+            if (moved[c]) {
+                any = true;
+                halvings[c] = k;
+                mesh.nodes[N + c] = place(c, k);
             }
+        }
+        if (!any) break;
     }
     return res;
 }

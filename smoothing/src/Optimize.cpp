@@ -639,10 +639,11 @@ void Smoother::untanglePhase() {
         buildRegion(rings);
     }
     report("untangle", 1.0);
-    result_.untangleSeconds = secondsSince(t0);
+    result_.untangleSeconds += secondsSince(t0);
 }
 
 void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
+    const auto t0 = Clock::now();
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
     std::vector<std::uint8_t> active(N, 0), next(N, 0);
     if (onlyTouched) {
@@ -697,6 +698,7 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         }
     }
     report("optimize", 1.0);
+    result_.meanRatioSeconds += secondsSince(t0);
 }
 
 SmoothingResult Smoother::run(bool meanRatio) {

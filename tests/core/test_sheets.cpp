@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <string>
+
 #include <set>
 
 #include "isohex/core/Error.hpp"
@@ -132,6 +134,56 @@ TEST(Pillow, ASubsetGetsASheetAgainstTheRestOfTheMesh) {
     EXPECT_EQ(m.hexCount() - before, 24u);  // the 2x2x2 cube has 24 boundary quads
     EXPECT_TRUE(validate(m).ok());
     EXPECT_EQ(invertedCount(m), 0u);
+}
+
+TEST(Pillow, TheParityShortcutGivesTheSameSheetAsTheFullAdjacency) {
+    // Shrink sets with holes, dents and several components inside a block:
+    // the boundary found from the nodes the face parity marks must be the one
+    // the full node -> hex adjacency gives, node for node and hex for hex.
+    for (std::uint64_t seed : {1u, 2u, 3u}) {
+        const HexMesh base = classifiedBlock(7, 6, 5);
+        std::vector<Index> shrink;
+        std::uint64_t x = seed * 0x9E3779B97F4A7C15ull;
+        for (std::size_t h = 0; h < base.hexCount(); ++h) {
+            x ^= x >> 12, x ^= x << 25, x ^= x >> 27;  // xorshift, reproducible
+            if ((x * 0x2545F4914F6CDD1Dull) >> 62) shrink.push_back(static_cast<Index>(h));  // about 3 in 4
+        }
+        HexMesh fast = base, exact = base;
+        PillowOptions o;
+        std::string fastError, exactError;
+        try {
+            pillow(fast, shrink, o);
+        } catch (const Error& e) {
+            fastError = e.what();
+        }
+        o.exactBoundary = true;
+        try {
+            pillow(exact, shrink, o);
+        } catch (const Error& e) {
+            exactError = e.what();
+        }
+        EXPECT_EQ(fastError, exactError) << "seed " << seed;
+        EXPECT_EQ(fast.hexes, exact.hexes) << "seed " << seed;
+        EXPECT_EQ(fast.nodes, exact.nodes) << "seed " << seed;
+    }
+    // A manifold case that must succeed: a 5 x 5 x 5 block with its centre
+    // hex left out (a cavity) and one corner hex left out (a dent).
+    const HexMesh base = classifiedBlock(5, 5, 5);
+    std::vector<Index> shrink;
+    for (Index h = 0; h < 125; ++h)
+        if (h != 62 && h != 0) shrink.push_back(h);
+    HexMesh fast = base, exact = base;
+    const PillowResult rf = pillow(fast, shrink);
+    PillowOptions o;
+    o.exactBoundary = true;
+    pillow(exact, shrink, o);
+    EXPECT_EQ(fast.hexes, exact.hexes);
+    EXPECT_EQ(fast.nodes, exact.nodes);
+    // 150 outer quads minus the dent's 3, plus the dent's 3 inner faces,
+    // plus the cavity's 6
+    EXPECT_EQ(fast.hexCount() - base.hexCount(), 156u);
+    EXPECT_EQ(rf.firstNewHex, 125);
+    EXPECT_TRUE(validate(fast).ok());
 }
 
 TEST(Dice, MultipliesTheSheetsHexesByCopiesPlusOne) {

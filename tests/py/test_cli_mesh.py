@@ -84,6 +84,25 @@ class Phantoms(unittest.TestCase):
         np.testing.assert_array_equal(ns.vtk_to_numpy(ga.GetCells().GetConnectivityArray()),
                                       ns.vtk_to_numpy(gb.GetCells().GetConnectivityArray()))
 
+    def test_huge_pages_are_requested_and_change_nothing_in_the_output(self):
+        with open("/sys/kernel/mm/transparent_hugepage/enabled") as f:
+            thp = "[never]" not in f.read()
+        out = {}
+        for label, env in (("on", {}), ("off", {"ISOHEX_HUGEPAGES": "0"})):
+            path = os.path.join(self.dir, f"hp_{label}.vtu")
+            run(["mesh", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "--size", "3", "-o", path,
+                 "--report", path.replace(".vtu", ".json"), "--force", "-q"],
+                env={k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"} | env)
+            with open(path.replace(".vtu", ".json")) as f:
+                out[label] = (read(path), json.load(f))
+        self.assertEqual(out["on"][1]["huge_pages"], thp)
+        self.assertFalse(out["off"][1]["huge_pages"])
+        ga, gb = out["on"][0], out["off"][0]
+        np.testing.assert_array_equal(ns.vtk_to_numpy(ga.GetPoints().GetData()),
+                                      ns.vtk_to_numpy(gb.GetPoints().GetData()))
+        np.testing.assert_array_equal(ns.vtk_to_numpy(ga.GetCells().GetConnectivityArray()),
+                                      ns.vtk_to_numpy(gb.GetCells().GetConnectivityArray()))
+
     def test_compare_writes_four_variants_with_matching_counts(self):
         js = os.path.join(self.dir, "cmp.json")
         svg = os.path.join(self.dir, "cmp.svg")

@@ -18,11 +18,16 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/sheets/Polish.hpp"
 #include "isohex/sheets/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
 
 using namespace isohex;
 using namespace isohex::sheets;
+using isohex::smoothing::raiseWorstHexes;
+using isohex::smoothing::WorstHexOptions;
+using isohex::smoothing::WorstHexResult;
 
 namespace {
 
@@ -268,8 +273,10 @@ TEST(SheetInsertion, SameResultForAnyThreadCount) {
         SheetGeometry geo;
         InsertOptions o;
         o.keep = Keep::Inside;
-        insertSheets(m, geo, s, o);
+        const InsertResult r = insertSheets(m, geo, s, o);
         smoothing::optimizeMesh(m, &geo);
+        raiseWorstHexes(m, &geo);
+        fitSurfaceVolume(m, *s, r.surfaceId);
         return m;
     };
     const HexMesh a = run(1), b = run(2);
@@ -318,4 +325,125 @@ TEST(SheetInsertion, BlockWithTwoSphericalCutsCapturesTheCircles) {
     auto cap = [](double r, double depth) { return M_PI * depth * depth * (3 * r - depth) / 3.0; };
     const double expected = 0.5 - cap(0.24, 0.24 - 0.12) - cap(0.2, 0.2 - 0.1);
     EXPECT_NEAR(meshVolume(m) / expected, 1.0, 0.01);
+}
+
+// ------------------------------------------------------------ finishing passes
+
+namespace {
+
+// A sphere meshed the way `isohex mesh --method sheets` does it, optimised.
+struct MeshedBall {
+    std::shared_ptr<const TriangleTree> surface;
+    HexMesh mesh;
+    SheetGeometry geometry;
+    InsertResult insert;
+    double size = 0.15, radius = 1.0;
+};
+
+MeshedBall meshedBall() {
+    MeshedBall b;
+    b.surface = tree(sphere({0.03, -0.02, 0.01}, b.radius, 5), "sphere");
+    b.mesh = regularGrid({-b.radius, -b.radius, -b.radius}, {b.radius, b.radius, b.radius}, b.size);
+    InsertOptions o;
+    o.keep = Keep::Inside;
+    b.insert = insertSheets(b.mesh, b.geometry, b.surface, o);
+    smoothing::optimizeMesh(b.mesh, &b.geometry);
+    return b;
+}
+
+}  // namespace
+
+TEST(WorstHexes, AnInteriorNodePushedTowardsACornerGoesBack) {
+    // 3 x 3 x 3 unit cubes; an interior node moved most of the way towards a
+    // neighbour leaves its eight hexes poor. The boundary nodes (Interior
+    // class on the boundary) must stay where they are.
+    HexMesh m = regularGrid({0, 0, 0}, {3, 3, 3}, 1.0, 0.0);
+    Index v = kNone;
+    for (std::size_t i = 0; i < m.nodeCount(); ++i)
+        if (m.nodes[i] == Vec3{1, 1, 1}) v = static_cast<Index>(i);
+    ASSERT_NE(v, kNone);
+    m.nodes[v] = {1.55, 1.5, 1.45};
+    const HexMesh before = m;
+    ASSERT_LT(minScaledJacobian(m), WorstHexOptions{}.target);
+    const WorstHexResult r = raiseWorstHexes(m, nullptr);
+    EXPECT_LT(r.minBefore, WorstHexOptions{}.target);
+    EXPECT_GE(r.minAfter, WorstHexOptions{}.target);
+    EXPECT_EQ(r.belowAfter, 0u);
+    EXPECT_DOUBLE_EQ(r.minAfter, minScaledJacobian(m));
+    const Topology t = buildTopology(m);
+    for (Index b : t.boundaryNodes) EXPECT_EQ(m.nodes[b], before.nodes[b]);
+}
+
+TEST(WorstHexes, FixedNodesDoNotMove) {
+    HexMesh m = regularGrid({0, 0, 0}, {3, 3, 3}, 1.0, 0.0);
+    for (std::size_t i = 0; i < m.nodeCount(); ++i)
+        if (m.nodes[i] == Vec3{1, 1, 1}) {
+            m.nodes[i] = {1.55, 1.5, 1.45};
+            m.nodeClass[i] = NodeClass{NodeKind::Fixed, -1};
+        }
+    // Its interior neighbours may move, the fixed node itself not.
+    const HexMesh before = m;
+    raiseWorstHexes(m, nullptr);
+    for (std::size_t i = 0; i < m.nodeCount(); ++i)
+        if (m.nodeClass[i].kind == NodeKind::Fixed) EXPECT_EQ(m.nodes[i], before.nodes[i]);
+}
+
+TEST(WorstHexes, SurfaceNodesStayOnTheirSurfaceAndNoHexGetsWorse) {
+    MeshedBall b = meshedBall();
+    // Slide one surface node along the sphere most of the way to the far
+    // corner of one of its quads: that quad's angle at the node opens
+    // towards 180 degrees.
+    const Topology t = buildTopology(b.mesh);
+    const Index v = t.boundaryNodes[t.boundaryNodes.size() / 2];
+    Index w = kNone;
+    for (Index q : t.boundaryQuads) {
+        const auto& n = t.quads[q].nodes;
+        for (int i = 0; i < 4; ++i)
+            if (n[i] == v) w = n[(i + 2) % 4];
+    }
+    ASSERT_NE(w, kNone);
+    const Vec3 x = b.mesh.nodes[v], y = b.mesh.nodes[w];
+    b.mesh.nodes[v] = b.surface->closestPoint({x[0] + 0.8 * (y[0] - x[0]), x[1] + 0.8 * (y[1] - x[1]), x[2] + 0.8 * (y[2] - x[2])});
+    const double poor = minScaledJacobian(b.mesh);
+    ASSERT_LT(poor, WorstHexOptions{}.target);
+    const WorstHexResult r = raiseWorstHexes(b.mesh, &b.geometry);
+    EXPECT_GT(r.nodesMoved, 0u);
+    EXPECT_GT(r.minAfter, poor);
+    EXPECT_GE(minScaledJacobian(b.mesh), WorstHexOptions{}.target);
+    for (Index u : t.boundaryNodes) EXPECT_LT(b.surface->squaredDistance(b.mesh.nodes[u]), 1e-20);
+    EXPECT_TRUE(validate(b.mesh).ok());
+}
+
+TEST(SurfaceFit, BalancedQuadsEncloseTheTrianglesVolume) {
+    MeshedBall b = meshedBall();
+    const double ref = b.surface->volume();
+    const double before = meshVolume(b.mesh);
+    const double sjBefore = minScaledJacobian(b.mesh);
+    // Chords of a convex surface cut inside it.
+    ASSERT_LT(before, ref);
+    const Topology t = buildTopology(b.mesh);
+    // The deepest a quad chord can cut: (longest quad diagonal)^2 / (8 r).
+    double diag = 0;
+    for (Index q : t.boundaryQuads) {
+        const auto& n = t.quads[q].nodes;
+        for (int i = 0; i < 2; ++i) {
+            const Vec3 a = b.mesh.nodes[n[i]], c = b.mesh.nodes[n[i + 2]];
+            diag = std::max(diag, std::sqrt((a[0] - c[0]) * (a[0] - c[0]) + (a[1] - c[1]) * (a[1] - c[1]) +
+                                            (a[2] - c[2]) * (a[2] - c[2])));
+        }
+    }
+    const double depth = diag * diag / (8 * b.radius);
+    const VolumeFitResult r = fitSurfaceVolume(b.mesh, *b.surface, b.insert.surfaceId);
+    EXPECT_EQ(r.nodes, t.boundaryNodes.size());
+    EXPECT_GT(r.nodesMoved, 0u);
+    EXPECT_DOUBLE_EQ(r.volumeBefore, before);
+    EXPECT_NEAR(r.volumeAfter, meshVolume(b.mesh), 1e-12 * ref);
+    // Most of the chord loss is gone...
+    EXPECT_LT(std::abs(r.volumeAfter - ref), 0.25 * (ref - before));
+    // ...by moving nodes outwards by less than the deepest chord.
+    EXPECT_GT(r.maxOffset, 0.0);
+    EXPECT_LE(r.maxOffset, depth);
+    for (Index u : t.boundaryNodes) EXPECT_LE(std::sqrt(b.surface->squaredDistance(b.mesh.nodes[u])), depth);
+    EXPECT_TRUE(validate(b.mesh).ok());
+    EXPECT_GE(minScaledJacobian(b.mesh), std::min(sjBefore, VolumeFitOptions{}.keepScaledJacobian));
 }

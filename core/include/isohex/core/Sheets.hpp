@@ -17,6 +17,12 @@ struct PillowOptions {
     // position would invert an adjacent hex.
     double inset = 0.3;
     int maxHalvings = 6;
+    // Find the shrink set's boundary faces through the node -> hex adjacency
+    // of the whole shrink set instead of first narrowing it to the nodes the
+    // face-parity test puts on the boundary (pillow falls back to this by
+    // itself if the narrowed result is not a closed manifold). Same result,
+    // slower; for tests.
+    bool exactBoundary = false;
 };
 
 struct PillowResult {

@@ -125,7 +125,8 @@ struct SmoothingResult {
     int colours = 0;
     bool converged = false;                // stopped on the tolerance, not on maxSweeps
     double setupSeconds = 0;               // topology, colouring, buffers
-    double untangleSeconds = 0;
+    double untangleSeconds = 0;            // all untangling phases
+    double meanRatioSeconds = 0;           // all mean-ratio phases
     double seconds = 0;                    // whole call, set-up included
 };
 

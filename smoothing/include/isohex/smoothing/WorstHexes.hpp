@@ -1,0 +1,73 @@
+#pragma once
+// A finishing pass after the mean-ratio optimiser: raise the worst hexes.
+//
+// The optimiser minimises a sum over all corners, so a few hexes can stay poor
+// where the surface has detail smaller than an element (a spur or pit under a
+// surface node: its quads close up like a cone) or where the sheet folds with
+// the surface. This pass works, node by node, on the movable nodes of the
+// hexes whose scaled Jacobian is below a target, and moves each to where the
+// worst hex around it is best: a compass search (interior nodes in 3-D,
+// surface nodes in their surface's tangent plane and projected back onto it).
+// A trial is better when, in this order, fewer hexes around the node are
+// inverted, the smallest scaled Jacobian rises, or it stays and the summed
+// squared shortfall below the target drops (several hexes at about the same
+// poor value: one node alone cannot lift them all, but it can even them out
+// so the next node can). So no hex around a node turns inverted, and none ends
+// below the worst value that node's hexes had.
+//
+// Each round colours the nodes involved so that nodes of one colour share no
+// hex, and moves each colour's nodes in parallel, colours in order: the
+// result does not depend on the thread count.
+#include <cstddef>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/SurfaceProjector.hpp"
+
+namespace isohex::smoothing {
+
+struct WorstHexOptions {
+    // Hexes with a scaled Jacobian below this are worked on (their movable nodes).
+    double target = 0.3;
+    // Rounds over the nodes of the hexes still below the target.
+    int maxRounds = 20;
+    // First and last step of the compass search, in local edge lengths.
+    double firstStep = 0.25, lastStep = 1.0 / 128.0;
+    int maxMovesPerVisit = 40;
+    // When the rounds stall with hexes still inverted, their surface nodes
+    // may leave the surface by up to this many local edge lengths (0: never).
+    double releaseDistance = 0.5;
+};
+
+struct WorstHexResult {
+    double minBefore = 0, minAfter = 0;           // smallest scaled Jacobian of the mesh
+    std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
+    std::size_t nodesMoved = 0;
+    std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
+    int rounds = 0;
+};
+
+// Surface nodes move only with a projector; Curve and Fixed nodes, and
+// Interior-classified nodes on the mesh boundary, never move.
+WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {});
+
+// Helpers the pass uses, shared with other finishing steps (sheets' volume fit).
+
+// Scaled Jacobian for maximising: Verdict's value for a collapsed hex (1e30)
+// counts as the worst (-2).
+double usableScaledJacobian(const HexCoords& x);
+
+// Smallest usable scaled Jacobian of the hexes around node v with v at p.
+double minScaledJacobianAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p);
+
+// Mean length of the hex edges at v.
+double meanEdgeLengthAt(const HexMesh& mesh, const Topology& topo, Index v);
+
+// Unit normal per node of the mesh's surfaces (boundary quads, and quads
+// between two materials oriented from the lower material number to the
+// higher), summed area vectors; zero for nodes on no such quad.
+std::vector<Vec3> surfaceNormals(const HexMesh& mesh, const Topology& topo);
+
+}  // namespace isohex::smoothing
