@@ -141,10 +141,27 @@ private:
 // material's field against the exterior, of f_a - f_b between two materials.
 class FieldProjector : public smoothing::SurfaceProjector {
 public:
-    FieldProjector(const SelectionDomain& d, const HexMesh& mesh) : domain_(d), surfaces_(mesh.surfaces) {}
+    // With `repaired` (the extraction's RepairedDomain), points in cells around
+    // a grid point the repair changed go onto its zero set, the surface the
+    // mesh was extracted on there.
+    FieldProjector(const SelectionDomain& d, const HexMesh& mesh, const octree::RepairedDomain* repaired = nullptr)
+        : domain_(d), surfaces_(mesh.surfaces), repaired_(repaired) {}
     Vec3 project(std::int32_t surfaceId, const Vec3& x) const override {
         const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
         const std::int32_t a = s.inside, b = s.outside;
+        if (repaired_ && (a > 0 || b > 0) && repaired_->nearChange(x)) {
+            const octree::Domain& r = *repaired_;
+            return newtonOnto(
+                [&](const Vec3& y, Vec3& g) {
+                    Vec3 ga{0, 0, 0}, gb{0, 0, 0};
+                    double f = 0;
+                    if (a > 0) f += r.value(a, y, &ga);
+                    if (b > 0) f -= r.value(b, y, &gb);
+                    g = {ga[0] - gb[0], ga[1] - gb[1], ga[2] - gb[2]};
+                    return f;
+                },
+                x, domain_.field(a > 0 ? a : b).voxelSize());
+        }
         if (a > 0 && b <= 0) return nearby(domain_.field(a), x);
         if (a <= 0 && b > 0) return nearby(domain_.field(b), x);
         if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
@@ -171,28 +188,40 @@ private:
     Vec3 projectDifference(std::int32_t a, std::int32_t b, const Vec3& x0) const {
         const imaging::ImplicitField& fa = domain_.field(a);
         const imaging::ImplicitField& fb = domain_.field(b);
-        const double maxStep = 0.5 * fa.voxelSize();
+        return newtonOnto(
+            [&](const Vec3& y, Vec3& g) {
+                Vec3 ga, gb;
+                const double F = fa.valueAndGradient(y, ga) - fb.valueAndGradient(y, gb);
+                g = {ga[0] - gb[0], ga[1] - gb[1], ga[2] - gb[2]};
+                return F;
+            },
+            x0, fa.voxelSize());
+    }
+    // Newton steps on F (value and gradient) along its gradient, each at most
+    // half a voxel, keeping the best point; NaN beyond 3 voxels (see nearby()).
+    template <class Fn>
+    static Vec3 newtonOnto(const Fn& F, const Vec3& x0, double voxel) {
+        const double maxStep = 0.5 * voxel;
         Vec3 x = x0, best = x0;
         double bestAbs = std::numeric_limits<double>::infinity();
         for (int it = 0; it < 30; ++it) {
-            Vec3 ga, gb;
-            const double F = fa.valueAndGradient(x, ga) - fb.valueAndGradient(x, gb);
-            if (std::abs(F) < bestAbs) {
-                bestAbs = std::abs(F);
+            Vec3 g;
+            const double f = F(x, g);
+            if (std::abs(f) < bestAbs) {
+                bestAbs = std::abs(f);
                 best = x;
             }
-            const Vec3 g{ga[0] - gb[0], ga[1] - gb[1], ga[2] - gb[2]};
             const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
             if (!(g2 > 0)) break;
-            double step = F / std::sqrt(g2);
-            if (std::abs(step) < 1e-6 * fa.voxelSize()) break;
+            double step = f / std::sqrt(g2);
+            if (std::abs(step) < 1e-6 * voxel) break;
             step = std::clamp(step, -maxStep, maxStep);
             const double inv = 1.0 / std::sqrt(g2);
             for (int c = 0; c < 3; ++c) x[c] -= step * g[c] * inv;
         }
         const double moved = std::sqrt((best[0] - x0[0]) * (best[0] - x0[0]) + (best[1] - x0[1]) * (best[1] - x0[1]) +
                                        (best[2] - x0[2]) * (best[2] - x0[2]));
-        if (moved > 3.0 * fa.voxelSize()) {  // see nearby()
+        if (moved > 3.0 * voxel) {
             const double nan = std::numeric_limits<double>::quiet_NaN();
             return {nan, nan, nan};
         }
@@ -200,6 +229,7 @@ private:
     }
     const SelectionDomain& domain_;
     std::vector<SurfaceTag> surfaces_;
+    const octree::RepairedDomain* repaired_ = nullptr;
 };
 
 bool isSurfaceFile(const std::string& path) {
@@ -513,7 +543,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     smoothing::SmoothingOptions opt;
     opt.fixBoundary = settings.fixBoundary;
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
-    FieldProjector projector(*domain, mesh);
+    FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     const smoothing::SmoothingResult r =
         smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt,
                                 [&](std::string_view, double f) { sink.progress(f); });
