@@ -55,7 +55,8 @@ struct Prepared {
     octree::Labels labels;          // repaired, ready for extraction
     // The scan's field with the grid points the repair (or --keep-largest)
     // changed moved across the iso value (octree::RepairedDomain); null when
-    // none changed. Extraction contours it; smoothing and fidelity use the scan's.
+    // none changed. Extraction contours it, the optimiser keeps the surface
+    // nodes of those cells on it; fidelity measures against the scan's field.
     std::shared_ptr<const octree::Domain> repairedDomain;
     const octree::Domain& extractionDomain() const { return repairedDomain ? *repairedDomain : *domain; }
     nlohmann::json report;          // input, selection, grid and repair facts
