@@ -53,12 +53,22 @@ struct Prepared {
     std::shared_ptr<const imaging::Selection> selection;
     std::shared_ptr<const octree::Domain> domain;
     octree::Labels labels;          // repaired, ready for extraction
+    // The scan's field with the grid points the repair (or --keep-largest)
+    // changed moved across the iso value (octree::RepairedDomain); null when
+    // none changed. Extraction contours it, the optimiser keeps the surface
+    // nodes of those cells on it; fidelity measures against the scan's field.
+    std::shared_ptr<const octree::Domain> repairedDomain;
+    const octree::Domain& extractionDomain() const { return repairedDomain ? *repairedDomain : *domain; }
     nlohmann::json report;          // input, selection, grid and repair facts
     std::vector<std::string> warnings;
 };
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink);
-// Dual contouring (or voxel hexes) of the prepared labels.
+// Dual contouring (or voxel hexes) of the prepared labels. Dual contouring
+// puts every boundary vertex on the (repaired) isosurface; where that inverts
+// a hex its QEF position keeps valid, the vertex is returned at its held-back
+// position (octree::ExtractStats::heldBackAt): the sheet and the optimiser
+// start from there, and the optimiser moves it onto the surface.
 HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink);
 // Pillows the fundamental sheets (unless settings.pillow is off).
 nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);

@@ -130,9 +130,11 @@ struct CellFrame {
 // margin allows. When no grid point of the cell has the other sign either (the
 // repair or --keep-largest changed the labels: no surface crosses the cell),
 // x stays where the QEF put it. `tol` is in world units.
-Eigen::Vector3d ontoSurface(const Domain& dom, std::int32_t a, std::int32_t b, Eigen::Vector3d x,
-                            const CellFrame& cell, const std::array<Vec3, 8>& corner, double tol) {
-    auto F = [&](const Eigen::Vector3d& y, Vec3* g) { return edgeFunction(dom, a, b, {y(0), y(1), y(2)}, g); };
+// `field(point, gradient)` is the signed function whose zero set is the surface.
+template <class Field>
+Eigen::Vector3d ontoSurface(const Field& field, Eigen::Vector3d x, const CellFrame& cell,
+                            const std::array<Vec3, 8>& corner, double tol) {
+    auto F = [&](const Eigen::Vector3d& y, Vec3* g) { return field(Vec3{y(0), y(1), y(2)}, g); };
     auto newton = [&](Eigen::Vector3d& y) {
         for (int it = 0; it < 8; ++it) {
             Vec3 grad;
@@ -166,7 +168,7 @@ Eigen::Vector3d ontoSurface(const Domain& dom, std::int32_t a, std::int32_t b, E
         const double fq = F(q, nullptr);
         if (!other(fq)) continue;
         const Vec3 qv{q(0), q(1), q(2)};
-        const double t = rootOnSegment([&](const Vec3& y) { return edgeFunction(dom, a, b, y, nullptr); }, xv, qv, f, fq);
+        const double t = rootOnSegment([&](const Vec3& y) { return field(y, nullptr); }, xv, qv, f, fq);
         const double dist = t * (q - x).norm();
         if (dist < best) {
             best = dist;
@@ -177,7 +179,7 @@ Eigen::Vector3d ontoSurface(const Domain& dom, std::int32_t a, std::int32_t b, E
     int nearest = -1;
     double nearestValue = std::numeric_limits<double>::infinity();
     for (int c = 0; c < 8; ++c) {
-        const double v = edgeFunction(dom, a, b, corner[c], nullptr);
+        const double v = field(corner[c], nullptr);
         if (other(v) && std::abs(v) < nearestValue) {
             nearestValue = std::abs(v);
             nearest = c;
@@ -340,6 +342,8 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     mesh.nodes[id] = centre;
                     continue;
                 }
+                // every query below stays in this cell
+                const Domain& cellDomain = domain.within(centre);
                 // Hermite data on the 12 cell edges whose ends differ.
                 Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
                 Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();
@@ -349,7 +353,7 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                     for (int d = 0; d < 3; ++d) {
                         const int e = c | (1 << d);
                         if (e == c || m[c] == m[e]) continue;
-                        crossing(domain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
+                        crossing(cellDomain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
                         mass += Eigen::Vector3d(data[n].first[0], data[n].first[1], data[n].first[2]);
                         ++n;
                     }
@@ -395,10 +399,24 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                         if (mb == ma) mb = m[c];
                         else if (m[c] != mb) two = false;
                     }
-                if (opt.projectVertices && two) {
+                // A cell where the outside meets two or more materials: onto
+                // the boundary of their union (the outer surface there).
+                bool outerJunction = false;
+                if (!two && !opt.meshExterior) {
+                    bool outside = false;
+                    for (int c = 0; c < 8; ++c) outside = outside || m[c] == 0;
+                    outerJunction = outside && std::isfinite(cellDomain.unionValue(Vec3{x(0), x(1), x(2)}));
+                }
+                if (opt.projectVertices && (two || outerJunction)) {
                     if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
                     const Eigen::Vector3d qef = x;
-                    x = ontoSurface(domain, ma, mb, x, CellFrame{lower, axes, toCell, opt.cellMargin}, p, surfaceTolerance);
+                    const CellFrame frame{lower, axes, toCell, opt.cellMargin};
+                    if (two)
+                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return edgeFunction(cellDomain, ma, mb, y, gr); }, x,
+                                        frame, p, surfaceTolerance);
+                    else
+                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return cellDomain.unionValue(y, gr); }, x, frame, p,
+                                        surfaceTolerance);
                     if (x != qef) qefSlab[static_cast<std::size_t>(ck)].emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
                 }
                 mesh.nodes[id] = {x(0), x(1), x(2)};
@@ -447,6 +465,7 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     // a neighbour, so repeat (s only decreases). Each round decides from the
     // positions at its start, so the result does not depend on the thread count.
     std::vector<Index> heldBack;
+    std::vector<Vec3> heldBackAt;
     {
         std::vector<std::pair<Index, Vec3>> qef;
         for (auto& v : qefSlab) qef.insert(qef.end(), v.begin(), v.end());
@@ -506,13 +525,21 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
                 mesh.nodes[id] = at(i, level[id]);
             }
         }
-        for (const auto& [id, x] : qef)
-            if (level[static_cast<std::size_t>(id)] > 0) heldBack.push_back(id);
+        // The mesh keeps every vertex on the surface; the held-back (valid)
+        // positions go to the caller, who puts them where a sheet needs them.
+        for (std::size_t i = 0; i < qef.size(); ++i) {
+            const Index id = qef[i].first;
+            if (level[static_cast<std::size_t>(id)] == 0) continue;
+            heldBack.push_back(id);
+            heldBackAt.push_back(mesh.nodes[static_cast<std::size_t>(id)]);
+            mesh.nodes[static_cast<std::size_t>(id)] = onSurface[i];
+        }
     }
     if (stats) {
         stats->crossedCells = crossed;
         stats->clampedVertices = clamped;
         stats->heldBack = std::move(heldBack);
+        stats->heldBackAt = std::move(heldBackAt);
     }
     classifyFromGrid(mesh, labels, hexed, node, cg);
     return mesh;

@@ -1,5 +1,6 @@
 #pragma once
 // Analytic solids for octree tests: signed distance functions (negative inside).
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <utility>
@@ -34,6 +35,11 @@ inline Sdf box(Vec3 lo, Vec3 hi) {
         return out > 0 ? std::sqrt(out) : in;
     };
 }
+// A box with edges and corners rounded to radius r.
+inline Sdf roundedBox(Vec3 lo, Vec3 hi, double r) {
+    const Sdf inner = box({lo[0] + r, lo[1] + r, lo[2] + r}, {hi[0] - r, hi[1] - r, hi[2] - r});
+    return [=](const Vec3& x) { return inner(x) - r; };
+}
 inline Sdf unite(Sdf a, Sdf b) {
     return [=](const Vec3& x) { return std::min(a(x), b(x)); };
 }
@@ -42,7 +48,10 @@ inline Sdf unite(Sdf a, Sdf b) {
 // is negative (most negative wins where they overlap).
 class AnalyticDomain : public octree::Domain {
 public:
-    explicit AnalyticDomain(std::vector<Sdf> materials) : m_(std::move(materials)) {}
+    // `unionOf`: the solid all materials make up together; by default the
+    // smallest of their distances.
+    explicit AnalyticDomain(std::vector<Sdf> materials, Sdf unionOf = {})
+        : m_(std::move(materials)), union_(std::move(unionOf)) {}
     std::int32_t materialAt(const Vec3& x) const override {
         std::int32_t best = 0;
         double bestValue = 0;
@@ -69,9 +78,29 @@ public:
         }
         return v;
     }
+    // The union of the materials: the smallest of their distances.
+    double unionValue(const Vec3& x, Vec3* g) const override {
+        auto f = [&](const Vec3& y) {
+            if (union_) return union_(y);
+            double v = 1e300;
+            for (const Sdf& s : m_) v = std::min(v, s(y));
+            return v;
+        };
+        if (g) {
+            const double h = 1e-6;
+            for (int a = 0; a < 3; ++a) {
+                Vec3 p = x, q = x;
+                p[a] += h;
+                q[a] -= h;
+                (*g)[a] = (f(p) - f(q)) / (2 * h);
+            }
+        }
+        return f(x);
+    }
 
 private:
     std::vector<Sdf> m_;
+    Sdf union_;
 };
 
 // A labelled point set given directly (for hand-made non-manifold cases):

@@ -71,7 +71,9 @@ struct ExtractOptions {
     bool cellCentres = false;
     // Move each QEF vertex of a cell between two materials onto their surface
     // with a few Newton steps (kept inside the cell): the QEF minimiser of a
-    // curved surface lies off it by a fraction of a cell.
+    // curved surface lies off it by a fraction of a cell. A cell where the
+    // outside meets two or more materials goes onto the surface of their
+    // union (Domain::unionValue) instead, where the domain knows it.
     bool projectVertices = true;
     Progress progress;
 };
@@ -79,14 +81,22 @@ struct ExtractOptions {
 struct ExtractStats {
     std::size_t crossedCells = 0;
     std::size_t clampedVertices = 0;  // QEF minimisers that fell outside their cell
-    // Nodes (ascending) whose move onto the surface was shortened because it
-    // inverted a hex that their QEF positions leave valid.
+    // Nodes (ascending) whose move onto the surface inverts a hex that their
+    // QEF positions leave valid. The mesh has them on the surface; heldBackAt
+    // (same order) is the position between the QEF point and the surface
+    // point, as near the surface as keeps every hex around valid (the mesher
+    // starts its sheet and optimiser from there).
     std::vector<Index> heldBack;
+    std::vector<Vec3> heldBackAt;
 };
 
 // One hex per labelled point (also material-0 points with meshExterior), in
 // VTK order with positive orientation; boundary and interface nodes are
-// classified (classifyBoundaryNodes). The labels must be manifold.
+// classified (classifyBoundaryNodes). The labels must be manifold, and every
+// grid point should have its label's sign in `domain` (after a repair, pass a
+// RepairedDomain) so that the surface crosses every cell between two labels.
+// Boundary vertices are on the surface, also those whose move there inverts a
+// hex (see ExtractStats::heldBackAt).
 HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt = {},
                          ExtractStats* stats = nullptr);
 
