@@ -370,12 +370,17 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
 
 std::vector<PillowResult> pillowAllMaterials(HexMesh& mesh, int layers, const PillowOptions& opt) {
     if (layers < 1) throw Error("boundary layers must be at least 1 (got " + std::to_string(layers) + ")");
-    std::vector<std::int32_t> mats(mesh.material);
+    // The materials present, in increasing order (a few: no sort of the
+    // whole per-hex array).
+    std::vector<std::int32_t> mats;
+    for (std::int32_t m : mesh.material)
+        if (mats.empty() || m != mats.back())
+            if (std::find(mats.begin(), mats.end(), m) == mats.end()) mats.push_back(m);
     std::sort(mats.begin(), mats.end());
-    mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
     std::vector<PillowResult> out;
     for (std::int32_t m : mats) {
         std::vector<Index> shrink;
+        shrink.reserve(mesh.hexCount());
         for (std::size_t h = 0; h < mesh.hexCount(); ++h)
             if (mesh.material[h] == m) shrink.push_back(static_cast<Index>(h));
         PillowResult r = pillow(mesh, shrink, opt);

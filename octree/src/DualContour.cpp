@@ -304,6 +304,12 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
         throw Error("the mesh would have more than 2^31 nodes; use a larger --size");
 
     HexMesh mesh;
+    // Room for the boundary sheet the pipeline pillows in next (its nodes and
+    // hexes are a small share of a solid's), so pillowing appends in place
+    // instead of copying the arrays; capacity that is never written costs
+    // address space only.
+    mesh.nodes.reserve(nodeCount + nodeCount / 4);
+    mesh.nodeClass.reserve(nodeCount + nodeCount / 4);
     mesh.nodes.resize(nodeCount);
     mesh.nodeClass.resize(nodeCount);
     std::atomic<std::size_t> crossed{0}, clamped{0};
@@ -434,6 +440,8 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
         hexSlab[static_cast<std::size_t>(k) + 1] = c;
     });
     for (std::size_t s = 1; s < hexSlab.size(); ++s) hexSlab[s] += hexSlab[s - 1];
+    mesh.hexes.reserve(hexSlab.back() + hexSlab.back() / 4);
+    mesh.material.reserve(hexSlab.back() + hexSlab.back() / 4);
     mesh.hexes.resize(hexSlab.back());
     mesh.material.resize(hexSlab.back());
     // VTK corner c sits at offset (x, y, z) below; a mirrored grid swaps two
