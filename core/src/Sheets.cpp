@@ -260,9 +260,10 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     mesh.nodes.reserve(N + C);
     mesh.nodeClass.reserve(N + C);
     for (std::size_t i = 0; i < C; ++i) mesh.addNode(mesh.nodes[res.copyOf[i]] + push[i], NodeClass{});
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
+    // Only the hexes of T hold boundary nodes, so only they can hold a split node.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i)
-            for (Index& v : mesh.hexes[S[i]])
+            for (Index& v : mesh.hexes[S[static_cast<std::size_t>(T[i])]])
                 if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
     });
     mesh.hexes.reserve(H + faces.size());
