@@ -12,6 +12,20 @@ namespace isohex::test {
 
 using Sdf = std::function<double(const Vec3&)>;
 
+// Gradient of f at x by central differences.
+template <class F>
+Vec3 centralGradient(const F& f, const Vec3& x) {
+    const double h = 1e-6;
+    Vec3 g{};
+    for (int a = 0; a < 3; ++a) {
+        Vec3 p = x, q = x;
+        p[a] += h;
+        q[a] -= h;
+        g[a] = (f(p) - f(q)) / (2 * h);
+    }
+    return g;
+}
+
 inline Sdf sphere(Vec3 c, double r) {
     return [=](const Vec3& x) {
         return std::sqrt((x[0] - c[0]) * (x[0] - c[0]) + (x[1] - c[1]) * (x[1] - c[1]) + (x[2] - c[2]) * (x[2] - c[2])) - r;
@@ -67,15 +81,7 @@ public:
     double value(std::int32_t material, const Vec3& x, Vec3* g) const override {
         const Sdf& f = m_.at(static_cast<std::size_t>(material - 1));
         const double v = f(x);
-        if (g) {
-            const double h = 1e-6;
-            for (int a = 0; a < 3; ++a) {
-                Vec3 p = x, q = x;
-                p[a] += h;
-                q[a] -= h;
-                (*g)[a] = (f(p) - f(q)) / (2 * h);
-            }
-        }
+        if (g) *g = centralGradient(f, x);
         return v;
     }
     // The union of the materials: the smallest of their distances.
@@ -86,15 +92,7 @@ public:
             for (const Sdf& s : m_) v = std::min(v, s(y));
             return v;
         };
-        if (g) {
-            const double h = 1e-6;
-            for (int a = 0; a < 3; ++a) {
-                Vec3 p = x, q = x;
-                p[a] += h;
-                q[a] -= h;
-                (*g)[a] = (f(p) - f(q)) / (2 * h);
-            }
-        }
+        if (g) *g = centralGradient(f, x);
         return f(x);
     }
 

@@ -18,6 +18,7 @@ from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_hex_quality  # noqa: E402
 
 CUBE = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=float)
@@ -90,19 +91,6 @@ def write_vtu(path, hexes):
     assert w.Write() == 1
 
 
-def read_vtu(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def vtk_quality(grid, measure):
-    q = vtk.vtkMeshQuality()
-    q.SetInputData(grid)
-    getattr(q, f"SetHexQualityMeasureTo{measure}")()
-    q.Update()
-    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
 
 
 class QualityAgreesWithVtk(unittest.TestCase):
@@ -127,7 +115,7 @@ class QualityAgreesWithVtk(unittest.TestCase):
     def test_enough_hexes_of_every_kind(self):
         self.assertGreaterEqual(len(self.hexes), 10000)
         self.assertEqual(self.grid.GetNumberOfCells(), len(self.hexes))
-        theirs = vtk_quality(self.grid, "ScaledJacobian")
+        theirs = vtk_hex_quality(self.grid, "ScaledJacobian")
         self.assertGreater((theirs < 0).sum(), 500, "too few inverted hexes in the sample")
         self.assertGreater((theirs > 1).sum(), 50, "too few collapsed hexes in the sample")
         self.assertGreater(((theirs > 0) & (theirs < 0.2)).sum(), 100, "too few poor hexes in the sample")
@@ -142,7 +130,7 @@ class QualityAgreesWithVtk(unittest.TestCase):
                              f"VTK {theirs[~big][worst]!r}")
 
     def test_scaled_jacobian_per_element(self):
-        self.check(self.ours("scaled_jacobian"), vtk_quality(self.grid, "ScaledJacobian"), "scaled Jacobian", 1e-9)
+        self.check(self.ours("scaled_jacobian"), vtk_hex_quality(self.grid, "ScaledJacobian"), "scaled Jacobian", 1e-9)
 
     def test_edge_ratio_per_element(self):
         # VTK 9.1's HexEdgeRatio does not return longest/shortest over the 12
@@ -159,7 +147,7 @@ class QualityAgreesWithVtk(unittest.TestCase):
         self.check(ours / np.maximum(expected, 1), expected / np.maximum(expected, 1), "edge ratio (relative)", 1e-9)
 
     def test_condition_per_element(self):
-        ours, theirs = self.ours("condition"), vtk_quality(self.grid, "Condition")
+        ours, theirs = self.ours("condition"), vtk_hex_quality(self.grid, "Condition")
         finite = theirs < 1e29
         rel = np.abs(ours[finite] - theirs[finite]) / np.maximum(theirs[finite], 1)
         print(f"condition: max relative difference {rel.max():.3e}")
@@ -167,7 +155,7 @@ class QualityAgreesWithVtk(unittest.TestCase):
         np.testing.assert_array_equal(ours >= 1e29, ~finite)
 
     def test_summary_matches_vtk(self):
-        theirs = vtk_quality(self.grid, "ScaledJacobian")
+        theirs = vtk_hex_quality(self.grid, "ScaledJacobian")
         ok = theirs <= 1
         sj = self.report["scaled_jacobian"]
         self.assertAlmostEqual(sj["min"], theirs[ok].min(), delta=1e-9)

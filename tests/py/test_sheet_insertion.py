@@ -13,6 +13,7 @@ from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_hex_quality  # noqa: E402
 
 SAMPLES = os.path.join(SOURCE, "samples")
 CUTS = [((0.28, 0.5, 0.62), 0.24), ((0.74, 0.5, 0.60), 0.20)]  # samples/make_spherical_cuts.py
@@ -41,19 +42,6 @@ def triangle_volume(v, t):
     return abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def read_vtu(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput()
-
-
-def vtk_measure(grid, measure):
-    q = vtk.vtkMeshQuality()
-    q.SetInputData(grid)
-    getattr(q, "SetHexQualityMeasureTo" + measure)()
-    q.Update()
-    return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
 
 
 class MeshSurfacesWithSheets(unittest.TestCase):
@@ -71,8 +59,8 @@ class MeshSurfacesWithSheets(unittest.TestCase):
             report = json.load(f)
         self.assertTrue(report["validity"]["ok"], report["validity"])
         grid = read_vtu(out)
-        sj = vtk_measure(grid, "ScaledJacobian")
-        vol = vtk_measure(grid, "Volume")
+        sj = vtk_hex_quality(grid, "ScaledJacobian")
+        vol = vtk_hex_quality(grid, "Volume")
         v, t = read_off(src)
         ref = triangle_volume(v, t)
         err = (vol.sum() - ref) / ref
@@ -134,7 +122,7 @@ class BlockWithSphericalCuts(unittest.TestCase):
              "--surface", os.path.join(SAMPLES, "spherical_cut_2.off"),
              "--keep", "outside", "-o", out, "-q"])
         grid = read_vtu(out)
-        sj = vtk_measure(grid, "ScaledJacobian")
+        sj = vtk_hex_quality(grid, "ScaledJacobian")
         self.assertEqual(int((sj <= 0).sum()), 0)
         pts = ns.vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
         kind = ns.vtk_to_numpy(grid.GetPointData().GetArray("node_class"))
@@ -152,7 +140,7 @@ class BlockWithSphericalCuts(unittest.TestCase):
         # The volume removed is the two spherical caps below the top face.
         cap = lambda r, depth: np.pi * depth ** 2 * (3 * r - depth) / 3  # noqa: E731
         expected = 0.5 - cap(0.24, 0.12) - cap(0.20, 0.10)
-        self.assertLess(abs(vtk_measure(grid, "Volume").sum() / expected - 1), 0.01)
+        self.assertLess(abs(vtk_hex_quality(grid, "Volume").sum() / expected - 1), 0.01)
 
 
 class BadInput(unittest.TestCase):

@@ -11,15 +11,21 @@ def read_vtu(path):
     return r.GetOutput()
 
 
-def vtk_sj(grid_or_path):
-    """Per-cell scaled Jacobian from vtkMeshQuality (a grid, or a .vtu path)."""
+def vtk_hex_quality(grid_or_path, measure):
+    """Per-cell hex quality `measure` (ScaledJacobian, Condition, Volume, ...)
+    from vtkMeshQuality, for a grid or a .vtu path."""
     grid = read_vtu(grid_or_path) if isinstance(grid_or_path, (str, bytes)) or hasattr(grid_or_path, "__fspath__") \
         else grid_or_path
     q = vtk.vtkMeshQuality()
     q.SetInputData(grid)
-    q.SetHexQualityMeasureToScaledJacobian()
+    getattr(q, "SetHexQualityMeasureTo" + measure)()
     q.Update()
     return ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality")).astype(float)
+
+
+def vtk_sj(grid_or_path):
+    """Per-cell scaled Jacobian from vtkMeshQuality (a grid, or a .vtu path)."""
+    return vtk_hex_quality(grid_or_path, "ScaledJacobian")
 
 
 def vtk_volumes(grid):
