@@ -549,20 +549,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
                                 [&](std::string_view, double f) { sink.progress(f); });
     // The optimiser minimises a sum over all corners; the few hexes it leaves
     // poor (surface folds, spurs thinner than an element) get a max-min pass.
-    if (settings.worstHexPass) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const smoothing::WorstHexOptions wo;
-        const auto w = smoothing::raiseWorstHexes(mesh, settings.fixBoundary ? nullptr : &projector, wo);
-        j["worst_hexes"] = {{"target", wo.target},
-                            {"min_scaled_jacobian_before", w.minBefore},
-                            {"min_scaled_jacobian_after", w.minAfter},
-                            {"below_target_before", w.belowBefore},
-                            {"below_target_after", w.belowAfter},
-                            {"nodes_moved", w.nodesMoved},
-                            {"surface_nodes_released", w.surfaceNodesReleased},
-                            {"rounds", w.rounds},
-                            {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
-    }
+    if (settings.worstHexPass) j["worst_hexes"] = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector);
     j["fix_boundary"] = settings.fixBoundary;
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
@@ -587,6 +574,21 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
                                  std::to_string(r.untangleFailures[0].centroid[2]) + ")");
     st.finish();
     return j;
+}
+
+nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const smoothing::WorstHexOptions wo;
+    const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, projector, wo);
+    return {{"target", wo.target},
+            {"min_scaled_jacobian_before", w.minBefore},
+            {"min_scaled_jacobian_after", w.minAfter},
+            {"below_target_before", w.belowBefore},
+            {"below_target_after", w.belowAfter},
+            {"nodes_moved", w.nodesMoved},
+            {"surface_nodes_released", w.surfaceNodesReleased},
+            {"rounds", w.rounds},
+            {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
 }
 
 double isosurfaceVolume(const openvdb::FloatGrid& grid) {

@@ -16,6 +16,10 @@
 #include "isohex/imaging/Volume.hpp"
 #include "isohex/octree/DualContour.hpp"
 
+namespace isohex::smoothing {
+struct SurfaceProjector;
+}
+
 namespace isohex::cli {
 
 struct MeshSettings {
@@ -74,6 +78,11 @@ HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink
 nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
 // Untangling and mean-ratio optimisation with surface nodes kept on the isosurface.
 nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink);
+
+// The max-min pass on the hexes the optimiser left below 0.3
+// (smoothing/WorstHexes.hpp), timed; returns its report block. Surface nodes
+// move only with a projector.
+nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector);
 
 // Volume enclosed by each selected material's isosurface vs the mesh's, and
 // the distance of boundary and interface nodes to their surfaces.

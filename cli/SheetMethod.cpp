@@ -11,7 +11,6 @@
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/sheets/Polish.hpp"
 #include "isohex/smoothing/Optimize.hpp"
-#include "isohex/smoothing/WorstHexes.hpp"
 
 namespace isohex::cli {
 
@@ -96,14 +95,8 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
         // max-min pass, then the surface nodes are fitted so the boundary
         // quads enclose the triangles' volume instead of cutting chords.
         if (!settings.fixBoundary) {
-            const auto wr = stage(sink, "worst_hexes", [&] { return smoothing::raiseWorstHexes(out.mesh, &geometry); });
-            out.report["worst_hexes"] = {{"target", smoothing::WorstHexOptions{}.target},
-                                         {"min_scaled_jacobian_before", wr.minBefore},
-                                         {"min_scaled_jacobian_after", wr.minAfter},
-                                         {"below_target_before", wr.belowBefore},
-                                         {"below_target_after", wr.belowAfter},
-                                         {"nodes_moved", wr.nodesMoved},
-                                         {"rounds", wr.rounds}};
+            if (settings.worstHexPass)
+                out.report["worst_hexes"] = stage(sink, "worst_hexes", [&] { return worstHexPass(out.mesh, &geometry); });
             const auto fr =
                 stage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
             out.report["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},
