@@ -680,7 +680,7 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
             gain[sv] = r.move.before - r.move.after;
             everMoved_[sv] = 1;
             updates.fetch_add(1, std::memory_order_relaxed);
-            if (r.move.displacement.norm() > opt_.moveTolerance * r.length) markNeighbours(v, active, next);
+            if (r.move.displacement.norm() > opt_.wakeTolerance * r.length) markNeighbours(v, active, next);
         });
         active.swap(next);
         double improvement = 0;

@@ -47,6 +47,7 @@ SmoothingOptions tight() {
     SmoothingOptions opt;
     opt.relativeTolerance = 1e-12;
     opt.moveTolerance = 1e-8;
+    opt.wakeTolerance = 1e-8;
     return opt;
 }
 
