@@ -2,6 +2,7 @@
 #include "SheetMethod.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -11,6 +12,7 @@
 #include <optional>
 #include <sstream>
 
+#include <Eigen/Dense>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -145,7 +147,7 @@ public:
     // a grid point the repair changed go onto its zero set, the surface the
     // mesh was extracted on there.
     FieldProjector(const SelectionDomain& d, const HexMesh& mesh, const octree::RepairedDomain* repaired = nullptr)
-        : domain_(d), surfaces_(mesh.surfaces), repaired_(repaired) {}
+        : domain_(d), surfaces_(mesh.surfaces), curves_(mesh.curves), repaired_(repaired) {}
     Vec3 project(std::int32_t surfaceId, const Vec3& x) const override {
         const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
         const std::int32_t a = s.inside, b = s.outside;
@@ -166,6 +168,65 @@ public:
         if (a <= 0 && b > 0) return nearby(domain_.field(b), x);
         if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
         return projectDifference(a, b, x);
+    }
+
+    // Curves where three materials meet (HexMesh::curves): where all three
+    // are materials, f_p = f_q = f_r (the crossing of their interfaces, as
+    // project() has them); against the outside, the union's isosurface
+    // (where extraction put the vertices of such cells) crossed with the
+    // interface of the other two.
+    bool hasCurves() const override { return !curves_.empty(); }
+    Vec3 projectToCurve(std::int32_t curveId, const Vec3& x0) const override {
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        if (curveId < 0 || static_cast<std::size_t>(curveId) >= curves_.size()) return {nan, nan, nan};
+        const auto [p, q, r] = curves_[static_cast<std::size_t>(curveId)];
+        const bool outer = p <= 0;
+        const imaging::ImplicitField& fq = domain_.field(q);
+        const imaging::ImplicitField& fr = domain_.field(r);
+        const double voxel = fq.voxelSize();
+        // the two functions whose common zero set is the curve, with gradients
+        auto F = [&](const Vec3& y, Eigen::Matrix<double, 2, 3>& J) {
+            Vec3 gq, gr, g0;
+            const double vq = fq.valueAndGradient(y, gq), vr = fr.valueAndGradient(y, gr);
+            double v0;
+            if (outer) {
+                v0 = domain_.unionValue(y, &g0);
+            } else {
+                v0 = domain_.field(p).valueAndGradient(y, g0);
+                v0 -= vq;
+                g0 = {g0[0] - gq[0], g0[1] - gq[1], g0[2] - gq[2]};
+            }
+            for (int c = 0; c < 3; ++c) {
+                J(0, c) = gq[c] - gr[c];
+                J(1, c) = g0[c];
+            }
+            return Eigen::Vector2d(vq - vr, v0);
+        };
+        // Levenberg-Marquardt onto both zero sets (damped least-norm steps,
+        // which also get through places where one function is flat and the
+        // two gradients agree), each step at most half a voxel; NaN where it
+        // does not end within 1e-3 voxels of both or more than 3 voxels away.
+        Eigen::Vector3d x(x0[0], x0[1], x0[2]);
+        Eigen::Matrix<double, 2, 3> J;
+        Eigen::Vector2d f;
+        bool settled = false;
+        for (int it = 0; it < 40 && !settled; ++it) {
+            f = F(Vec3{x[0], x[1], x[2]}, J);
+            if (!f.allFinite() || !J.allFinite()) return {nan, nan, nan};
+            Eigen::Matrix2d JJ = J * J.transpose();
+            const double damping = 1e-6 * JJ.trace() + 1e-300;
+            JJ.diagonal().array() += damping;
+            Eigen::Vector3d step = J.transpose() * JJ.ldlt().solve(f);
+            if (!step.allFinite()) return {nan, nan, nan};
+            settled = step.norm() < 1e-6 * voxel;
+            if (step.norm() > 0.5 * voxel) step *= 0.5 * voxel / step.norm();
+            x -= step;
+        }
+        f = F(Vec3{x[0], x[1], x[2]}, J);
+        for (int i = 0; i < 2; ++i)
+            if (!(std::abs(f[i]) <= 1e-3 * voxel * J.row(i).norm())) return {nan, nan, nan};
+        if ((x - Eigen::Vector3d(x0[0], x0[1], x0[2])).norm() > 3.0 * voxel) return {nan, nan, nan};
+        return {x[0], x[1], x[2]};
     }
 
 private:
@@ -229,7 +290,9 @@ private:
     }
     const SelectionDomain& domain_;
     std::vector<SurfaceTag> surfaces_;
+    std::vector<std::array<std::int32_t, 3>> curves_;
     const octree::RepairedDomain* repaired_ = nullptr;
+
 };
 
 bool isSurfaceFile(const std::string& path) {

@@ -332,6 +332,7 @@ void classifyBoundaryNodes(HexMesh& mesh) {
     const Topology topo = buildTopology(mesh);
     const std::vector<SurfacePatch> patches = surfacePatches(mesh, topo);
     mesh.surfaces.clear();
+    mesh.curves.clear();
     std::vector<std::int32_t> first(mesh.nodeCount(), -1);
     std::vector<std::uint8_t> many(mesh.nodeCount(), 0);
     for (std::size_t s = 0; s < patches.size(); ++s) {

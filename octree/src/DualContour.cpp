@@ -227,24 +227,55 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
             }
         return n;
     };
-    tbb::enumerable_thread_specific<std::set<Tag>> local;
+    // The materials meeting along a curve node's cell, when exactly three meet
+    // there (-1: outside) and at most one of them is not a material (the box
+    // around a meshed exterior keeps its curve nodes fixed); else none.
+    using Triple = std::array<std::int32_t, 3>;
+    auto curveOf = [](const std::array<Tag, 12>& t, int n, Triple& out) {
+        std::array<std::int32_t, 24> m{};
+        int k = 0;
+        for (int e = 0; e < n; ++e) {
+            m[k++] = t[e].first;
+            m[k++] = t[e].second;
+        }
+        std::sort(m.begin(), m.begin() + k);
+        k = static_cast<int>(std::unique(m.begin(), m.begin() + k) - m.begin());
+        if (k != 3 || m[1] <= 0) return false;
+        out = {m[0], m[1], m[2]};
+        return true;
+    };
+    auto onCurve = [](const std::array<Tag, 12>& t, int n) {
+        for (int e = 1; e < n; ++e)
+            if (t[e] != t[0]) return true;
+        return false;
+    };
+    tbb::enumerable_thread_specific<std::pair<std::set<Tag>, std::set<Triple>>> local;
     tbb::parallel_for(0, nz + 1, [&](int ck) {
-        auto& set = local.local();
+        auto& [set, curves] = local.local();
         std::array<Tag, 12> t;
+        Triple c;
         for (int cj = 0; cj <= ny; ++cj)
             for (int ci = 0; ci <= nx; ++ci) {
                 if (node[cg.index(ci, cj, ck)] == kNone) continue;
                 const int n = cellTags(ci, cj, ck, t);
                 for (int e = 0; e < n; ++e) set.insert(t[e]);
+                if (onCurve(t, n) && curveOf(t, n, c)) curves.insert(c);
             }
     });
     std::set<Tag> all;
-    for (const auto& s : local) all.insert(s.begin(), s.end());
+    std::set<Triple> allCurves;
+    for (const auto& s : local) {
+        all.insert(s.first.begin(), s.first.end());
+        allCurves.insert(s.second.begin(), s.second.end());
+    }
     const std::vector<Tag> tags(all.begin(), all.end());
+    const std::vector<Triple> curveList(allCurves.begin(), allCurves.end());
     mesh.surfaces.clear();
     for (const auto& [in, out] : tags) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
+    mesh.curves = curveList;
     tbb::parallel_for(0, nz + 1, [&](int ck) {
         std::array<Tag, 12> t;
+        Triple c;
         for (int cj = 0; cj <= ny; ++cj)
             for (int ci = 0; ci <= nx; ++ci) {
                 const Index id = node[cg.index(ci, cj, ck)];
@@ -256,6 +287,8 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
                     if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
                     else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
                 }
+                if (cls.kind == NodeKind::Curve && curveOf(t, n, c))
+                    cls.id = static_cast<std::int32_t>(std::lower_bound(curveList.begin(), curveList.end(), c) - curveList.begin());
                 mesh.nodeClass[id] = cls;
             }
     });

@@ -508,20 +508,44 @@ Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const
         target += Vector3(p[0], p[1], p[2]);
     }
     const Vector3 delta = target / static_cast<double>(k) - x;
-    if (!(delta.norm() > opt_.moveTolerance * L)) return r;
-    double omega = opt_.surfaceRelaxation;
-    for (int i = 0; i <= opt_.surfaceHalvings; ++i, omega *= 0.5) {
-        const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, omega * delta));
-        const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
-        if (!d.allFinite()) continue;
-        const double f = objective.value(d);
-        if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
-        r.move.displacement = d;
-        r.move.after = f;
-        r.move.steps = 1;
-        r.position = y;
-        return r;
+    if (delta.norm() > opt_.moveTolerance * L) {
+        double omega = opt_.surfaceRelaxation;
+        for (int i = 0; i <= opt_.surfaceHalvings; ++i, omega *= 0.5) {
+            const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, omega * delta));
+            const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+            if (!d.allFinite()) continue;
+            const double f = objective.value(d);
+            if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+            r.move.displacement = d;
+            r.move.after = f;
+            r.move.steps = 1;
+            r.position = y;
+            return r;
+        }
     }
+    if (!opt_.surfaceNewtonFallback) return r;
+    // As for surface nodes: Newton on the hexes' mean ratio along the curve's
+    // tangent (the direction between the two curve neighbours of a chain's
+    // inner node, towards the one of its end), then back onto the curve.
+    const Index* nb = nodeCurveNeighbours_.begin(sv);
+    const Vec3& a = mesh_.nodes[static_cast<std::size_t>(nb[0])];
+    const Vec3& b = k >= 2 ? mesh_.nodes[static_cast<std::size_t>(nb[1])] : xv;
+    Vector3 t(b[0] - a[0], b[1] - a[1], b[2] - a[2]);
+    if (!(t.norm() > 0)) return r;
+    t.normalize();
+    TangentLineObjective<NodeObjective<InverseMeanRatio>> line(objective, t);
+    const NodeMove m = newtonDescent(line, L, opt_.gradientTolerance * static_cast<double>(n) / L, opt_.newton);
+    if (m.steps == 0) return r;
+    const Vector3 moved = t * t.dot(m.displacement);  // what `objective` is now shifted by
+    const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, moved));
+    const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+    if (!d.allFinite()) return r;
+    const double f = objective.value(d - moved);
+    if (!std::isfinite(f) || !(f < f0)) return r;
+    r.move.displacement = d;
+    r.move.after = f;
+    r.move.steps = 1;
+    r.position = y;
     return r;
 }
 

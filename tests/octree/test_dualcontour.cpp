@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <cmath>
 
 #include <nlohmann/json.hpp>
@@ -336,7 +338,12 @@ TEST(DualContour, NodeClassesFromTheGridEqualThoseFromTheHexFaces) {
         HexMesh again = m;
         classifyBoundaryNodes(again);
         EXPECT_EQ(m.surfaces, again.surfaces) << "exterior " << exterior;
-        EXPECT_EQ(m.nodeClass, again.nodeClass) << "exterior " << exterior;
+        // classifyBoundaryNodes does not name curves (id -1); the grid does
+        std::vector<NodeClass> named = m.nodeClass;
+        for (auto& c : named)
+            if (c.kind == NodeKind::Curve) c.id = -1;
+        EXPECT_EQ(named, again.nodeClass) << "exterior " << exterior;
+        EXPECT_TRUE(again.curves.empty());
         std::size_t curves = 0;
         for (const auto& c : m.nodeClass) curves += c.kind == NodeKind::Curve;
         EXPECT_GT(curves, 0u);
@@ -418,5 +425,45 @@ TEST(DualContour, MovesOntoTheSurfaceInvertNoHexTheQefVerticesKeepValid) {
             EXPECT_FALSE(inverted && !invertedQef) << name << " hex " << h;
         }
         EXPECT_LE(invertedMoved, invertedPlain) << name;
+    }
+}
+
+TEST(DualContour, CurveNodesNameTheThreeMaterialsMeetingThere) {
+    // Two boxes side by side with a ball across their interface: curves where
+    // the interface meets the outside, where the ball meets both boxes, and
+    // where the ball meets the outside. A Curve node names the materials of
+    // its hexes (and -1 on the outer boundary) when they are three, and no
+    // curve (-1) where four meet or where the box around a meshed exterior is one of them.
+    const AnalyticDomain d({box({3, 3, 3}, {9.5, 13, 13}), box({9.5, 3, 3}, {15, 13, 13}), sphere({9, 8, 12.2}, 3.3)});
+    for (bool exterior : {false, true}) {
+        Labels l = sampleLabels(d, unitGrid(18));
+        repairNonManifold(l, d);
+        ExtractOptions opt;
+        opt.meshExterior = exterior;
+        const HexMesh m = dualContourHexes(l, d, opt);
+        const Topology t = buildTopology(m);
+        ASSERT_FALSE(m.curves.empty());
+        EXPECT_TRUE(std::is_sorted(m.curves.begin(), m.curves.end()));
+        std::size_t named = 0, unnamed = 0;
+        for (std::size_t v = 0; v < m.nodeCount(); ++v) {
+            if (m.nodeClass[v].kind != NodeKind::Curve) continue;
+            std::set<std::int32_t> mats;
+            for (const Index* h = t.nodeHexes.begin(v); h != t.nodeHexes.end(v); ++h) mats.insert(m.material[*h]);
+            if (t.nodeOnBoundary[v]) mats.insert(-1);
+            const std::int32_t id = m.nodeClass[v].id;
+            const bool box = exterior && mats.count(0) && mats.count(-1);
+            if (mats.size() == 3 && !box) {
+                ASSERT_GE(id, 0) << "node " << v;
+                ASSERT_LT(static_cast<std::size_t>(id), m.curves.size());
+                const auto& c = m.curves[static_cast<std::size_t>(id)];
+                EXPECT_EQ(mats, std::set<std::int32_t>(c.begin(), c.end())) << "node " << v;
+                ++named;
+            } else {
+                EXPECT_EQ(id, -1) << "node " << v << " among " << mats.size() << " materials";
+                ++unnamed;
+            }
+        }
+        EXPECT_GT(named, 10u) << "exterior " << exterior;
+        EXPECT_GT(unnamed, 0u) << "exterior " << exterior;  // where the ball meets both boxes and the outside
     }
 }

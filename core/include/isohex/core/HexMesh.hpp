@@ -53,6 +53,11 @@ struct HexMesh {
     std::vector<Hex> hexes;
     std::vector<std::int32_t> material;  // one per hex; 1 for a single solid, 0 may be meshed exterior
     std::vector<SurfaceTag> surfaces;    // surfaces referred to by NodeClass::id
+    // Curves referred to by NodeClass::id of Curve nodes, where known (meshes
+    // extracted from label maps): the three materials meeting along the curve,
+    // in increasing order, -1 for the exterior. Curve nodes with id -1 (where
+    // four or more materials meet, or read from a file) have no entry.
+    std::vector<std::array<std::int32_t, 3>> curves;
 
     std::size_t nodeCount() const { return nodes.size(); }
     std::size_t hexCount() const { return hexes.size(); }

@@ -214,4 +214,27 @@ private:
     Matrix3 P_;
 };
 
+// The same restricted to the line through the node's base position along the
+// unit vector t (a curve node's tangent); the other two directions get a
+// positive curvature and no gradient.
+template <class Objective>
+class TangentLineObjective {
+public:
+    TangentLineObjective(Objective& inner, const Vector3& t) : inner_(inner), P_(t * t.transpose()) {}
+
+    double value(const Vector3& d) const { return inner_.value(P_ * d); }
+    double derivatives(Vector3& g, Matrix3& H) {
+        const double f = inner_.derivatives(g, H);
+        g = P_ * g;
+        H = P_ * H * P_;
+        H += (H.diagonal().cwiseAbs().maxCoeff() + 1e-300) * (Matrix3::Identity() - P_);
+        return f;
+    }
+    void shift(const Vector3& d) { inner_.shift(P_ * d); }
+
+private:
+    Objective& inner_;
+    Matrix3 P_;
+};
+
 }  // namespace isohex::smoothing
