@@ -116,8 +116,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     const Topology topo = buildTopology(mesh);
     auto movable = [&](Index v) {
         const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
-        // (Interior-classified nodes on the boundary and Curve/Fixed nodes never move.)
+        // (Interior-classified nodes on the boundary, Fixed nodes and Curve
+        // nodes where the projector knows no curve never move.)
         if (c.kind == NodeKind::Interior) return !topo.nodeOnBoundary[static_cast<std::size_t>(v)];
+        if (c.kind == NodeKind::Curve) return projector != nullptr && projector->hasCurves() && c.id >= 0;
         return c.kind == NodeKind::Surface && projector != nullptr;
     };
     std::vector<std::uint8_t> everMoved(N, 0), released(N, 0);
@@ -141,6 +143,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     auto visit = [&](Index v, const std::vector<Vec3>& normal, bool release) {
         const auto sv = static_cast<std::size_t>(v);
         const bool surface = mesh.nodeClass[sv].kind == NodeKind::Surface;
+        const bool curve = mesh.nodeClass[sv].kind == NodeKind::Curve;
+        if (curve && release) return false;  // curve nodes stay on their curve
         const bool onSurface = surface && !release;
         std::vector<Vec3> dirs = dirs3;
         if (onSurface) {
@@ -167,6 +171,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             for (const Vec3& d : dirs) {
                 Vec3 p = mesh.nodes[sv] + step * d;
                 if (onSurface) p = projector->project(mesh.nodeClass[sv].id, p);
+                // a curve node: the 3-D trial point onto its curve (both ways along it)
+                if (curve) p = projector->projectToCurve(mesh.nodeClass[sv].id, p);
                 if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
                 if (surface && release &&
                     !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))

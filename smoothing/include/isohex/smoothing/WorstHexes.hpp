@@ -49,8 +49,9 @@ struct WorstHexResult {
     int rounds = 0;
 };
 
-// Surface nodes move only with a projector; Curve and Fixed nodes, and
-// Interior-classified nodes on the mesh boundary, never move.
+// Surface nodes move only with a projector, Curve nodes only with one that
+// knows their curve (3-D trial points projected onto it; never released);
+// Fixed nodes and Interior-classified nodes on the mesh boundary never move.
 WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {});
 
 // Helpers the pass uses, shared with other finishing steps (sheets' volume fit).
