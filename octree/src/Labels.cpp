@@ -510,6 +510,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
     const auto [nx, ny, nz] = g.dims;
     RegionIds ids = initialRegions(labels, regions);
     std::vector<std::uint8_t> flips(labels.material.size(), 0);
+    bool plain = false;  // no topology preference (see the end of a round)
     constexpr int kMaxRounds = 200;
     constexpr int kMaxFlipsPerPoint = 4;
     auto isBorder = [&](int pi, int pj, int pk) {
@@ -543,7 +544,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             bool stale = false;
             for (std::size_t p : v.point) stale = stale || touched.count(p);
             if (stale) continue;
-            const int badNow = badness(v.mat);
+            const int badNow = badness(v.mat), badMaterialsNow = badMaterials(v.mat);
             // Candidates: give one corner to another material present in the block (or background).
             std::vector<std::int32_t> present(v.mat.begin(), v.mat.end());
             present.push_back(0);
@@ -562,8 +563,10 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                     if (t == v.mat[c] || (border && t != 0)) continue;
                     auto trial = v.mat;
                     trial[c] = t;
+                    // a flip mends the block when fewer materials (or their
+                    // complements) are split in it, or fewer are bad at all
                     const int score = badness(trial);
-                    if (score >= badNow) continue;
+                    if (score >= badNow && badMaterials(trial) >= badMaterialsNow) continue;
                     const std::int32_t judged = t != 0 ? t : v.mat[c];
                     const double cost = std::abs(domain.value(judged, x));
                     // Among flips that mend the block, prefer those that keep
@@ -571,7 +574,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                     // (simpleFlip), then those that mend it most, then those
                     // that keep every region's Euler characteristic, then the
                     // one nearest the surface.
-                    const bool simple = simpleFlip(labels, ids, pi, pj, pk, v.mat[c], t);
+                    const bool simple = !plain && simpleFlip(labels, ids, pi, pj, pk, v.mat[c], t);
                     const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
                                             (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
                     const bool better =
@@ -598,7 +601,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             std::size_t prepPoint = 0;
             std::int32_t prepMat = 0;
             bool prep = false;
-            if (!bestSimple) {
+            if (!bestSimple && !plain) {
                 double bestMove = 0;
                 for (int c = 0; c < 8; ++c) {
                     const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
@@ -678,6 +681,14 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                 const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
                 if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
             }
+        }
+        if (touched.empty() && !plain) {
+            // The topology preference can spend points' flips going back and
+            // forth (random labellings of several materials): from here on,
+            // the plain rules with fresh flips.
+            plain = true;
+            std::fill(flips.begin(), flips.end(), 0);
+            continue;
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +
