@@ -341,7 +341,10 @@ struct RegionIds {
 // cubes never joins pockets of the outside through an edge) keeps its
 // components, tunnels and cavities: the point is simple for both (topological
 // numbers 1 and 1). A point joining `to` must touch exactly one of its regions.
-bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
+// 2 when the flip is simple for both materials; 1 when only what lies
+// outside them keeps its topology (the model of the regions is coarser than
+// marching cubes, that of the outside matches it); 0 otherwise.
+int flipTier(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
     const auto [nx, ny, nz] = l.grid.dims;
     std::array<std::int32_t, 27> mat;
     std::array<std::size_t, 27> pt{};
@@ -351,27 +354,34 @@ bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t
         pt[q] = inside ? l.grid.index(x, y, z) : 0;
         mat[q] = inside ? l.material[pt[q]] : 0;
     }
-    auto simpleFor = [&](std::int32_t m, std::int32_t region) {
+    bool regionKeeps = true, restKeeps = true;
+    auto check = [&](std::int32_t m, std::int32_t region) {
         std::array<bool, 27> in{}, out{};
         for (int q = 0; q < 27; ++q) {
             if (q == 13) continue;
-            in[q] = mat[q] == m && r.of(pt[q]) == region;
+            in[q] = region >= 0 && mat[q] == m && r.of(pt[q]) == region;
             out[q] = mat[q] != m;
         }
-        return topoNumber(in, 26) == 1 && topoNumber(out, 6) == 1;
+        regionKeeps = regionKeeps && region >= 0 && topoNumber(in, 26) == 1;
+        restKeeps = restKeeps && topoNumber(out, 6) == 1;
     };
-    if (from != 0 && !simpleFor(from, r.of(pt[13]))) return false;
+    if (from != 0) check(from, r.of(pt[13]));
     if (to != 0) {
         std::int32_t region = -1;
+        bool several = false;
         for (int q = 0; q < 27; ++q) {
             if (q == 13 || mat[q] != to) continue;
             const std::int32_t o = r.of(pt[q]);
-            if (region >= 0 && o != region) return false;
+            several = several || (region >= 0 && o != region);
             region = o;
         }
-        if (region < 0 || !simpleFor(to, region)) return false;
+        check(to, several ? -1 : region);
     }
-    return true;
+    return restKeeps ? (regionKeeps ? 2 : 1) : 0;
+}
+
+bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
+    return flipTier(l, r, i, j, k, from, to) == 2;
 }
 
 // Gives point p material `to`, with the region id of its new neighbours
@@ -553,6 +563,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             double bestCost = 0;
             int bestCorner = -1, bestScore = 1 << 30;
             bool bestKeeps = false, bestSimple = false;
+            int bestTier = -1;
             std::int32_t bestMat = 0;
             for (int c = 0; c < 8; ++c) {
                 const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
@@ -574,18 +585,20 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                     // (simpleFlip), then those that mend it most, then those
                     // that keep every region's Euler characteristic, then the
                     // one nearest the surface.
-                    const bool simple = !plain && simpleFlip(labels, ids, pi, pj, pk, v.mat[c], t);
+                    const int tier = plain ? 0 : flipTier(labels, ids, pi, pj, pk, v.mat[c], t);
+                    const bool simple = tier == 2;
                     const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
                                             (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
                     const bool better =
-                        bestCorner < 0 || simple > bestSimple ||
-                        (simple == bestSimple &&
+                        bestCorner < 0 || tier > bestTier ||
+                        (tier == bestTier &&
                          (score < bestScore || (score == bestScore && keepsEuler > bestKeeps) ||
                           (score == bestScore && keepsEuler == bestKeeps && cost < bestCost)));
                     if (better) {
                         bestScore = score;
                         bestKeeps = keepsEuler;
                         bestSimple = simple;
+                        bestTier = tier;
                         bestCost = cost;
                         bestCorner = c;
                         bestMat = t;
