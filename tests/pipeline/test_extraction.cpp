@@ -392,7 +392,7 @@ struct Case {
     // head): marching cubes (volumeToMesh) joins or keeps apart each such
     // contact by its case table, while hexes sharing an edge always touch, so
     // the repair must flip points there. It keeps volumeToMesh's parts and
-    // pockets where it can (ch2bet 2 mm: 322 components, chi 540, against the
+    // pockets where it can (ch2bet 2 mm: 323 components, chi 542, against the
     // scan's 324 and 544; see docs/DESIGN.md, "Topology against OpenVDB").
     // The boundary is always compared with volumeToMesh of the repaired field
     // (RepairedDomain), the surface the mesh follows.
