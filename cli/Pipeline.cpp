@@ -9,6 +9,7 @@
 #include <cctype>
 #include <filesystem>
 #include <limits>
+#include <numeric>
 #include <optional>
 #include <sstream>
 
@@ -366,6 +367,97 @@ octree::Grid gridFor(const imaging::Volume& vol, const openvdb::CoordBBox& solid
     return g;
 }
 
+// The parts of every material that OpenVDB's volumeToMesh keeps apart, as
+// one id per grid point (for the non-manifold repair): points of a material
+// are in one part when 6-adjacent or on the inner side of one connected
+// component of the volumeToMesh surface of the material's points (grid
+// points of the material inside, the rest outside). Each surface polygon is
+// dual to the grid edge it crosses, which names the point on its inner side.
+std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
+    const octree::Grid& g = l.grid;
+    const auto [nx, ny, nz] = g.dims;
+    const std::size_t n = l.material.size();
+    std::vector<std::int32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0);
+    auto find = [&](std::int32_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    auto unite = [&](std::size_t a, std::size_t b) {
+        const std::int32_t ra = find(static_cast<std::int32_t>(a)), rb = find(static_cast<std::int32_t>(b));
+        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+    };
+    std::map<std::int32_t, openvdb::CoordBBox> boxes;
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t p = g.index(i, j, k);
+                const std::int32_t m = l.material[p];
+                if (m == 0) continue;
+                boxes[m].expand(openvdb::Coord(i, j, k));
+                if (i + 1 < nx && l.material[g.index(i + 1, j, k)] == m) unite(p, g.index(i + 1, j, k));
+                if (j + 1 < ny && l.material[g.index(i, j + 1, k)] == m) unite(p, g.index(i, j + 1, k));
+                if (k + 1 < nz && l.material[g.index(i, j, k + 1)] == m) unite(p, g.index(i, j, k + 1));
+            }
+    for (auto& [m, box] : boxes) {
+        box.expand(1);
+        auto grid = openvdb::FloatGrid::create(1.0f);
+        auto acc = grid->getAccessor();
+        for (int k = std::max(box.min().z(), 0); k <= std::min(box.max().z(), nz - 1); ++k)
+            for (int j = std::max(box.min().y(), 0); j <= std::min(box.max().y(), ny - 1); ++j)
+                for (int i = std::max(box.min().x(), 0); i <= std::min(box.max().x(), nx - 1); ++i)
+                    if (l.material[g.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
+        std::vector<openvdb::Vec3s> pts;
+        std::vector<openvdb::Vec3I> tris;
+        std::vector<openvdb::Vec4I> quads;
+        openvdb::tools::volumeToMesh(*grid, pts, tris, quads, 0.0);
+        // surface components over the polygons' vertices
+        std::vector<std::uint32_t> sp(pts.size());
+        std::iota(sp.begin(), sp.end(), 0u);
+        auto sfind = [&](std::uint32_t a) {
+            while (sp[a] != a) a = sp[a] = sp[sp[a]];
+            return a;
+        };
+        auto sunite = [&](std::uint32_t a, std::uint32_t b) {
+            a = sfind(a);
+            b = sfind(b);
+            if (a != b) sp[std::max(a, b)] = std::min(a, b);
+        };
+        for (const auto& q : quads)
+            for (int e = 0; e < 4; ++e) sunite(q[e], q[(e + 1) % 4]);
+        for (const auto& t : tris)
+            for (int e = 0; e < 3; ++e) sunite(t[e], t[(e + 1) % 3]);
+        std::vector<std::int64_t> inner(pts.size(), -1);  // per surface component: a point on its inner side
+        for (const auto& q : quads) {
+            // the 4 vertices lie in the 4 cells around the crossed edge: equal
+            // cell coordinate along the edge, the edge's start the largest of
+            // the others
+            int c[4][3];
+            for (int e = 0; e < 4; ++e)
+                for (int a = 0; a < 3; ++a) c[e][a] = static_cast<int>(std::floor(pts[q[e]][a]));
+            int axis = -1;
+            for (int a = 0; a < 3; ++a)
+                if (c[0][a] == c[1][a] && c[0][a] == c[2][a] && c[0][a] == c[3][a]) axis = a;
+            if (axis < 0) continue;
+            int s[3];
+            for (int a = 0; a < 3; ++a) s[a] = std::max(std::max(c[0][a], c[1][a]), std::max(c[2][a], c[3][a]));
+            int t[3] = {s[0], s[1], s[2]};
+            ++t[axis];
+            if (s[0] < 0 || s[1] < 0 || s[2] < 0 || t[0] >= nx || t[1] >= ny || t[2] >= nz) continue;
+            const std::size_t a = g.index(s[0], s[1], s[2]), b = g.index(t[0], t[1], t[2]);
+            if ((l.material[a] == m) == (l.material[b] == m)) continue;
+            const std::size_t in = l.material[a] == m ? a : b;
+            const std::uint32_t comp = sfind(q[0]);
+            if (inner[comp] < 0) inner[comp] = static_cast<std::int64_t>(in);
+            else unite(in, static_cast<std::size_t>(inner[comp]));
+        }
+    }
+    std::vector<std::int32_t> id(n, -1);
+    for (std::size_t p = 0; p < n; ++p)
+        if (l.material[p] != 0) id[p] = find(static_cast<std::int32_t>(p));
+    return id;
+}
+
 nlohmann::json gridJson(const octree::Grid& g) {
     const auto s = g.spacing();
     return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
@@ -498,7 +590,8 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                                            " grid points of smaller regions removed)");
     }
     sink.progress(0.5);
-    octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain);
+    const std::vector<std::int32_t> regions = marchingCubesRegions(p.labels);
+    octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain, &regions);
     // Repair can cut a thin bridge; keep the largest region again and re-check.
     if (settings.keepLargest && octree::keepLargestComponents(p.labels) > 0) {
         const octree::RepairReport again = octree::repairNonManifold(p.labels, *domain);

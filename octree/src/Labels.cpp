@@ -54,6 +54,9 @@ namespace {
 // or 6-connected inside the block (corners adjacent when they differ in one bit).
 struct ManifoldTable {
     std::array<bool, 256> ok{};
+    // how far from manifold: 1 for the set and 1 for its complement when not
+    // 6-connected inside the block (a repair step that mends one side counts)
+    std::array<int, 256> pieces{};
     ManifoldTable() {
         auto connected = [](unsigned set) {
             if (set == 0) return true;
@@ -71,7 +74,10 @@ struct ManifoldTable {
             }
             return seen == set;
         };
-        for (unsigned p = 0; p < 256; ++p) ok[p] = connected(p) && connected(~p & 0xFFu);
+        for (unsigned p = 0; p < 256; ++p) {
+            ok[p] = connected(p) && connected(~p & 0xFFu);
+            pieces[p] = !connected(p) + !connected(~p & 0xFFu);
+        }
     }
 };
 const ManifoldTable kTable;
@@ -175,6 +181,23 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
 
 bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials(mat) == 0; }
 
+// As badMaterials, but a material whose points and whose complement are both
+// split inside the block counts twice: zero exactly when badMaterials is.
+int badness(const std::array<std::int32_t, 8>& mat) {
+    int bad = 0;
+    for (int c = 0; c < 8; ++c) {
+        bool first = true;
+        for (int d = 0; d < c; ++d)
+            if (mat[d] == mat[c]) first = false;
+        if (!first) continue;
+        unsigned p = 0;
+        for (int d = 0; d < 8; ++d)
+            if (mat[d] == mat[c]) p |= 1u << d;
+        bad += kTable.pieces[p];
+    }
+    return bad + badPairs(mat);
+}
+
 bool uniformBlock(const std::array<std::int32_t, 8>& mat) {
     for (int c = 1; c < 8; ++c)
         if (mat[c] != mat[0]) return false;
@@ -261,6 +284,129 @@ int eulerChange(const Labels& l, int i, int j, int k, std::int32_t m, bool add) 
     return add ? 1 - chi : chi - 1;
 }
 
+// Topological number of the set `in` (3x3x3 neighbourhood, x fastest, the
+// centre ignored) for 6- or 26-adjacency (Bertrand and Malandain 1994): with
+// 6, the 6-components of the set within the 18-neighbourhood that hold a
+// 6-neighbour of the centre; with 26, the 26-components in the 26-neighbourhood.
+int topoNumber(const std::array<bool, 27>& in, int adjacency) {
+    auto axes = [](int q) { return (q % 3 != 1) + (q / 3 % 3 != 1) + (q / 9 != 1); };
+    std::array<bool, 27> use{};
+    for (int q = 0; q < 27; ++q) use[q] = q != 13 && in[q] && (adjacency == 26 || axes(q) <= 2);
+    std::array<bool, 27> seen{};
+    int count = 0;
+    for (int s = 0; s < 27; ++s) {
+        if (!use[s] || seen[s]) continue;
+        int stack[27], top = 0;
+        stack[top++] = s;
+        seen[s] = true;
+        bool counts = adjacency == 26;
+        while (top) {
+            const int p = stack[--top];
+            counts = counts || axes(p) == 1;
+            for (int q = 0; q < 27; ++q) {
+                if (!use[q] || seen[q]) continue;
+                const int da = std::abs(p % 3 - q % 3), db = std::abs(p / 3 % 3 - q / 3 % 3), dc = std::abs(p / 9 - q / 9);
+                if (da > 1 || db > 1 || dc > 1) continue;
+                if (adjacency == 6 && da + db + dc != 1) continue;
+                seen[q] = true;
+                stack[top++] = q;
+            }
+        }
+        count += counts;
+    }
+    return count;
+}
+
+// Region ids of the repair (see repairNonManifold): union-find over ids, so a
+// flip that has to join two regions merges their ids.
+struct RegionIds {
+    std::vector<std::int32_t> id;      // per grid point (meaningful for material points)
+    std::vector<std::int32_t> parent;  // per id
+    std::int32_t find(std::int32_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    }
+    std::int32_t of(std::size_t p) { return find(id[p]); }
+    std::int32_t fresh() {
+        parent.push_back(static_cast<std::int32_t>(parent.size()));
+        return parent.back();
+    }
+};
+
+// Whether point (i, j, k) may leave material `from` and join `to` without
+// changing the topology of the surface volumeToMesh draws around either: a
+// material's region (its points with one region id, 26-adjacent, as marching
+// cubes joins points touching along an edge or at a corner unless they belong
+// to regions it keeps apart) against everything else (6-adjacent, as marching
+// cubes never joins pockets of the outside through an edge) keeps its
+// components, tunnels and cavities: the point is simple for both (topological
+// numbers 1 and 1). A point joining `to` must touch exactly one of its regions.
+// 2 when the flip is simple for both materials; 1 when only what lies
+// outside them keeps its topology (the model of the regions is coarser than
+// marching cubes, that of the outside matches it); 0 otherwise.
+int flipTier(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    std::array<std::int32_t, 27> mat;
+    std::array<std::size_t, 27> pt{};
+    for (int q = 0; q < 27; ++q) {
+        const int x = i + q % 3 - 1, y = j + q / 3 % 3 - 1, z = k + q / 9 - 1;
+        const bool inside = x >= 0 && y >= 0 && z >= 0 && x < nx && y < ny && z < nz;
+        pt[q] = inside ? l.grid.index(x, y, z) : 0;
+        mat[q] = inside ? l.material[pt[q]] : 0;
+    }
+    bool regionKeeps = true, restKeeps = true;
+    auto check = [&](std::int32_t m, std::int32_t region) {
+        std::array<bool, 27> in{}, out{};
+        for (int q = 0; q < 27; ++q) {
+            if (q == 13) continue;
+            in[q] = region >= 0 && mat[q] == m && r.of(pt[q]) == region;
+            out[q] = mat[q] != m;
+        }
+        regionKeeps = regionKeeps && region >= 0 && topoNumber(in, 26) == 1;
+        restKeeps = restKeeps && topoNumber(out, 6) == 1;
+    };
+    if (from != 0) check(from, r.of(pt[13]));
+    if (to != 0) {
+        std::int32_t region = -1;
+        bool several = false;
+        for (int q = 0; q < 27; ++q) {
+            if (q == 13 || mat[q] != to) continue;
+            const std::int32_t o = r.of(pt[q]);
+            several = several || (region >= 0 && o != region);
+            region = o;
+        }
+        check(to, several ? -1 : region);
+    }
+    return restKeeps ? (regionKeeps ? 2 : 1) : 0;
+}
+
+bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
+    return flipTier(l, r, i, j, k, from, to) == 2;
+}
+
+// Gives point p material `to`, with the region id of its new neighbours
+// (merging their regions if it touches several; a fresh region if none).
+void flipPoint(Labels& l, RegionIds& r, std::size_t p, std::int32_t to) {
+    l.material[p] = to;
+    if (to == 0) return;
+    const auto [nx, ny, nz] = l.grid.dims;
+    const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+    std::int32_t region = -1;
+    for (int q = 0; q < 27; ++q) {
+        const int x = i + q % 3 - 1, y = j + q / 3 % 3 - 1, z = k + q / 9 - 1;
+        if (q == 13 || x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
+        const std::size_t o = l.grid.index(x, y, z);
+        if (l.material[o] != to) continue;
+        const std::int32_t ro = r.of(o);
+        if (region < 0) region = ro;
+        else if (ro != region) {
+            r.parent[std::max(ro, region)] = std::min(ro, region);
+            region = std::min(ro, region);
+        }
+    }
+    r.id[p] = region >= 0 ? region : r.fresh();
+}
+
 }  // namespace
 
 std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labels).size(); }
@@ -311,13 +457,82 @@ std::size_t keepLargestComponents(Labels& labels) {
     return removed;
 }
 
-RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
+namespace {
+
+// Region ids for the repair: the given ones, or each material's 26-connected
+// components (points touching along an edge or at a corner in one region).
+RegionIds initialRegions(const Labels& labels, const std::vector<std::int32_t>* given) {
+    RegionIds r;
+    const std::size_t n = labels.material.size();
+    r.id.assign(n, 0);
+    if (given) {
+        if (given->size() != n) throw Error("repairNonManifold: one region id per grid point expected");
+        std::map<std::int32_t, std::int32_t> dense;
+        for (std::size_t p = 0; p < n; ++p)
+            if (labels.material[p] != 0) {
+                auto [it, fresh] = dense.emplace((*given)[p], static_cast<std::int32_t>(dense.size()));
+                r.id[p] = it->second;
+            }
+        r.parent.resize(dense.size());
+        std::iota(r.parent.begin(), r.parent.end(), 0);
+        return r;
+    }
+    const Grid& g = labels.grid;
+    const auto [nx, ny, nz] = g.dims;
+    std::vector<std::int32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0);
+    auto find = [&](std::int32_t a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i) {
+                const std::size_t p = g.index(i, j, k);
+                const std::int32_t m = labels.material[p];
+                if (m == 0) continue;
+                // the 13 neighbours after p in x-fastest order
+                for (int q = 14; q < 27; ++q) {
+                    const int x = i + q % 3 - 1, y = j + q / 3 % 3 - 1, z = k + q / 9 - 1;
+                    if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
+                    const std::size_t o = g.index(x, y, z);
+                    if (labels.material[o] != m) continue;
+                    const std::int32_t a = find(static_cast<std::int32_t>(p)), b = find(static_cast<std::int32_t>(o));
+                    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                }
+            }
+    std::map<std::int32_t, std::int32_t> dense;
+    for (std::size_t p = 0; p < n; ++p)
+        if (labels.material[p] != 0) {
+            auto [it, fresh] = dense.emplace(find(static_cast<std::int32_t>(p)), static_cast<std::int32_t>(dense.size()));
+            r.id[p] = it->second;
+        }
+    r.parent.resize(dense.size());
+    std::iota(r.parent.begin(), r.parent.end(), 0);
+    return r;
+}
+
+}  // namespace
+
+RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::vector<std::int32_t>* regions) {
     RepairReport rep;
     const Grid& g = labels.grid;
     const auto [nx, ny, nz] = g.dims;
+    RegionIds ids = initialRegions(labels, regions);
     std::vector<std::uint8_t> flips(labels.material.size(), 0);
+    bool plain = false;  // no topology preference (see the end of a round)
     constexpr int kMaxRounds = 200;
     constexpr int kMaxFlipsPerPoint = 4;
+    auto isBorder = [&](int pi, int pj, int pk) {
+        return pi == 0 || pj == 0 || pk == 0 || pi == nx - 1 || pj == ny - 1 || pk == nz - 1;
+    };
+    auto record = [&](std::size_t p, std::int32_t to) {
+        if (labels.material[p] == 0) ++rep.pointsAdded;
+        else if (to == 0) ++rep.pointsRemoved;
+        else ++rep.pointsAdded;
+        flipPoint(labels, ids, p, to);
+        ++flips[p];
+    };
     // A block can only turn bad when one of its points changes, so after the
     // first full scan each round looks at the blocks still bad and the blocks
     // around the points the previous round changed (the same set a full scan finds).
@@ -339,7 +554,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             bool stale = false;
             for (std::size_t p : v.point) stale = stale || touched.count(p);
             if (stale) continue;
-            const int badNow = badMaterials(v.mat);
+            const int badNow = badness(v.mat), badMaterialsNow = badMaterials(v.mat);
             // Candidates: give one corner to another material present in the block (or background).
             std::vector<std::int32_t> present(v.mat.begin(), v.mat.end());
             present.push_back(0);
@@ -347,35 +562,102 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
             present.erase(std::unique(present.begin(), present.end()), present.end());
             double bestCost = 0;
             int bestCorner = -1, bestScore = 1 << 30;
-            bool bestKeeps = false;
+            bool bestKeeps = false, bestSimple = false;
+            int bestTier = -1;
             std::int32_t bestMat = 0;
             for (int c = 0; c < 8; ++c) {
                 const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
-                const bool border = pi == 0 || pj == 0 || pk == 0 || pi == nx - 1 || pj == ny - 1 || pk == nz - 1;
+                const bool border = isBorder(pi, pj, pk);
                 if (flips[v.point[c]] >= kMaxFlipsPerPoint) continue;
                 const Vec3 x = g.point(pi, pj, pk);
                 for (std::int32_t t : present) {
                     if (t == v.mat[c] || (border && t != 0)) continue;
                     auto trial = v.mat;
                     trial[c] = t;
-                    const int score = badMaterials(trial);
-                    if (score >= badNow) continue;
+                    // a flip mends the block when fewer materials (or their
+                    // complements) are split in it, or fewer are bad at all
+                    const int score = badness(trial);
+                    if (score >= badNow && badMaterials(trial) >= badMaterialsNow) continue;
                     const std::int32_t judged = t != 0 ? t : v.mat[c];
                     const double cost = std::abs(domain.value(judged, x));
-                    // among flips that mend the block as much, prefer those that
-                    // keep every region's Euler characteristic (no handle or
-                    // component made or lost), then the one nearest the surface
+                    // Among flips that mend the block, prefer those that keep
+                    // the topology of the surface marching cubes draws
+                    // (simpleFlip), then those that mend it most, then those
+                    // that keep every region's Euler characteristic, then the
+                    // one nearest the surface.
+                    const int tier = plain ? 0 : flipTier(labels, ids, pi, pj, pk, v.mat[c], t);
+                    const bool simple = tier == 2;
                     const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
                                             (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
-                    if (score < bestScore || (score == bestScore && keepsEuler > bestKeeps) ||
-                        (score == bestScore && keepsEuler == bestKeeps && cost < bestCost)) {
+                    const bool better =
+                        bestCorner < 0 || tier > bestTier ||
+                        (tier == bestTier &&
+                         (score < bestScore || (score == bestScore && keepsEuler > bestKeeps) ||
+                          (score == bestScore && keepsEuler == bestKeeps && cost < bestCost)));
+                    if (better) {
                         bestScore = score;
                         bestKeeps = keepsEuler;
+                        bestSimple = simple;
+                        bestTier = tier;
                         bestCost = cost;
                         bestCorner = c;
                         bestMat = t;
                     }
                 }
+            }
+            // No single flip keeps the topology (a pocket or a speck of one
+            // point touching another along an edge): move it first. A
+            // 6-neighbour y of corner c that has the material c is to take
+            // takes c's material (simple), then c flips (simple); e.g. a
+            // one-point pocket of the outside steps away from the pocket it
+            // touches instead of being filled.
+            std::size_t prepPoint = 0;
+            std::int32_t prepMat = 0;
+            bool prep = false;
+            if (!bestSimple && !plain) {
+                double bestMove = 0;
+                for (int c = 0; c < 8; ++c) {
+                    const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
+                    if (flips[v.point[c]] >= kMaxFlipsPerPoint) continue;
+                    const std::int32_t from = v.mat[c];
+                    for (std::int32_t t : present) {
+                        if (t == from || (isBorder(pi, pj, pk) && t != 0)) continue;
+                        for (int d = 0; d < 6; ++d) {
+                            const int yi = pi + (d == 0) - (d == 1), yj = pj + (d == 2) - (d == 3),
+                                      yk = pk + (d == 4) - (d == 5);
+                            if (yi < 0 || yj < 0 || yk < 0 || yi >= nx || yj >= ny || yk >= nz) continue;
+                            if (from != 0 && isBorder(yi, yj, yk)) continue;
+                            const std::size_t y = g.index(yi, yj, yk);
+                            if (labels.material[y] != t || flips[y] >= kMaxFlipsPerPoint) continue;
+                            if (!simpleFlip(labels, ids, yi, yj, yk, t, from)) continue;
+                            const std::int32_t keepId = ids.id[y];
+                            const std::size_t keepParents = ids.parent.size();
+                            flipPoint(labels, ids, y, from);
+                            const BlockView w = block(labels, i, j, k);
+                            auto trial = w.mat;
+                            trial[c] = t;
+                            const bool ok = badness(trial) < badNow && simpleFlip(labels, ids, pi, pj, pk, from, t);
+                            labels.material[y] = t;  // undo (y's new neighbours were one region: no merge)
+                            ids.id[y] = keepId;
+                            ids.parent.resize(keepParents);
+                            if (!ok) continue;
+                            const double cost = std::abs(domain.value(t != 0 ? t : from, g.point(pi, pj, pk))) +
+                                                std::abs(domain.value(from != 0 ? from : t, g.point(yi, yj, yk)));
+                            if (!prep || cost < bestMove) {
+                                prep = true;
+                                bestMove = cost;
+                                prepPoint = y;
+                                prepMat = from;
+                                bestCorner = c;
+                                bestMat = t;
+                            }
+                        }
+                    }
+                }
+            }
+            if (prep) {
+                record(prepPoint, prepMat);
+                touched.insert(prepPoint);
             }
             if (bestCorner < 0) {
                 // No single flip makes this block better (e.g. a checkerboard):
@@ -392,7 +674,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
                 for (int c = 0; c < 8; ++c) {
                     if (v.mat[c] == grow) continue;
                     const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
-                    if (pi == 0 || pj == 0 || pk == 0 || pi == nx - 1 || pj == ny - 1 || pk == nz - 1) continue;
+                    if (isBorder(pi, pj, pk)) continue;
                     const double cost = std::abs(domain.value(grow, g.point(pi, pj, pk)));
                     if (bestCorner < 0 || cost < bestCost) {
                         bestCorner = c;
@@ -403,11 +685,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
                 if (bestCorner < 0) continue;
             }
             const std::size_t p = v.point[bestCorner];
-            if (labels.material[p] == 0) ++rep.pointsAdded;
-            else if (bestMat == 0) ++rep.pointsRemoved;
-            else ++rep.pointsAdded;
-            labels.material[p] = bestMat;
-            ++flips[p];
+            record(p, bestMat);
             touched.insert(p);
         }
         for (std::size_t p : touched) {
@@ -416,6 +694,14 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain) {
                 const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
                 if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
             }
+        }
+        if (touched.empty() && !plain) {
+            // The topology preference can spend points' flips going back and
+            // forth (random labellings of several materials): from here on,
+            // the plain rules with fresh flips.
+            plain = true;
+            std::fill(flips.begin(), flips.end(), 0);
+            continue;
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +

@@ -123,6 +123,56 @@ TEST(NonManifoldRepair, TwoCubesSharingAnEdge) {
     EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
 }
 
+TEST(NonManifoldRepair, PocketsTouchingAlongAnEdgeStayTwoPockets) {
+    // Two one-point pockets of the outside inside a solid block, touching
+    // along an edge: marching cubes draws two little spheres. Filling one or
+    // joining them would lose one; the repair moves a pocket by a point.
+    const int n = 12;
+    auto v = grid3(n);
+    for (int k = 2; k <= 9; ++k)
+        for (int j = 2; j <= 9; ++j)
+            for (int i = 2; i <= 9; ++i) set(v, n, i, j, k);
+    set(v, n, 5, 5, 5, 0);
+    set(v, n, 6, 6, 5, 0);
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    EXPECT_GT(countNonManifoldBlocks(l), 0u);
+    repairNonManifold(l, d);
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    const auto t = regionTopology(l);
+    ASSERT_EQ(t.size(), 1u);
+    EXPECT_EQ(t[0].components, 3u);  // the block's outside and two pockets
+    EXPECT_EQ(t[0].euler, 6);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
+}
+
+TEST(NonManifoldRepair, SpeckKeptApartWhereTheRegionsSaySo) {
+    // A one-point speck touching a block along an edge: one region unless the
+    // caller's regions (e.g. volumeToMesh's parts) keep it apart, in which
+    // case it stays a speck (the block gives up the points it touches, or
+    // the speck moves by a point).
+    const int n = 10;
+    auto v = grid3(n);
+    for (int k = 2; k <= 6; ++k)
+        for (int j = 2; j <= 6; ++j)
+            for (int i = 2; i <= 6; ++i) set(v, n, i, j, k);
+    set(v, n, 7, 7, 4);
+    const PointSetDomain d({n, n, n}, v);
+    Labels joined = sampleLabels(d, unitGrid(n));
+    repairNonManifold(joined, d);
+    EXPECT_EQ(countNonManifoldBlocks(joined), 0u);
+    EXPECT_EQ(regionTopology(joined)[0].components, 1u);
+    Labels apart = sampleLabels(d, unitGrid(n));
+    std::vector<std::int32_t> regions(apart.material.size(), 0);
+    regions[apart.grid.index(7, 7, 4)] = 1;
+    repairNonManifold(apart, d, &regions);
+    EXPECT_EQ(countNonManifoldBlocks(apart), 0u);
+    const auto t = regionTopology(apart);
+    EXPECT_EQ(t[0].components, 2u);
+    EXPECT_EQ(t[0].euler, 4);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(apart, d)));
+}
+
 TEST(NonManifoldRepair, TwoCubesSharingAVertex) {
     const int n = 6;
     auto v = grid3(n);

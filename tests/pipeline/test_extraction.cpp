@@ -390,12 +390,13 @@ struct Case {
     cli::MeshSettings settings;
     // False where the scan's field has points of the solid touching only along
     // an edge or at a corner in numbers (ch2bet, a noisy threshold of a whole
-    // head): marching cubes (volumeToMesh) keeps such points apart as separate
-    // little surfaces, while the boundary of hexes on grid points cannot (two
-    // hexes sharing an edge touch), so the repair joins or drops them and the
-    // counts differ from those of the scan's field. The boundary is always
-    // compared with volumeToMesh of the repaired field (RepairedDomain), the
-    // surface the mesh follows.
+    // head): marching cubes (volumeToMesh) joins or keeps apart each such
+    // contact by its case table, while hexes sharing an edge always touch, so
+    // the repair must flip points there. It keeps volumeToMesh's parts and
+    // pockets where it can (ch2bet 2 mm: 323 components, chi 542, against the
+    // scan's 324 and 544; see docs/DESIGN.md, "Topology against OpenVDB").
+    // The boundary is always compared with volumeToMesh of the repaired field
+    // (RepairedDomain), the surface the mesh follows.
     bool sameTopologyAsVolumeToMesh = true;
 };
 

@@ -44,10 +44,18 @@ struct RepairReport {
 // union of the points' cubes has a non-manifold edge or vertex.
 std::size_t countNonManifoldBlocks(const Labels& labels);
 
-// Flips grid points until every material region is 2-manifold, choosing for
-// each bad block the flip closest to the surface (smallest |value|); iterates
-// to a fixpoint. Deterministic. Throws isohex::Error if no fixpoint is found.
-RepairReport repairNonManifold(Labels& labels, const Domain& domain);
+// Flips grid points until every material region is 2-manifold; iterates to a
+// fixpoint. Deterministic. Throws isohex::Error if no fixpoint is found.
+// For each bad block it prefers flips that keep the topology of the surface
+// marching cubes draws (components, tunnels, cavities of every region: see
+// simpleFlip in Labels.cpp), moving a one-point pocket or speck by a point
+// where it must, then the flip closest to the surface (smallest |value|).
+// `regions` (optional, one id per grid point): the parts marching cubes keeps
+// apart, e.g. the components of OpenVDB's volumeToMesh surface; points of one
+// material with different ids stay apart even where they touch along an edge
+// or at a corner. Without it, each material's 26-connected components.
+RepairReport repairNonManifold(Labels& labels, const Domain& domain,
+                               const std::vector<std::int32_t>* regions = nullptr);
 
 // Topology of each material region's boundary: connected components and
 // Euler characteristic (a closed surface of genus g per component has chi = 2 - 2g).
