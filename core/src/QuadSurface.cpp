@@ -14,6 +14,11 @@ ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std:
     // node -> (quad, corner) items
     const Csr around = detail::bucketItems(nodeCount, quads.size() * 4,
                                            [&](std::size_t i) { return quads[i / 4][i % 4]; });
+    return checkManifold(quads, around, closed);
+}
+
+ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, const Csr& around, bool closed) {
+    const std::size_t nodeCount = around.rows();
     std::vector<std::uint8_t> nodeBad(nodeCount, 0);
     tbb::enumerable_thread_specific<std::vector<std::array<Index, 2>>> badEdgesLocal;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodeCount, 256), [&](const auto& r) {

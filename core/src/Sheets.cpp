@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "Parallel.hpp"
@@ -60,65 +62,144 @@ int cornerAt(int x, int y, int z) {
     return -1;
 }
 
+// Positions i in [0, n) where flag(i) holds, in increasing order, found in
+// parallel over fixed blocks (so the same for any thread count); flag is
+// evaluated once per position, and onKept(i, rank) is called for each kept one.
+template <class Flag, class OnKept>
+std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
+    constexpr std::size_t B = std::size_t{1} << 14;
+    const std::size_t blocks = (n + B - 1) / B;
+    std::vector<std::uint8_t> f(n);
+    std::vector<Index> count(blocks + 1, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
+        for (std::size_t b = r.begin(); b != r.end(); ++b) {
+            Index k = 0;
+            for (std::size_t i = b * B, e = std::min(n, i + B); i < e; ++i) k += f[i] = flag(i) ? 1 : 0;
+            count[b + 1] = k;
+        }
+    });
+    for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
+    std::vector<Index> out(static_cast<std::size_t>(count[blocks]));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
+        for (std::size_t b = r.begin(); b != r.end(); ++b) {
+            Index k = count[b];
+            for (std::size_t i = b * B, e = std::min(n, i + B); i < e; ++i)
+                if (f[i]) {
+                    out[static_cast<std::size_t>(k)] = static_cast<Index>(i);
+                    onKept(i, k++);
+                }
+        }
+    });
+    return out;
+}
+
+template <class Flag>
+std::vector<Index> keepWhere(std::size_t n, Flag flag) {
+    return keepWhere(n, flag, [](std::size_t, Index) {});
+}
+
+// Rows 0..rows-1 of the pairs (row, item) that forEach(emit) produces, in
+// the order it produces them (so rows come out sorted when items are
+// produced in increasing order). Serial: two passes of forEach.
+template <class ForEach>
+Csr rowsInOrder(std::size_t rows, ForEach forEach) {
+    Csr c;
+    c.offsets.assign(rows + 1, 0);
+    forEach([&](Index row, Index) { ++c.offsets[static_cast<std::size_t>(row) + 1]; });
+    for (std::size_t r = 0; r < rows; ++r) c.offsets[r + 1] += c.offsets[r];
+    c.items.resize(static_cast<std::size_t>(c.offsets[rows]));
+    std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+    forEach([&](Index row, Index item) { c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(row)]++)] = item; });
+    return c;
+}
+
 }  // namespace
 
 PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const PillowOptions& opt) {
     if (shrinkSet.empty()) throw Error("cannot pillow: the shrink set is empty");
     const std::size_t H = mesh.hexCount(), N = mesh.nodeCount();
-    std::vector<std::uint8_t> inS(H, 0);
-    for (Index h : shrinkSet) {
+    const Index NI = static_cast<Index>(N);
+    bool increasing = true;
+    for (std::size_t i = 0; i < shrinkSet.size(); ++i) {
+        const Index h = shrinkSet[i];
         if (h < 0 || static_cast<std::size_t>(h) >= H)
             throw Error("cannot pillow: shrink set names hex " + std::to_string(h) + " but the mesh has " +
                         std::to_string(H) + " hexes");
-        inS[h] = 1;
+        increasing = increasing && (i == 0 || shrinkSet[i - 1] < h);
     }
-    std::vector<Index> S;  // the shrink set, sorted and without repeats
-    S.reserve(shrinkSet.size());
-    for (std::size_t h = 0; h < H; ++h)
-        if (inS[h]) S.push_back(static_cast<Index>(h));
+    std::vector<Index> sorted;  // the shrink set, sorted and without repeats (unless it already is)
+    if (!increasing) {
+        std::vector<std::uint8_t> inS(H, 0);
+        for (Index h : shrinkSet) inS[h] = 1;
+        sorted = keepWhere(H, [&](std::size_t h) { return inS[h] != 0; });
+    }
+    const std::vector<Index>& S = increasing ? shrinkSet : sorted;
 
     // Nodes on the boundary of the shrink set, by parity: each face of a
     // shrink-set hex XORs a 64-bit hash of its four nodes into each of them. A
     // face two shrink-set hexes share cancels, so a node stays 0 unless a
     // boundary face meets it (or, with chance 2^-64 per node, its boundary
-    // faces' hashes cancel: then the sheet misses faces, the manifold check
-    // below fails and the exact pass over the whole shrink set is used).
-    // Only the hexes that touch such nodes need the node -> hex adjacency.
-    std::vector<std::uint64_t> parity(N, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const Hex& hx = mesh.hexes[S[i]];
-            std::uint64_t fh[6];
-            for (int f = 0; f < 6; ++f) {
-                const auto& lf = hexcell::kFaces[f];
-                fh[f] = quadHash(hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]);
-            }
-            for (int c = 0; c < 8; ++c)
-                std::atomic_ref<std::uint64_t>(parity[static_cast<std::size_t>(hx[c])])
-                    .fetch_xor(fh[kCornerFaces[c][0]] ^ fh[kCornerFaces[c][1]] ^ fh[kCornerFaces[c][2]],
-                               std::memory_order_relaxed);
-        }
-    });
-
-    std::vector<std::pair<Index, int>> faces;
-    std::vector<std::array<Index, 4>> quadNodes;
-    std::vector<Index> T;  // positions in S of the hexes that hold a boundary node
-    Csr nodeS;             // node -> hexes of T, as items 8 * (position in T) + corner
-    auto hexOf = [&](Index item) { return S[static_cast<std::size_t>(T[static_cast<std::size_t>(item) / 8])]; };
-    auto findBoundary = [&](bool exact) {
-        std::vector<std::uint8_t> touches(S.size(), 0);
+    // faces' hashes cancel: then the sheet misses faces, the checks below
+    // fail and the exact pass over the whole shrink set is used). Each thread
+    // XORs into its own array (XOR commutes: the same result for any thread
+    // count, without an atomic per corner).
+    tbb::enumerable_thread_specific<std::vector<std::uint64_t>> parities(
+        [N] { return std::vector<std::uint64_t>(N, 0); });
+    if (!opt.exactBoundary)
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
+            std::uint64_t* parity = parities.local().data();
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                bool t = exact;
-                for (Index v : mesh.hexes[S[i]]) t = t || parity[static_cast<std::size_t>(v)] != 0;
-                touches[i] = t;
+                const Hex& hx = mesh.hexes[S[i]];
+                std::uint64_t fh[6];
+                for (int f = 0; f < 6; ++f) {
+                    const auto& lf = hexcell::kFaces[f];
+                    fh[f] = quadHash(hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]);
+                }
+                for (int c = 0; c < 8; ++c)
+                    parity[hx[c]] ^= fh[kCornerFaces[c][0]] ^ fh[kCornerFaces[c][1]] ^ fh[kCornerFaces[c][2]];
             }
         });
-        T.clear();
-        for (std::size_t i = 0; i < S.size(); ++i)
-            if (touches[i]) T.push_back(static_cast<Index>(i));
-        nodeS = detail::bucketItems(N, 8 * T.size(), [&](std::size_t i) {
-            return mesh.hexes[S[static_cast<std::size_t>(T[i / 8])]][i % 8];
+
+    // Everything below works on the candidate nodes only (the boundary nodes
+    // by parity, or every node for the exact pass), numbered in increasing
+    // node order ("slots"), and on the hexes of S that hold one (T). Only
+    // those hexes need the node -> hex adjacency.
+    std::vector<Index> slotOf;   // per node, its slot or kNone
+    std::vector<Index> candNode; // per slot, its node
+    std::vector<Index> T;        // positions in S of the hexes that hold a candidate node
+    Csr nodeT;                   // slot -> positions in T of the hexes holding it, increasing
+    std::vector<std::pair<Index, int>> faces;
+    std::vector<std::array<Index, 4>> quadNodes;
+    std::vector<std::array<Index, 4>> quadSlots;
+    Csr around;                  // slot -> 4 * quad + corner, increasing
+    auto hexAtT = [&](Index t) -> const Hex& { return mesh.hexes[S[static_cast<std::size_t>(T[static_cast<std::size_t>(t)])]]; };
+    auto findBoundary = [&](bool exact) {
+        if (exact) {
+            slotOf.resize(N);
+            candNode.resize(N);
+            std::iota(slotOf.begin(), slotOf.end(), 0);
+            std::iota(candNode.begin(), candNode.end(), 0);
+        } else {
+            slotOf.assign(N, kNone);
+            candNode = keepWhere(
+                N,
+                [&](std::size_t v) {
+                    std::uint64_t p = 0;
+                    for (const auto& local : parities) p ^= local[v];
+                    return p != 0;
+                },
+                [&](std::size_t v, Index s) { slotOf[v] = s; });
+        }
+        const std::size_t nCand = candNode.size();
+        T = keepWhere(S.size(), [&](std::size_t i) {
+            for (Index v : mesh.hexes[S[i]])
+                if (slotOf[v] != kNone) return true;
+            return false;
+        });
+        nodeT = rowsInOrder(nCand, [&](auto emit) {
+            for (std::size_t t = 0; t < T.size(); ++t)
+                for (Index v : hexAtT(static_cast<Index>(t)))
+                    if (slotOf[v] != kNone) emit(slotOf[v], static_cast<Index>(t));
         });
 
         // Faces of shrink-set hexes that no other shrink-set hex shares: the
@@ -133,26 +214,25 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 std::uint8_t mask = 0;
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
-                    if (!exact && (parity[hx[lf[0]]] == 0 || parity[hx[lf[1]]] == 0 || parity[hx[lf[2]]] == 0 ||
-                                   parity[hx[lf[3]]] == 0))
+                    if (slotOf[hx[lf[0]]] == kNone || slotOf[hx[lf[1]]] == kNone || slotOf[hx[lf[2]]] == kNone ||
+                        slotOf[hx[lf[3]]] == kNone)
                         continue;  // a node of the face is interior: the face is shared
                     // Another hex holding the face holds both ends of its diagonal
                     // lf[0]-lf[2]: walk the two (sorted) rows together, then check
                     // the other diagonal only for the hexes they share.
                     int sharers = 0;
-                    const Index* a = nodeS.begin(hx[lf[0]]);
-                    const Index* ae = nodeS.end(hx[lf[0]]);
-                    const Index* b = nodeS.begin(hx[lf[2]]);
-                    const Index* be = nodeS.end(hx[lf[2]]);
+                    const Index* a = nodeT.begin(slotOf[hx[lf[0]]]);
+                    const Index* ae = nodeT.end(slotOf[hx[lf[0]]]);
+                    const Index* b = nodeT.begin(slotOf[hx[lf[2]]]);
+                    const Index* be = nodeT.end(slotOf[hx[lf[2]]]);
                     while (a != ae && b != be) {
-                        const Index ha = hexOf(*a), hb = hexOf(*b);
-                        if (ha < hb) {
+                        if (*a < *b) {
                             ++a;
-                        } else if (hb < ha) {
+                        } else if (*b < *a) {
                             ++b;
                         } else {
-                            if (ha != self) {
-                                const Hex& ho = mesh.hexes[ha];
+                            if (*a != static_cast<Index>(i)) {
+                                const Hex& ho = hexAtT(*a);
                                 sharers += std::find(ho.begin(), ho.end(), hx[lf[1]]) != ho.end() &&
                                            std::find(ho.begin(), ho.end(), hx[lf[3]]) != ho.end();
                             }
@@ -172,23 +252,52 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         if (overfull.load() != kNone)
             throw Error("cannot pillow: a face of hex " + std::to_string(overfull.load()) +
                         " is shared by more than two hexes; repair the mesh first");
-        faces.clear();
-        quadNodes.clear();
-        for (std::size_t i = 0; i < T.size(); ++i)
-            for (int f = 0; f < 6; ++f)
-                if (faceMask[i] >> f & 1) {
-                    const Index h = S[static_cast<std::size_t>(T[i])];
-                    const Hex& hx = mesh.hexes[h];
-                    const auto& lf = hexcell::kFaces[f];
-                    faces.emplace_back(h, f);
-                    quadNodes.push_back({hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]});
+        std::vector<Index> first(T.size() + 1, 0);  // first face of each hex of T
+        for (std::size_t i = 0; i < T.size(); ++i) first[i + 1] = first[i] + std::popcount(faceMask[i]);
+        const std::size_t Q = static_cast<std::size_t>(first[T.size()]);
+        faces.resize(Q);
+        quadNodes.resize(Q);
+        quadSlots.resize(Q);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                std::size_t q = static_cast<std::size_t>(first[i]);
+                const Index h = S[static_cast<std::size_t>(T[i])];
+                const Hex& hx = mesh.hexes[h];
+                for (int f = 0; f < 6; ++f)
+                    if (faceMask[i] >> f & 1) {
+                        const auto& lf = hexcell::kFaces[f];
+                        faces[q] = {h, f};
+                        quadNodes[q] = {hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]};
+                        quadSlots[q] = {slotOf[hx[lf[0]]], slotOf[hx[lf[1]]], slotOf[hx[lf[2]]], slotOf[hx[lf[3]]]};
+                        ++q;
+                    }
+            }
+        });
+        around = rowsInOrder(nCand, [&](auto emit) {
+            for (std::size_t q = 0; q < Q; ++q)
+                for (int c = 0; c < 4; ++c) emit(quadSlots[q][c], static_cast<Index>(4 * q + c));
+        });
+    };
+    auto check = [&](bool exact) {
+        ManifoldCheck mc = checkManifold(quadSlots, around, true);
+        for (auto& e : mc.badEdges) e = {candNode[e[0]], candNode[e[1]]};
+        for (auto& v : mc.badNodes) v = candNode[v];
+        // Every boundary node by parity lies on a boundary face unless a
+        // node of that face was missed: use the exact pass then.
+        if (!exact && mc.ok())
+            for (std::size_t s = 0; s < around.rows(); ++s)
+                if (around.size(s) == 0) {
+                    mc.badNodes.push_back(candNode[s]);
+                    break;
                 }
+        return mc;
     };
     findBoundary(opt.exactBoundary);
-    ManifoldCheck mc = checkManifold(quadNodes, N, true);
+    ManifoldCheck mc = check(opt.exactBoundary);
     if (!mc.ok() && !opt.exactBoundary) {
+        parities.clear();
         findBoundary(true);
-        mc = checkManifold(quadNodes, N, true);
+        mc = check(true);
     }
     if (faces.empty()) throw Error("cannot pillow: the shrink set has no boundary");
     if (!mc.ok()) {
@@ -201,88 +310,102 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         throw Error(msg);
     }
 
-    // Split nodes, numbered in increasing original index.
+    // Split nodes (the slots on the boundary faces), numbered in increasing
+    // original index.
     PillowResult res;
     res.firstNewHex = static_cast<Index>(H);
     res.firstNewNode = static_cast<Index>(N);
-    std::vector<Index> copy(N, kNone);
-    for (const auto& q : quadNodes)
-        for (Index v : q) copy[v] = 0;
-    Index next = static_cast<Index>(N);
-    for (std::size_t v = 0; v < N; ++v)
-        if (copy[v] == 0) {
-            copy[v] = next++;
-            res.copyOf.push_back(static_cast<Index>(v));
-        }
-    const std::size_t C = res.copyOf.size();
-
-    // Averaged outward normal (area weighted) and local edge length per split node.
-    // (indexed by copy: only split nodes need them)
-    std::vector<Vec3> normal(C, Vec3{0, 0, 0});
-    std::vector<double> edgeSum(C, 0.0);
-    std::vector<int> edgeCount(C, 0);
-    for (const auto& q : quadNodes) {
-        const Vec3 n = 0.5 * cross(mesh.nodes[q[2]] - mesh.nodes[q[0]], mesh.nodes[q[3]] - mesh.nodes[q[1]]);
-        for (int i = 0; i < 4; ++i) {
-            const std::size_t c = static_cast<std::size_t>(copy[q[i]] - static_cast<Index>(N));
-            normal[c] = normal[c] + n;
-            edgeSum[c] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]) +
-                          norm(mesh.nodes[q[(i + 3) % 4]] - mesh.nodes[q[i]]);
-            edgeCount[c] += 2;
-        }
+    const std::size_t nCand = candNode.size();
+    std::vector<Index> copySlot = keepWhere(nCand, [&](std::size_t s) { return around.size(s) != 0; });
+    const std::size_t C = copySlot.size();
+    std::vector<Index> slotCopy;  // per slot, its copy (only when some slot has none)
+    if (C != nCand) {
+        slotCopy.assign(nCand, kNone);
+        for (std::size_t c = 0; c < C; ++c) slotCopy[copySlot[c]] = static_cast<Index>(c);
     }
+    auto copyOfSlot = [&](Index s) { return slotCopy.empty() ? s : slotCopy[static_cast<std::size_t>(s)]; };
+    res.copyOf.resize(C);
+    for (std::size_t c = 0; c < C; ++c) res.copyOf[c] = candNode[copySlot[c]];
+
     // Each copy starts at its node plus `push`, an inward step of `inset`
     // local edge lengths that the loop below halves where it inverts a hex.
-    // Inward is the averaged inward normal, or towards the centroid of the
+    // Inward is the averaged inward normal (area weighted, over the node's
+    // boundary quads in quad order), or towards the centroid of the
     // shrink-set hexes around the node where the normal points away from them.
     std::vector<Vec3> push(C);
+    const std::vector<Vec3>& P = mesh.nodes;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Index s = copySlot[i];
             const Index v = res.copyOf[i];
+            Vec3 normal{0, 0, 0};
+            double edgeSum = 0;
+            int edgeCount = 0;
+            for (const Index* it = around.begin(s); it != around.end(s); ++it) {
+                const auto& q = quadNodes[static_cast<std::size_t>(*it / 4)];
+                const int k = *it % 4;
+                const Vec3 n = 0.5 * cross(P[q[2]] - P[q[0]], P[q[3]] - P[q[1]]);
+                normal = normal + n;
+                edgeSum += norm(P[q[(k + 1) % 4]] - P[q[k]]) + norm(P[q[(k + 3) % 4]] - P[q[k]]);
+                edgeCount += 2;
+            }
             Vec3 c{0, 0, 0};
             int n = 0;
-            for (const Index* it = nodeS.begin(v); it != nodeS.end(v); ++it) {
-                for (Index u : mesh.hexes[hexOf(*it)]) c = c + mesh.nodes[u];
+            for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) {
+                for (Index u : hexAtT(*it)) c = c + P[u];
                 n += 8;
             }
-            const Vec3 toCentre = (1.0 / n) * c - mesh.nodes[v];
-            const double len = norm(normal[i]);
-            Vec3 dir = len > 0 ? (-1.0 / len) * normal[i] : Vec3{0, 0, 0};
+            const Vec3 toCentre = (1.0 / n) * c - P[v];
+            const double len = norm(normal);
+            Vec3 dir = len > 0 ? (-1.0 / len) * normal : Vec3{0, 0, 0};
             if (dot(dir, toCentre) <= 0) {
                 const double l = norm(toCentre);
                 dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
             }
-            push[i] = (opt.inset * edgeSum[i] / edgeCount[i]) * dir;
+            push[i] = (opt.inset * edgeSum / edgeCount) * dir;
         }
     });
 
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
-    mesh.nodes.reserve(N + C);
-    mesh.nodeClass.reserve(N + C);
-    for (std::size_t i = 0; i < C; ++i) mesh.addNode(mesh.nodes[res.copyOf[i]] + push[i], NodeClass{});
-    // Only the hexes of T hold boundary nodes, so only they can hold a split node.
+    const std::size_t Q = faces.size();
+    mesh.nodes.resize(N + C);
+    mesh.nodeClass.resize(N + C, NodeClass{});
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 4096), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + push[i];
+    });
+    auto copyOfNode = [&](Index v) {  // the copy's node index, or kNone
+        const Index s = slotOf[static_cast<std::size_t>(v)];
+        const Index c = s == kNone ? kNone : copyOfSlot(s);
+        return c == kNone ? kNone : NI + c;
+    };
+    // Only the hexes of T hold candidate nodes, so only they can hold a split node.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i)
             for (Index& v : mesh.hexes[S[static_cast<std::size_t>(T[i])]])
-                if (v < static_cast<Index>(N) && copy[v] != kNone) v = copy[v];
+                if (v < NI) {
+                    const Index c = copyOfNode(v);
+                    if (c != kNone) v = c;
+                }
     });
-    mesh.hexes.reserve(H + faces.size());
-    mesh.material.reserve(H + faces.size());
-    for (std::size_t i = 0; i < faces.size(); ++i) {
-        const auto& q = quadNodes[i];
-        mesh.addHex({copy[q[0]], copy[q[1]], copy[q[2]], copy[q[3]], q[0], q[1], q[2], q[3]},
-                    mesh.material[faces[i].first]);
-    }
+    mesh.hexes.resize(H + Q);
+    mesh.material.resize(H + Q);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, Q, 4096), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const auto& q = quadNodes[i];
+            const auto& qs = quadSlots[i];
+            mesh.hexes[H + i] = {NI + copyOfSlot(qs[0]), NI + copyOfSlot(qs[1]), NI + copyOfSlot(qs[2]),
+                                 NI + copyOfSlot(qs[3]), q[0], q[1], q[2], q[3]};
+            mesh.material[H + i] = mesh.material[faces[i].first];
+        }
+    });
 
     // Shorten the inward step of copies where a hex around them inverted.
-    std::vector<Index> watch;  // hexes that contain a copy (all among T)
-    for (Index t : T)
-        for (Index v : mesh.hexes[S[static_cast<std::size_t>(t)]])
-            if (v >= static_cast<Index>(N)) {
-                watch.push_back(S[static_cast<std::size_t>(t)]);
-                break;
-            }
-    for (std::size_t h = H; h < mesh.hexCount(); ++h) watch.push_back(static_cast<Index>(h));
+    // The hexes watched: position i < |T| is the shrink-set hex T[i] (when
+    // it holds a copy), position |T| + q the new hex of quad q.
+    const std::size_t W = T.size() + Q;
+    auto watchHex = [&](std::size_t i) {
+        return i < T.size() ? S[static_cast<std::size_t>(T[i])] : static_cast<Index>(H + (i - T.size()));
+    };
     // Each round, every inverted hex around a copy that moved asks how many
     // more halvings of its copies' steps (all together, up to maxHalvings) make
     // it valid; a copy takes the most any of its hexes asks for, and the hexes
@@ -293,22 +416,23 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // where halving once per round re-checked every hex maxHalvings times.
     const int maxK = std::max(0, opt.maxHalvings);
     std::vector<int> halvings(C, 0), want(C, 0);
-    std::vector<std::uint8_t> bad(watch.size()), hopeless(watch.size(), 0), ask(watch.size(), 0);
-    std::vector<std::uint8_t> moved(C, 1);  // round 0 checks every hex with a copy
+    std::vector<std::uint8_t> bad(W, 0), hopeless(W, 0), ask(W, 0);
+    std::vector<std::uint8_t> dirty(W, 1);  // round 0 checks every hex with a copy
+    std::vector<Index> touched, moved;
     auto place = [&](std::size_t c, int k) {
         return mesh.nodes[res.copyOf[c]] + std::ldexp(1.0, -k) * push[c];
     };
     for (int round = 0; round <= maxK; ++round) {
         std::atomic<std::size_t> triggers{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, watch.size(), 1024), [&](const auto& r) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, W, 1024), [&](const auto& r) {
             std::size_t t = 0;
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 ask[i] = 0;
-                const Hex& hx = mesh.hexes[watch[i]];
-                bool changed = false;
-                for (Index v : hx) changed = changed || (v >= static_cast<Index>(N) && moved[v - N]);
-                if (!changed) continue;
-                HexCoords x = hexCoords(mesh, watch[i]);
+                if (!dirty[i]) continue;
+                const Index h = watchHex(i);
+                const Hex& hx = mesh.hexes[h];
+                if (round == 0 && std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI; })) continue;
+                HexCoords x = hexCoords(mesh, h);
                 bad[i] = !(minJacobianDeterminant(x) > 0);
                 if (!bad[i]) continue;
                 if (round == 0) {
@@ -317,11 +441,11 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     // (each corner's sign there is that of the surface quad's
                     // corner normal against the copy's step, whatever the step's
                     // length, so halving cannot help if it is not positive).
-                    const bool sheetHex = static_cast<std::size_t>(watch[i]) >= H;
+                    const bool sheetHex = i >= T.size();
                     HexCoords y = x;
                     for (int c = 0; c < 8; ++c)
-                        if (hx[c] >= static_cast<Index>(N)) {
-                            const std::size_t cc = static_cast<std::size_t>(hx[c] - N);
+                        if (hx[c] >= NI) {
+                            const std::size_t cc = static_cast<std::size_t>(hx[c] - NI);
                             y[c] = mesh.nodes[res.copyOf[cc]];
                             if (sheetHex) y[c] = y[c] + 1e-3 * push[cc];
                         }
@@ -336,8 +460,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 for (; k < maxK; ++k) {
                     HexCoords y = x;
                     for (int c = 0; c < 8; ++c)
-                        if (hx[c] >= static_cast<Index>(N)) {
-                            const std::size_t cc = static_cast<std::size_t>(hx[c] - N);
+                        if (hx[c] >= NI) {
+                            const std::size_t cc = static_cast<std::size_t>(hx[c] - NI);
                             y[c] = place(cc, std::min(maxK, halvings[cc] + k));
                         }
                     if (minJacobianDeterminant(y) > 0) break;
@@ -347,25 +471,36 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             }
             triggers += t;
         });
-        res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
         if (triggers == 0 || round == maxK) break;
-        std::fill(want.begin(), want.end(), 0);
-        for (std::size_t i = 0; i < watch.size(); ++i)
+        // A copy wants the most any of its asking hexes asks for.
+        touched.clear();
+        for (std::size_t i = 0; i < W; ++i)
             if (ask[i])
-                for (Index v : mesh.hexes[watch[i]])
-                    if (v >= static_cast<Index>(N)) want[v - N] = std::max(want[v - N], static_cast<int>(ask[i]));
-        bool any = false;
-        for (std::size_t c = 0; c < C; ++c) {
+                for (Index v : mesh.hexes[watchHex(i)])
+                    if (v >= NI) {
+                        int& w = want[v - NI];
+                        if (w == 0) touched.push_back(v - NI);
+                        w = std::max(w, static_cast<int>(ask[i]));
+                    }
+        moved.clear();
+        for (Index c : touched) {
             const int k = std::min(maxK, halvings[c] + want[c]);
-            moved[c] = k != halvings[c];
-            if (moved[c]) {
-                any = true;
+            want[c] = 0;
+            if (k != halvings[c]) {
                 halvings[c] = k;
                 mesh.nodes[N + c] = place(c, k);
+                moved.push_back(c);
             }
         }
-        if (!any) break;
+        if (moved.empty()) break;
+        std::fill(dirty.begin(), dirty.end(), 0);
+        for (Index c : moved) {
+            const Index s = copySlot[c];
+            for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) dirty[*it] = 1;
+            for (const Index* it = around.begin(s); it != around.end(s); ++it) dirty[T.size() + *it / 4] = 1;
+        }
     }
+    res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
     return res;
 }
 

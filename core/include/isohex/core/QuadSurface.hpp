@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
 
 namespace isohex {
 
@@ -20,5 +21,9 @@ struct ManifoldCheck {
 // Linear time, parallel over nodes; results sorted. `closed`: every edge
 // must be in exactly two quads; otherwise one or two.
 ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std::size_t nodeCount, bool closed);
+
+// The same with the node -> (quad, corner) rows already built: row v lists
+// 4 * quad + corner for every corner of a quad at node v, in increasing order.
+ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, const Csr& around, bool closed);
 
 }  // namespace isohex
