@@ -14,6 +14,10 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #include "Parallel.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
@@ -62,6 +66,50 @@ int cornerAt(int x, int y, int z) {
     return -1;
 }
 
+// Fresh anonymous memory is mapped page by page on first write, and in a
+// virtual machine each 4 KiB fault is dear (3 ms per MB on the bench machine,
+// against 0.1 ms per MB for 2 MiB pages): large buffers that are about to be
+// written ask for transparent huge pages where the kernel grants them on
+// request. Only whole aligned 2 MiB pieces of the range qualify; a hint, so
+// nothing changes where it is not honoured.
+void adviseHugePages(const void* p, std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    constexpr std::uintptr_t kHuge = std::uintptr_t{1} << 21;
+    const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
+    const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
+
+// Room for n elements, with the part not yet written advised as above.
+template <class T>
+void reserveHuge(std::vector<T>& v, std::size_t n) {
+    if (v.capacity() < n) v.reserve(n);
+    adviseHugePages(v.data() + v.size(), (v.capacity() - v.size()) * sizeof(T));
+}
+
+// minJacobianDeterminant(x) > 0 for the hex with corners *x[0..7]: the same
+// arithmetic in the same order (so the same verdict, bit for bit), without
+// building the nine frames, and stopping at the first one not positive (a
+// NaN corner determinant is passed over, as std::min does there).
+bool jacobianPositive(const Vec3* const x[8]) {
+    Vec3 a, b, c;
+    for (int k = 0; k < 3; ++k) {
+        a[k] = ((*x[1])[k] + (*x[2])[k] + (*x[5])[k] + (*x[6])[k]) - ((*x[0])[k] + (*x[3])[k] + (*x[4])[k] + (*x[7])[k]);
+        b[k] = ((*x[2])[k] + (*x[3])[k] + (*x[6])[k] + (*x[7])[k]) - ((*x[0])[k] + (*x[1])[k] + (*x[4])[k] + (*x[5])[k]);
+        c[k] = ((*x[4])[k] + (*x[5])[k] + (*x[6])[k] + (*x[7])[k]) - ((*x[0])[k] + (*x[1])[k] + (*x[2])[k] + (*x[3])[k]);
+    }
+    if (!(dot(a, cross(b, c)) / 64.0 > 0)) return false;
+    for (int k = 0; k < 8; ++k) {
+        const auto& n = hexcell::kCornerNeighbours[k];
+        if (dot(*x[n[0]] - *x[k], cross(*x[n[1]] - *x[k], *x[n[2]] - *x[k])) <= 0) return false;
+    }
+    return true;
+}
+
 // Positions i in [0, n) where flag(i) holds, in increasing order, found in
 // parallel over fixed blocks (so the same for any thread count); flag is
 // evaluated once per position, and onKept(i, rank) is called for each kept one.
@@ -69,7 +117,9 @@ template <class Flag, class OnKept>
 std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
     constexpr std::size_t B = std::size_t{1} << 14;
     const std::size_t blocks = (n + B - 1) / B;
-    std::vector<std::uint8_t> f(n);
+    std::vector<std::uint8_t> f;
+    reserveHuge(f, n);
+    f.resize(n);
     std::vector<Index> count(blocks + 1, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
         for (std::size_t b = r.begin(); b != r.end(); ++b) {
@@ -79,7 +129,9 @@ std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
         }
     });
     for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
-    std::vector<Index> out(static_cast<std::size_t>(count[blocks]));
+    std::vector<Index> out;
+    reserveHuge(out, static_cast<std::size_t>(count[blocks]));
+    out.resize(static_cast<std::size_t>(count[blocks]));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
         for (std::size_t b = r.begin(); b != r.end(); ++b) {
             Index k = count[b];
@@ -107,6 +159,7 @@ Csr rowsInOrder(std::size_t rows, ForEach forEach) {
     c.offsets.assign(rows + 1, 0);
     forEach([&](Index row, Index) { ++c.offsets[static_cast<std::size_t>(row) + 1]; });
     for (std::size_t r = 0; r < rows; ++r) c.offsets[r + 1] += c.offsets[r];
+    reserveHuge(c.items, static_cast<std::size_t>(c.offsets[rows]));
     c.items.resize(static_cast<std::size_t>(c.offsets[rows]));
     std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
     forEach([&](Index row, Index item) { c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(row)]++)] = item; });
@@ -144,7 +197,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // XORs into its own array (XOR commutes: the same result for any thread
     // count, without an atomic per corner).
     tbb::enumerable_thread_specific<std::vector<std::uint64_t>> parities(
-        [N] { return std::vector<std::uint64_t>(N, 0); });
+        [N] {
+            std::vector<std::uint64_t> p;
+            reserveHuge(p, N);
+            p.resize(N, 0);
+            return p;
+        });
     if (!opt.exactBoundary)
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
             std::uint64_t* parity = parities.local().data();
@@ -164,7 +222,11 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // by parity, or every node for the exact pass), numbered in increasing
     // node order ("slots"), and on the hexes of S that hold one (T). Only
     // those hexes need the node -> hex adjacency.
-    std::vector<Index> slotOf;   // per node, its slot or kNone
+    // Per node, its slot or kNoSlot (in fast mode the storage of the first
+    // parity array, so no further N-sized array is written).
+    constexpr std::uint64_t kNoSlot = ~std::uint64_t{0};
+    std::vector<std::uint64_t> slot;
+    auto slotOf = [&](Index v) { return static_cast<Index>(slot[static_cast<std::size_t>(v)]); };  // kNoSlot: kNone
     std::vector<Index> candNode; // per slot, its node
     std::vector<Index> T;        // positions in S of the hexes that hold a candidate node
     Csr nodeT;                   // slot -> positions in T of the hexes holding it, increasing
@@ -175,31 +237,59 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     auto hexAtT = [&](Index t) -> const Hex& { return mesh.hexes[S[static_cast<std::size_t>(T[static_cast<std::size_t>(t)])]]; };
     auto findBoundary = [&](bool exact) {
         if (exact) {
-            slotOf.resize(N);
+            slot.clear();
+            reserveHuge(slot, N);
+            slot.resize(N);
+            std::iota(slot.begin(), slot.end(), 0);
             candNode.resize(N);
-            std::iota(slotOf.begin(), slotOf.end(), 0);
             std::iota(candNode.begin(), candNode.end(), 0);
         } else {
-            slotOf.assign(N, kNone);
-            candNode = keepWhere(
-                N,
-                [&](std::size_t v) {
-                    std::uint64_t p = 0;
-                    for (const auto& local : parities) p ^= local[v];
-                    return p != 0;
-                },
-                [&](std::size_t v, Index s) { slotOf[v] = s; });
+            // XOR the threads' arrays into the first, then number the nodes
+            // whose parity is not 0 in increasing order, in fixed blocks.
+            std::vector<std::vector<std::uint64_t>*> locals;
+            for (auto& local : parities) locals.push_back(&local);
+            slot = std::move(*locals[0]);
+            constexpr std::size_t B = std::size_t{1} << 14;
+            const std::size_t blocks = (N + B - 1) / B;
+            std::vector<Index> count(blocks + 1, 0);
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
+                for (std::size_t b = r.begin(); b != r.end(); ++b) {
+                    Index k = 0;
+                    for (std::size_t v = b * B, e = std::min(N, v + B); v < e; ++v) {
+                        std::uint64_t p = slot[v];
+                        for (std::size_t l = 1; l < locals.size(); ++l) p ^= (*locals[l])[v];
+                        slot[v] = p;
+                        k += p != 0;
+                    }
+                    count[b + 1] = k;
+                }
+            });
+            for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
+            candNode.resize(static_cast<std::size_t>(count[blocks]));
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
+                for (std::size_t b = r.begin(); b != r.end(); ++b) {
+                    Index k = count[b];
+                    for (std::size_t v = b * B, e = std::min(N, v + B); v < e; ++v)
+                        if (slot[v] != 0) {
+                            candNode[static_cast<std::size_t>(k)] = static_cast<Index>(v);
+                            slot[v] = static_cast<std::uint64_t>(k++);
+                        } else {
+                            slot[v] = kNoSlot;
+                        }
+                }
+            });
+            parities.clear();
         }
         const std::size_t nCand = candNode.size();
         T = keepWhere(S.size(), [&](std::size_t i) {
             for (Index v : mesh.hexes[S[i]])
-                if (slotOf[v] != kNone) return true;
+                if (slotOf(v) != kNone) return true;
             return false;
         });
         nodeT = rowsInOrder(nCand, [&](auto emit) {
             for (std::size_t t = 0; t < T.size(); ++t)
                 for (Index v : hexAtT(static_cast<Index>(t)))
-                    if (slotOf[v] != kNone) emit(slotOf[v], static_cast<Index>(t));
+                    if (slotOf(v) != kNone) emit(slotOf(v), static_cast<Index>(t));
         });
 
         // Faces of shrink-set hexes that no other shrink-set hex shares: the
@@ -214,17 +304,17 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 std::uint8_t mask = 0;
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
-                    if (slotOf[hx[lf[0]]] == kNone || slotOf[hx[lf[1]]] == kNone || slotOf[hx[lf[2]]] == kNone ||
-                        slotOf[hx[lf[3]]] == kNone)
+                    if (slotOf(hx[lf[0]]) == kNone || slotOf(hx[lf[1]]) == kNone || slotOf(hx[lf[2]]) == kNone ||
+                        slotOf(hx[lf[3]]) == kNone)
                         continue;  // a node of the face is interior: the face is shared
                     // Another hex holding the face holds both ends of its diagonal
                     // lf[0]-lf[2]: walk the two (sorted) rows together, then check
                     // the other diagonal only for the hexes they share.
                     int sharers = 0;
-                    const Index* a = nodeT.begin(slotOf[hx[lf[0]]]);
-                    const Index* ae = nodeT.end(slotOf[hx[lf[0]]]);
-                    const Index* b = nodeT.begin(slotOf[hx[lf[2]]]);
-                    const Index* be = nodeT.end(slotOf[hx[lf[2]]]);
+                    const Index* a = nodeT.begin(slotOf(hx[lf[0]]));
+                    const Index* ae = nodeT.end(slotOf(hx[lf[0]]));
+                    const Index* b = nodeT.begin(slotOf(hx[lf[2]]));
+                    const Index* be = nodeT.end(slotOf(hx[lf[2]]));
                     while (a != ae && b != be) {
                         if (*a < *b) {
                             ++a;
@@ -255,6 +345,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         std::vector<Index> first(T.size() + 1, 0);  // first face of each hex of T
         for (std::size_t i = 0; i < T.size(); ++i) first[i + 1] = first[i] + std::popcount(faceMask[i]);
         const std::size_t Q = static_cast<std::size_t>(first[T.size()]);
+        reserveHuge(faces, Q);
+        reserveHuge(quadNodes, Q);
+        reserveHuge(quadSlots, Q);
         faces.resize(Q);
         quadNodes.resize(Q);
         quadSlots.resize(Q);
@@ -268,7 +361,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                         const auto& lf = hexcell::kFaces[f];
                         faces[q] = {h, f};
                         quadNodes[q] = {hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]};
-                        quadSlots[q] = {slotOf[hx[lf[0]]], slotOf[hx[lf[1]]], slotOf[hx[lf[2]]], slotOf[hx[lf[3]]]};
+                        quadSlots[q] = {slotOf(hx[lf[0]]), slotOf(hx[lf[1]]), slotOf(hx[lf[2]]), slotOf(hx[lf[3]])};
                         ++q;
                     }
             }
@@ -295,7 +388,6 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     findBoundary(opt.exactBoundary);
     ManifoldCheck mc = check(opt.exactBoundary);
     if (!mc.ok() && !opt.exactBoundary) {
-        parities.clear();
         findBoundary(true);
         mc = check(true);
     }
@@ -332,7 +424,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // Inward is the averaged inward normal (area weighted, over the node's
     // boundary quads in quad order), or towards the centroid of the
     // shrink-set hexes around the node where the normal points away from them.
-    std::vector<Vec3> push(C);
+    std::vector<Vec3> push;
+    reserveHuge(push, C);
+    push.resize(C);
     const std::vector<Vec3>& P = mesh.nodes;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -368,13 +462,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
 
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
     const std::size_t Q = faces.size();
+    reserveHuge(mesh.nodes, N + C);
+    reserveHuge(mesh.nodeClass, N + C);
     mesh.nodes.resize(N + C);
     mesh.nodeClass.resize(N + C, NodeClass{});
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + push[i];
     });
     auto copyOfNode = [&](Index v) {  // the copy's node index, or kNone
-        const Index s = slotOf[static_cast<std::size_t>(v)];
+        const Index s = slotOf(v);
         const Index c = s == kNone ? kNone : copyOfSlot(s);
         return c == kNone ? kNone : NI + c;
     };
@@ -387,6 +483,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     if (c != kNone) v = c;
                 }
     });
+    reserveHuge(mesh.hexes, H + Q);
+    reserveHuge(mesh.material, H + Q);
     mesh.hexes.resize(H + Q);
     mesh.material.resize(H + Q);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, Q, 4096), [&](const auto& r) {
@@ -432,9 +530,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 const Index h = watchHex(i);
                 const Hex& hx = mesh.hexes[h];
                 if (round == 0 && std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI; })) continue;
-                HexCoords x = hexCoords(mesh, h);
-                bad[i] = !(minJacobianDeterminant(x) > 0);
+                const Vec3* x[8];
+                for (int c = 0; c < 8; ++c) x[c] = &mesh.nodes[static_cast<std::size_t>(hx[c])];
+                bad[i] = !jacobianPositive(x);
                 if (!bad[i]) continue;
+                Vec3 moved[8];  // corners of a trial shape
+                const Vec3* y[8];
                 if (round == 0) {
                     // Shrink-set hex: its shape with the copies back on their
                     // nodes. Sheet hex: its shape with the copies a hair inside
@@ -442,14 +543,16 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     // corner normal against the copy's step, whatever the step's
                     // length, so halving cannot help if it is not positive).
                     const bool sheetHex = i >= T.size();
-                    HexCoords y = x;
-                    for (int c = 0; c < 8; ++c)
+                    for (int c = 0; c < 8; ++c) {
+                        y[c] = x[c];
                         if (hx[c] >= NI) {
                             const std::size_t cc = static_cast<std::size_t>(hx[c] - NI);
-                            y[c] = mesh.nodes[res.copyOf[cc]];
-                            if (sheetHex) y[c] = y[c] + 1e-3 * push[cc];
+                            moved[c] = mesh.nodes[res.copyOf[cc]];
+                            if (sheetHex) moved[c] = moved[c] + 1e-3 * push[cc];
+                            y[c] = &moved[c];
                         }
-                    hopeless[i] = !(minJacobianDeterminant(y) > 0);
+                    }
+                    hopeless[i] = !jacobianPositive(y);
                 }
                 if (hopeless[i]) {  // no length helps: the shortest at once
                     ask[i] = static_cast<std::uint8_t>(maxK);
@@ -458,13 +561,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 }
                 int k = 1;
                 for (; k < maxK; ++k) {
-                    HexCoords y = x;
-                    for (int c = 0; c < 8; ++c)
+                    for (int c = 0; c < 8; ++c) {
+                        y[c] = x[c];
                         if (hx[c] >= NI) {
                             const std::size_t cc = static_cast<std::size_t>(hx[c] - NI);
-                            y[c] = place(cc, std::min(maxK, halvings[cc] + k));
+                            moved[c] = place(cc, std::min(maxK, halvings[cc] + k));
+                            y[c] = &moved[c];
                         }
-                    if (minJacobianDeterminant(y) > 0) break;
+                    }
+                    if (jacobianPositive(y)) break;
                 }
                 ask[i] = static_cast<std::uint8_t>(k);
                 ++t;
@@ -516,9 +621,16 @@ std::vector<PillowResult> pillowAllMaterials(HexMesh& mesh, int layers, const Pi
     std::vector<PillowResult> out;
     for (std::int32_t m : mats) {
         std::vector<Index> shrink;
-        shrink.reserve(mesh.hexCount());
-        for (std::size_t h = 0; h < mesh.hexCount(); ++h)
-            if (mesh.material[h] == m) shrink.push_back(static_cast<Index>(h));
+        reserveHuge(shrink, mesh.hexCount());
+        if (mats.size() == 1) {  // every hex
+            shrink.resize(mesh.hexCount());
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, shrink.size(), 1 << 16), [&](const auto& r) {
+                for (std::size_t h = r.begin(); h != r.end(); ++h) shrink[h] = static_cast<Index>(h);
+            });
+        } else {
+            for (std::size_t h = 0; h < mesh.hexCount(); ++h)
+                if (mesh.material[h] == m) shrink.push_back(static_cast<Index>(h));
+        }
         PillowResult r = pillow(mesh, shrink, opt);
         if (layers > 1) {
             const Topology topo = buildTopology(mesh);
