@@ -4,10 +4,13 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
+#include <new>
 #include <map>
 #include <numeric>
 #include <random>
 #include <set>
+#include <span>
 #include <string>
 
 #include <tbb/blocked_range.h>
@@ -45,19 +48,6 @@ std::uint64_t mix64(std::uint64_t h) {  // splitmix64's finaliser
     h ^= h >> 27;
     h *= 0x94D049BB133111EBull;
     return h ^ (h >> 31);
-}
-
-// A hash of the set of a quad's four nodes (the same for any order of them).
-std::uint64_t quadHash(Index a, Index b, Index c, Index d) {
-    if (a > b) std::swap(a, b);
-    if (c > d) std::swap(c, d);
-    if (a > c) std::swap(a, c);
-    if (b > d) std::swap(b, d);
-    if (b > c) std::swap(b, c);
-    const auto word = [](Index x, Index y) {
-        return static_cast<std::uint64_t>(static_cast<std::uint32_t>(x)) << 32 | static_cast<std::uint32_t>(y);
-    };
-    return mix64(mix64(word(a, b)) ^ word(c, d));
 }
 
 int cornerAt(int x, int y, int z) {
@@ -110,16 +100,56 @@ bool jacobianPositive(const Vec3* const x[8]) {
     return true;
 }
 
+// An allocator for pillow's own large temporaries: whole 2 MiB pages,
+// aligned and advised as above, so a buffer costs a few faults instead of one
+// per 4 KiB (small ones come from operator new as usual).
+constexpr std::size_t kHugePage = std::size_t{1} << 21;
+constexpr std::size_t kHugeFrom = std::size_t{1} << 20;  // bytes
+
+template <class T>
+struct HugeAlloc {
+    using value_type = T;
+    HugeAlloc() = default;
+    template <class U>
+    HugeAlloc(const HugeAlloc<U>&) {}
+    T* allocate(std::size_t n) {
+        const std::size_t bytes = n * sizeof(T);
+        if (bytes < kHugeFrom) return static_cast<T*>(::operator new(bytes));
+        const std::size_t rounded = (bytes + kHugePage - 1) & ~(kHugePage - 1);
+        void* p = std::aligned_alloc(kHugePage, rounded);
+        if (!p) throw std::bad_alloc();
+        adviseHugePages(p, rounded);
+        return static_cast<T*>(p);
+    }
+    void deallocate(T* p, std::size_t n) {
+        if (n * sizeof(T) < kHugeFrom)
+            ::operator delete(p);
+        else
+            std::free(p);
+    }
+    template <class U>
+    bool operator==(const HugeAlloc<U>&) const { return true; }
+};
+template <class T>
+using BigVec = std::vector<T, HugeAlloc<T>>;
+
+// Rows of items (a CSR) in BigVecs.
+struct Rows {
+    BigVec<Index> offsets, items;
+    std::size_t rows() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    std::size_t size(std::size_t r) const { return static_cast<std::size_t>(offsets[r + 1] - offsets[r]); }
+    const Index* begin(std::size_t r) const { return items.data() + offsets[r]; }
+    const Index* end(std::size_t r) const { return items.data() + offsets[r + 1]; }
+};
+
 // Positions i in [0, n) where flag(i) holds, in increasing order, found in
 // parallel over fixed blocks (so the same for any thread count); flag is
 // evaluated once per position, and onKept(i, rank) is called for each kept one.
 template <class Flag, class OnKept>
-std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
+BigVec<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
     constexpr std::size_t B = std::size_t{1} << 14;
     const std::size_t blocks = (n + B - 1) / B;
-    std::vector<std::uint8_t> f;
-    reserveHuge(f, n);
-    f.resize(n);
+    BigVec<std::uint8_t> f(n);
     std::vector<Index> count(blocks + 1, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
         for (std::size_t b = r.begin(); b != r.end(); ++b) {
@@ -129,9 +159,7 @@ std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
         }
     });
     for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
-    std::vector<Index> out;
-    reserveHuge(out, static_cast<std::size_t>(count[blocks]));
-    out.resize(static_cast<std::size_t>(count[blocks]));
+    BigVec<Index> out(static_cast<std::size_t>(count[blocks]));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
         for (std::size_t b = r.begin(); b != r.end(); ++b) {
             Index k = count[b];
@@ -146,7 +174,7 @@ std::vector<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
 }
 
 template <class Flag>
-std::vector<Index> keepWhere(std::size_t n, Flag flag) {
+BigVec<Index> keepWhere(std::size_t n, Flag flag) {
     return keepWhere(n, flag, [](std::size_t, Index) {});
 }
 
@@ -154,14 +182,13 @@ std::vector<Index> keepWhere(std::size_t n, Flag flag) {
 // the order it produces them (so rows come out sorted when items are
 // produced in increasing order). Serial: two passes of forEach.
 template <class ForEach>
-Csr rowsInOrder(std::size_t rows, ForEach forEach) {
-    Csr c;
+Rows rowsInOrder(std::size_t rows, ForEach forEach) {
+    Rows c;
     c.offsets.assign(rows + 1, 0);
     forEach([&](Index row, Index) { ++c.offsets[static_cast<std::size_t>(row) + 1]; });
     for (std::size_t r = 0; r < rows; ++r) c.offsets[r + 1] += c.offsets[r];
-    reserveHuge(c.items, static_cast<std::size_t>(c.offsets[rows]));
     c.items.resize(static_cast<std::size_t>(c.offsets[rows]));
-    std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+    BigVec<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
     forEach([&](Index row, Index item) { c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(row)]++)] = item; });
     return c;
 }
@@ -180,38 +207,35 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                         std::to_string(H) + " hexes");
         increasing = increasing && (i == 0 || shrinkSet[i - 1] < h);
     }
-    std::vector<Index> sorted;  // the shrink set, sorted and without repeats (unless it already is)
+    BigVec<Index> sorted;  // the shrink set, sorted and without repeats (unless it already is)
     if (!increasing) {
-        std::vector<std::uint8_t> inS(H, 0);
+        BigVec<std::uint8_t> inS(H, 0);
         for (Index h : shrinkSet) inS[h] = 1;
         sorted = keepWhere(H, [&](std::size_t h) { return inS[h] != 0; });
     }
-    const std::vector<Index>& S = increasing ? shrinkSet : sorted;
+    const std::span<const Index> S = increasing ? std::span<const Index>(shrinkSet) : std::span<const Index>(sorted);
 
     // Nodes on the boundary of the shrink set, by parity: each face of a
-    // shrink-set hex XORs a 64-bit hash of its four nodes into each of them. A
+    // shrink-set hex XORs a 64-bit hash of its four nodes (the sum of one
+    // hash per node, so the same in any order) into each of them. A
     // face two shrink-set hexes share cancels, so a node stays 0 unless a
     // boundary face meets it (or, with chance 2^-64 per node, its boundary
     // faces' hashes cancel: then the sheet misses faces, the checks below
     // fail and the exact pass over the whole shrink set is used). Each thread
     // XORs into its own array (XOR commutes: the same result for any thread
     // count, without an atomic per corner).
-    tbb::enumerable_thread_specific<std::vector<std::uint64_t>> parities(
-        [N] {
-            std::vector<std::uint64_t> p;
-            reserveHuge(p, N);
-            p.resize(N, 0);
-            return p;
-        });
+    tbb::enumerable_thread_specific<BigVec<std::uint64_t>> parities([N] { return BigVec<std::uint64_t>(N, 0); });
     if (!opt.exactBoundary)
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
             std::uint64_t* parity = parities.local().data();
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const Hex& hx = mesh.hexes[S[i]];
-                std::uint64_t fh[6];
+                std::uint64_t r[8], fh[6];
+                for (int c = 0; c < 8; ++c)
+                    r[c] = mix64(static_cast<std::uint64_t>(static_cast<std::uint32_t>(hx[c])) + 0x9E3779B97F4A7C15ull);
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
-                    fh[f] = quadHash(hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]);
+                    fh[f] = r[lf[0]] + r[lf[1]] + r[lf[2]] + r[lf[3]];
                 }
                 for (int c = 0; c < 8; ++c)
                     parity[hx[c]] ^= fh[kCornerFaces[c][0]] ^ fh[kCornerFaces[c][1]] ^ fh[kCornerFaces[c][2]];
@@ -225,28 +249,26 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // Per node, its slot or kNoSlot (in fast mode the storage of the first
     // parity array, so no further N-sized array is written).
     constexpr std::uint64_t kNoSlot = ~std::uint64_t{0};
-    std::vector<std::uint64_t> slot;
+    BigVec<std::uint64_t> slot;
     auto slotOf = [&](Index v) { return static_cast<Index>(slot[static_cast<std::size_t>(v)]); };  // kNoSlot: kNone
-    std::vector<Index> candNode; // per slot, its node
-    std::vector<Index> T;        // positions in S of the hexes that hold a candidate node
-    Csr nodeT;                   // slot -> positions in T of the hexes holding it, increasing
-    std::vector<std::pair<Index, int>> faces;
-    std::vector<std::array<Index, 4>> quadNodes;
-    std::vector<std::array<Index, 4>> quadSlots;
-    Csr around;                  // slot -> 4 * quad + corner, increasing
+    BigVec<Index> candNode;      // per slot, its node
+    BigVec<Index> T;             // positions in S of the hexes that hold a candidate node
+    Rows nodeT;                  // slot -> positions in T of the hexes holding it, increasing
+    BigVec<std::pair<Index, int>> faces;
+    BigVec<std::array<Index, 4>> quadNodes;
+    BigVec<std::array<Index, 4>> quadSlots;
+    Rows around;                 // slot -> 4 * quad + corner, increasing
     auto hexAtT = [&](Index t) -> const Hex& { return mesh.hexes[S[static_cast<std::size_t>(T[static_cast<std::size_t>(t)])]]; };
     auto findBoundary = [&](bool exact) {
         if (exact) {
-            slot.clear();
-            reserveHuge(slot, N);
-            slot.resize(N);
+            slot.assign(N, 0);
             std::iota(slot.begin(), slot.end(), 0);
             candNode.resize(N);
             std::iota(candNode.begin(), candNode.end(), 0);
         } else {
             // XOR the threads' arrays into the first, then number the nodes
             // whose parity is not 0 in increasing order, in fixed blocks.
-            std::vector<std::vector<std::uint64_t>*> locals;
+            std::vector<BigVec<std::uint64_t>*> locals;
             for (auto& local : parities) locals.push_back(&local);
             slot = std::move(*locals[0]);
             constexpr std::size_t B = std::size_t{1} << 14;
@@ -295,7 +317,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         // Faces of shrink-set hexes that no other shrink-set hex shares: the
         // boundary of the shrink set, seen from inside (outward normals), in
         // (hex, face) order for any thread count.
-        std::vector<std::uint8_t> faceMask(T.size(), 0);
+        BigVec<std::uint8_t> faceMask(T.size(), 0);
         std::atomic<Index> overfull{kNone};
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 1024), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -342,12 +364,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         if (overfull.load() != kNone)
             throw Error("cannot pillow: a face of hex " + std::to_string(overfull.load()) +
                         " is shared by more than two hexes; repair the mesh first");
-        std::vector<Index> first(T.size() + 1, 0);  // first face of each hex of T
+        BigVec<Index> first(T.size() + 1, 0);  // first face of each hex of T
         for (std::size_t i = 0; i < T.size(); ++i) first[i + 1] = first[i] + std::popcount(faceMask[i]);
         const std::size_t Q = static_cast<std::size_t>(first[T.size()]);
-        reserveHuge(faces, Q);
-        reserveHuge(quadNodes, Q);
-        reserveHuge(quadSlots, Q);
         faces.resize(Q);
         quadNodes.resize(Q);
         quadSlots.resize(Q);
@@ -372,7 +391,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         });
     };
     auto check = [&](bool exact) {
-        ManifoldCheck mc = checkManifold(quadSlots, around, true);
+        ManifoldCheck mc = checkManifold(quadSlots.data(), around.offsets.data(), around.items.data(), around.rows(), true);
         for (auto& e : mc.badEdges) e = {candNode[e[0]], candNode[e[1]]};
         for (auto& v : mc.badNodes) v = candNode[v];
         // Every boundary node by parity lies on a boundary face unless a
@@ -408,9 +427,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     res.firstNewHex = static_cast<Index>(H);
     res.firstNewNode = static_cast<Index>(N);
     const std::size_t nCand = candNode.size();
-    std::vector<Index> copySlot = keepWhere(nCand, [&](std::size_t s) { return around.size(s) != 0; });
+    BigVec<Index> copySlot = keepWhere(nCand, [&](std::size_t s) { return around.size(s) != 0; });
     const std::size_t C = copySlot.size();
-    std::vector<Index> slotCopy;  // per slot, its copy (only when some slot has none)
+    BigVec<Index> slotCopy; // per slot, its copy (only when some slot has none)
     if (C != nCand) {
         slotCopy.assign(nCand, kNone);
         for (std::size_t c = 0; c < C; ++c) slotCopy[copySlot[c]] = static_cast<Index>(c);
@@ -424,9 +443,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // Inward is the averaged inward normal (area weighted, over the node's
     // boundary quads in quad order), or towards the centroid of the
     // shrink-set hexes around the node where the normal points away from them.
-    std::vector<Vec3> push;
-    reserveHuge(push, C);
-    push.resize(C);
+    BigVec<Vec3> push(C);
     const std::vector<Vec3>& P = mesh.nodes;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -513,9 +530,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // step at once. This settles in a few rounds over the few hexes involved,
     // where halving once per round re-checked every hex maxHalvings times.
     const int maxK = std::max(0, opt.maxHalvings);
-    std::vector<int> halvings(C, 0), want(C, 0);
-    std::vector<std::uint8_t> bad(W, 0), hopeless(W, 0), ask(W, 0);
-    std::vector<std::uint8_t> dirty(W, 1);  // round 0 checks every hex with a copy
+    BigVec<int> halvings(C, 0), want(C, 0);
+    struct Watch {
+        std::uint8_t bad = 0, hopeless = 0, ask = 0;
+        std::uint8_t dirty = 1;  // round 0 checks every hex with a copy
+    };
+    BigVec<Watch> watch(W);
     std::vector<Index> touched, moved;
     auto place = [&](std::size_t c, int k) {
         return mesh.nodes[res.copyOf[c]] + std::ldexp(1.0, -k) * push[c];
@@ -525,15 +545,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, W, 1024), [&](const auto& r) {
             std::size_t t = 0;
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                ask[i] = 0;
-                if (!dirty[i]) continue;
+                watch[i].ask = 0;
+                if (!watch[i].dirty) continue;
                 const Index h = watchHex(i);
                 const Hex& hx = mesh.hexes[h];
                 if (round == 0 && std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI; })) continue;
                 const Vec3* x[8];
                 for (int c = 0; c < 8; ++c) x[c] = &mesh.nodes[static_cast<std::size_t>(hx[c])];
-                bad[i] = !jacobianPositive(x);
-                if (!bad[i]) continue;
+                watch[i].bad = !jacobianPositive(x);
+                if (!watch[i].bad) continue;
                 Vec3 moved[8];  // corners of a trial shape
                 const Vec3* y[8];
                 if (round == 0) {
@@ -552,10 +572,10 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                             y[c] = &moved[c];
                         }
                     }
-                    hopeless[i] = !jacobianPositive(y);
+                    watch[i].hopeless = !jacobianPositive(y);
                 }
-                if (hopeless[i]) {  // no length helps: the shortest at once
-                    ask[i] = static_cast<std::uint8_t>(maxK);
+                if (watch[i].hopeless) {  // no length helps: the shortest at once
+                    watch[i].ask = static_cast<std::uint8_t>(maxK);
                     ++t;
                     continue;
                 }
@@ -571,7 +591,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     }
                     if (jacobianPositive(y)) break;
                 }
-                ask[i] = static_cast<std::uint8_t>(k);
+                watch[i].ask = static_cast<std::uint8_t>(k);
                 ++t;
             }
             triggers += t;
@@ -580,12 +600,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         // A copy wants the most any of its asking hexes asks for.
         touched.clear();
         for (std::size_t i = 0; i < W; ++i)
-            if (ask[i])
+            if (watch[i].ask)
                 for (Index v : mesh.hexes[watchHex(i)])
                     if (v >= NI) {
                         int& w = want[v - NI];
                         if (w == 0) touched.push_back(v - NI);
-                        w = std::max(w, static_cast<int>(ask[i]));
+                        w = std::max(w, static_cast<int>(watch[i].ask));
                     }
         moved.clear();
         for (Index c : touched) {
@@ -598,14 +618,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             }
         }
         if (moved.empty()) break;
-        std::fill(dirty.begin(), dirty.end(), 0);
+        for (Watch& w : watch) w.dirty = 0;
         for (Index c : moved) {
             const Index s = copySlot[c];
-            for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) dirty[*it] = 1;
-            for (const Index* it = around.begin(s); it != around.end(s); ++it) dirty[T.size() + *it / 4] = 1;
+            for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) watch[*it].dirty = 1;
+            for (const Index* it = around.begin(s); it != around.end(s); ++it) watch[T.size() + *it / 4].dirty = 1;
         }
     }
-    res.invertedAtStart = static_cast<std::size_t>(std::count(bad.begin(), bad.end(), 1));
+    res.invertedAtStart = static_cast<std::size_t>(
+        std::count_if(watch.begin(), watch.end(), [](const Watch& w) { return w.bad == 1; }));
     return res;
 }
 
