@@ -142,6 +142,14 @@ struct Rows {
     const Index* end(std::size_t r) const { return items.data() + offsets[r + 1]; }
 };
 
+inline void prefetch(const void* p) {
+#if defined(__GNUC__)
+    __builtin_prefetch(p);
+#else
+    (void)p;
+#endif
+}
+
 // Positions i in [0, n) where flag(i) holds, in increasing order, found in
 // parallel over fixed blocks (so the same for any thread count); flag is
 // evaluated once per position, and onKept(i, rank) is called for each kept one.
@@ -536,17 +544,26 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         std::uint8_t dirty = 1;  // round 0 checks every hex with a copy
     };
     BigVec<Watch> watch(W);
-    std::vector<Index> touched, moved;
     auto place = [&](std::size_t c, int k) {
         return mesh.nodes[res.copyOf[c]] + std::ldexp(1.0, -k) * push[c];
     };
+    BigVec<Index> active;  // the dirty positions (after round 0)
     for (int round = 0; round <= maxK; ++round) {
+        if (round > 0) active = keepWhere(W, [&](std::size_t i) { return watch[i].dirty != 0; });
+        const std::size_t A = round == 0 ? W : active.size();
+        auto position = [&](std::size_t j) { return round == 0 ? j : static_cast<std::size_t>(active[j]); };
         std::atomic<std::size_t> triggers{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, W, 1024), [&](const auto& r) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, A, 1024), [&](const auto& r) {
             std::size_t t = 0;
-            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                // The corners are scattered over the node array: fetch the
+                // hex a few positions ahead and its corners a few less.
+                if (j + 16 < r.end()) prefetch(&mesh.hexes[static_cast<std::size_t>(watchHex(position(j + 16)))]);
+                if (j + 8 < r.end())
+                    for (Index v : mesh.hexes[static_cast<std::size_t>(watchHex(position(j + 8)))])
+                        prefetch(&mesh.nodes[static_cast<std::size_t>(v)]);
+                const std::size_t i = position(j);
                 watch[i].ask = 0;
-                if (!watch[i].dirty) continue;
                 const Index h = watchHex(i);
                 const Hex& hx = mesh.hexes[h];
                 if (round == 0 && std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI; })) continue;
@@ -597,33 +614,49 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             triggers += t;
         });
         if (triggers == 0 || round == maxK) break;
-        // A copy wants the most any of its asking hexes asks for.
-        touched.clear();
-        for (std::size_t i = 0; i < W; ++i)
-            if (watch[i].ask)
-                for (Index v : mesh.hexes[watchHex(i)])
-                    if (v >= NI) {
-                        int& w = want[v - NI];
-                        if (w == 0) touched.push_back(v - NI);
-                        w = std::max(w, static_cast<int>(watch[i].ask));
-                    }
-        moved.clear();
-        for (Index c : touched) {
-            const int k = std::min(maxK, halvings[c] + want[c]);
-            want[c] = 0;
-            if (k != halvings[c]) {
-                halvings[c] = k;
-                mesh.nodes[N + c] = place(c, k);
-                moved.push_back(c);
+        // A copy wants the most any of its asking hexes asks for (a
+        // maximum: the same in any order), then takes it.
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, A, 4096), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j)
+                if (const std::size_t i = position(j); watch[i].ask)
+                    for (Index v : mesh.hexes[static_cast<std::size_t>(watchHex(i))])
+                        if (v >= NI) {
+                            std::atomic_ref<int> w(want[static_cast<std::size_t>(v - NI)]);
+                            int cur = w.load(std::memory_order_relaxed);
+                            while (cur < watch[i].ask && !w.compare_exchange_weak(cur, watch[i].ask, std::memory_order_relaxed)) {
+                            }
+                        }
+        });
+        const BigVec<Index> touched = keepWhere(C, [&](std::size_t c) { return want[c] != 0; });
+        BigVec<std::uint8_t> didMove(touched.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, touched.size(), 1024), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                const std::size_t c = static_cast<std::size_t>(touched[j]);
+                const int k = std::min(maxK, halvings[c] + want[c]);
+                want[c] = 0;
+                if (k != halvings[c]) {
+                    halvings[c] = k;
+                    mesh.nodes[N + c] = place(c, k);
+                    didMove[j] = 1;
+                }
             }
-        }
+        });
+        const BigVec<Index> moved = keepWhere(touched.size(), [&](std::size_t j) { return didMove[j] != 0; });
         if (moved.empty()) break;
-        for (Watch& w : watch) w.dirty = 0;
-        for (Index c : moved) {
-            const Index s = copySlot[c];
-            for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) watch[*it].dirty = 1;
-            for (const Index* it = around.begin(s); it != around.end(s); ++it) watch[T.size() + *it / 4].dirty = 1;
-        }
+        // The hexes around the copies that moved are checked next round.
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, W, 1 << 14), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) watch[i].dirty = 0;
+        });
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, moved.size(), 1024), [&](const auto& r) {
+            for (std::size_t j = r.begin(); j != r.end(); ++j) {
+                const Index s = copySlot[static_cast<std::size_t>(touched[static_cast<std::size_t>(moved[j])])];
+                for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it)
+                    std::atomic_ref<std::uint8_t>(watch[static_cast<std::size_t>(*it)].dirty).store(1, std::memory_order_relaxed);
+                for (const Index* it = around.begin(s); it != around.end(s); ++it)
+                    std::atomic_ref<std::uint8_t>(watch[T.size() + static_cast<std::size_t>(*it / 4)].dirty)
+                        .store(1, std::memory_order_relaxed);
+            }
+        });
     }
     res.invertedAtStart = static_cast<std::size_t>(
         std::count_if(watch.begin(), watch.end(), [](const Watch& w) { return w.bad == 1; }));
