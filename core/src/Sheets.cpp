@@ -451,8 +451,40 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // Inward is the averaged inward normal (area weighted, over the node's
     // boundary quads in quad order), or towards the centroid of the
     // shrink-set hexes around the node where the normal points away from them.
+    const std::size_t Q = faces.size();
     BigVec<Vec3> push(C);
     const std::vector<Vec3>& P = mesh.nodes;
+    // Per quad, its area vector and edge lengths (edge j from corner j to
+    // j + 1; the same numbers as from either end, as -0 and 0 square alike).
+    struct QuadGeometry {
+        Vec3 area;
+        double edge[4];
+    };
+    BigVec<QuadGeometry> quadGeometry(Q);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, Q, 4096), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const auto& q = quadNodes[i];
+            quadGeometry[i].area = 0.5 * cross(P[q[2]] - P[q[0]], P[q[3]] - P[q[1]]);
+            for (int k = 0; k < 4; ++k) quadGeometry[i].edge[k] = norm(P[q[(k + 1) % 4]] - P[q[k]]);
+        }
+    });
+    // Per hex of T, the sum of its corners, and a bound on every coordinate
+    // involved: enough to settle the sign test below without the exact
+    // centroid for all but a few nodes.
+    BigVec<Vec3> cornerSum(T.size());
+    tbb::enumerable_thread_specific<double> maxCoordinate(0.0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
+        double& m = maxCoordinate.local();
+        for (std::size_t t = r.begin(); t != r.end(); ++t) {
+            Vec3 c{0, 0, 0};
+            for (Index u : hexAtT(static_cast<Index>(t))) {
+                c = c + P[u];
+                m = std::max({m, std::abs(P[u][0]), std::abs(P[u][1]), std::abs(P[u][2])});
+            }
+            cornerSum[t] = c;
+        }
+    });
+    const double B = maxCoordinate.combine([](double a, double b) { return std::max(a, b); });
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Index s = copySlot[i];
@@ -461,22 +493,32 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             double edgeSum = 0;
             int edgeCount = 0;
             for (const Index* it = around.begin(s); it != around.end(s); ++it) {
-                const auto& q = quadNodes[static_cast<std::size_t>(*it / 4)];
+                const QuadGeometry& g = quadGeometry[static_cast<std::size_t>(*it / 4)];
                 const int k = *it % 4;
-                const Vec3 n = 0.5 * cross(P[q[2]] - P[q[0]], P[q[3]] - P[q[1]]);
-                normal = normal + n;
-                edgeSum += norm(P[q[(k + 1) % 4]] - P[q[k]]) + norm(P[q[(k + 3) % 4]] - P[q[k]]);
+                normal = normal + g.area;
+                edgeSum += g.edge[k] + g.edge[(k + 3) % 4];
                 edgeCount += 2;
             }
+            const double len = norm(normal);
+            Vec3 dir = len > 0 ? (-1.0 / len) * normal : Vec3{0, 0, 0};
+            // The centroid's sum in another order (per hex first) differs
+            // from the sum corner by corner by at most 2 (n - 1) u n B per
+            // coordinate (u = 2^-53), so the test against the centroid has
+            // the same outcome as with the exact sum wherever it passes by
+            // a margin well above that; elsewhere the exact sum decides.
             Vec3 c{0, 0, 0};
             int n = 0;
             for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) {
-                for (Index u : hexAtT(*it)) c = c + P[u];
+                c = c + cornerSum[static_cast<std::size_t>(*it)];
                 n += 8;
             }
+            const double margin = 16.0 * (n + 8.0) * std::ldexp(B, -53);
+            if (!(dot(dir, (1.0 / n) * c - P[v]) > margin)) {
+                c = Vec3{0, 0, 0};
+                for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it)
+                    for (Index u : hexAtT(*it)) c = c + P[u];
+            }
             const Vec3 toCentre = (1.0 / n) * c - P[v];
-            const double len = norm(normal);
-            Vec3 dir = len > 0 ? (-1.0 / len) * normal : Vec3{0, 0, 0};
             if (dot(dir, toCentre) <= 0) {
                 const double l = norm(toCentre);
                 dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
@@ -486,7 +528,6 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     });
 
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
-    const std::size_t Q = faces.size();
     reserveHuge(mesh.nodes, N + C);
     reserveHuge(mesh.nodeClass, N + C);
     mesh.nodes.resize(N + C);
