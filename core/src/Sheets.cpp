@@ -16,6 +16,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -186,18 +187,43 @@ BigVec<Index> keepWhere(std::size_t n, Flag flag) {
     return keepWhere(n, flag, [](std::size_t, Index) {});
 }
 
-// Rows 0..rows-1 of the pairs (row, item) that forEach(emit) produces, in
-// the order it produces them (so rows come out sorted when items are
-// produced in increasing order). Serial: two passes of forEach.
-template <class ForEach>
-Rows rowsInOrder(std::size_t rows, ForEach forEach) {
+// Rows 0..rows-1 of the pairs (row, item) that forEachIn(lo, hi, emit)
+// produces for the elements lo..hi-1 of [0, n), in the order it produces
+// them (so rows come out sorted when items are produced in increasing order).
+// A counting sort over a few contiguous blocks of [0, n), in parallel: each
+// block counts its own, then writes after the blocks before it, so the rows
+// are those of one serial pass for any number of blocks.
+template <class ForEachIn>
+Rows rowsInOrder(std::size_t rows, std::size_t n, ForEachIn forEachIn) {
+    const std::size_t P = std::clamp<std::size_t>(static_cast<std::size_t>(tbb::this_task_arena::max_concurrency()), 1, 4);
+    BigVec<Index> at(P * rows, 0);  // per block and row: its count, then where it writes
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P, 1), [&](const auto& r) {
+        for (std::size_t b = r.begin(); b != r.end(); ++b) {
+            Index* count = at.data() + b * rows;
+            forEachIn(n * b / P, n * (b + 1) / P, [&](Index row, Index) { ++count[static_cast<std::size_t>(row)]; });
+        }
+    });
     Rows c;
-    c.offsets.assign(rows + 1, 0);
-    forEach([&](Index row, Index) { ++c.offsets[static_cast<std::size_t>(row) + 1]; });
-    for (std::size_t r = 0; r < rows; ++r) c.offsets[r + 1] += c.offsets[r];
-    c.items.resize(static_cast<std::size_t>(c.offsets[rows]));
-    BigVec<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
-    forEach([&](Index row, Index item) { c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(row)]++)] = item; });
+    c.offsets.resize(rows + 1);
+    Index next = 0;
+    for (std::size_t row = 0; row < rows; ++row) {
+        c.offsets[row] = next;
+        for (std::size_t b = 0; b < P; ++b) {
+            const Index k = at[b * rows + row];
+            at[b * rows + row] = next;
+            next += k;
+        }
+    }
+    c.offsets[rows] = next;
+    c.items.resize(static_cast<std::size_t>(next));
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, P, 1), [&](const auto& r) {
+        for (std::size_t b = r.begin(); b != r.end(); ++b) {
+            Index* cursor = at.data() + b * rows;
+            forEachIn(n * b / P, n * (b + 1) / P, [&](Index row, Index item) {
+                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(row)]++)] = item;
+            });
+        }
+    });
     return c;
 }
 
@@ -316,8 +342,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 if (slotOf(v) != kNone) return true;
             return false;
         });
-        nodeT = rowsInOrder(nCand, [&](auto emit) {
-            for (std::size_t t = 0; t < T.size(); ++t)
+        nodeT = rowsInOrder(nCand, T.size(), [&](std::size_t lo, std::size_t hi, auto emit) {
+            for (std::size_t t = lo; t < hi; ++t)
                 for (Index v : hexAtT(static_cast<Index>(t)))
                     if (slotOf(v) != kNone) emit(slotOf(v), static_cast<Index>(t));
         });
@@ -393,8 +419,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                     }
             }
         });
-        around = rowsInOrder(nCand, [&](auto emit) {
-            for (std::size_t q = 0; q < Q; ++q)
+        around = rowsInOrder(nCand, Q, [&](std::size_t lo, std::size_t hi, auto emit) {
+            for (std::size_t q = lo; q < hi; ++q)
                 for (int c = 0; c < 4; ++c) emit(quadSlots[q][c], static_cast<Index>(4 * q + c));
         });
     };
