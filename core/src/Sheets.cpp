@@ -292,7 +292,11 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     BigVec<std::array<Index, 4>> quadNodes;
     BigVec<std::array<Index, 4>> quadSlots;
     Rows around;                 // slot -> 4 * quad + corner, increasing
-    auto hexAtT = [&](Index t) -> const Hex& { return mesh.hexes[S[static_cast<std::size_t>(T[static_cast<std::size_t>(t)])]]; };
+    // The hexes of T and their corners' slots, copied out in order: the
+    // passes below read them in sequence instead of scattered over the mesh.
+    BigVec<Hex> tHex;
+    BigVec<std::array<Index, 8>> tSlot;
+    auto hexAtT = [&](Index t) -> const Hex& { return tHex[static_cast<std::size_t>(t)]; };
     auto findBoundary = [&](bool exact) {
         if (exact) {
             slot.assign(N, 0);
@@ -342,10 +346,18 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 if (slotOf(v) != kNone) return true;
             return false;
         });
+        tHex.resize(T.size());
+        tSlot.resize(T.size());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
+            for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                tHex[t] = mesh.hexes[static_cast<std::size_t>(S[static_cast<std::size_t>(T[t])])];
+                for (int c = 0; c < 8; ++c) tSlot[t][c] = slotOf(tHex[t][c]);
+            }
+        });
         nodeT = rowsInOrder(nCand, T.size(), [&](std::size_t lo, std::size_t hi, auto emit) {
             for (std::size_t t = lo; t < hi; ++t)
-                for (Index v : hexAtT(static_cast<Index>(t)))
-                    if (slotOf(v) != kNone) emit(slotOf(v), static_cast<Index>(t));
+                for (Index s : tSlot[t])
+                    if (s != kNone) emit(s, static_cast<Index>(t));
         });
 
         // Faces of shrink-set hexes that no other shrink-set hex shares: the
@@ -356,21 +368,21 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 1024), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const Index self = S[static_cast<std::size_t>(T[i])];
-                const Hex& hx = mesh.hexes[self];
+                const Hex& hx = tHex[i];
+                const auto& sl = tSlot[i];
                 std::uint8_t mask = 0;
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
-                    if (slotOf(hx[lf[0]]) == kNone || slotOf(hx[lf[1]]) == kNone || slotOf(hx[lf[2]]) == kNone ||
-                        slotOf(hx[lf[3]]) == kNone)
+                    if (sl[lf[0]] == kNone || sl[lf[1]] == kNone || sl[lf[2]] == kNone || sl[lf[3]] == kNone)
                         continue;  // a node of the face is interior: the face is shared
                     // Another hex holding the face holds both ends of its diagonal
                     // lf[0]-lf[2]: walk the two (sorted) rows together, then check
                     // the other diagonal only for the hexes they share.
                     int sharers = 0;
-                    const Index* a = nodeT.begin(slotOf(hx[lf[0]]));
-                    const Index* ae = nodeT.end(slotOf(hx[lf[0]]));
-                    const Index* b = nodeT.begin(slotOf(hx[lf[2]]));
-                    const Index* be = nodeT.end(slotOf(hx[lf[2]]));
+                    const Index* a = nodeT.begin(sl[lf[0]]);
+                    const Index* ae = nodeT.end(sl[lf[0]]);
+                    const Index* b = nodeT.begin(sl[lf[2]]);
+                    const Index* be = nodeT.end(sl[lf[2]]);
                     while (a != ae && b != be) {
                         if (*a < *b) {
                             ++a;
@@ -408,13 +420,14 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 std::size_t q = static_cast<std::size_t>(first[i]);
                 const Index h = S[static_cast<std::size_t>(T[i])];
-                const Hex& hx = mesh.hexes[h];
+                const Hex& hx = tHex[i];
+                const auto& sl = tSlot[i];
                 for (int f = 0; f < 6; ++f)
                     if (faceMask[i] >> f & 1) {
                         const auto& lf = hexcell::kFaces[f];
                         faces[q] = {h, f};
                         quadNodes[q] = {hx[lf[0]], hx[lf[1]], hx[lf[2]], hx[lf[3]]};
-                        quadSlots[q] = {slotOf(hx[lf[0]]), slotOf(hx[lf[1]]), slotOf(hx[lf[2]]), slotOf(hx[lf[3]])};
+                        quadSlots[q] = {sl[lf[0]], sl[lf[1]], sl[lf[2]], sl[lf[3]]};
                         ++q;
                     }
             }
@@ -561,19 +574,17 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 4096), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) mesh.nodes[N + i] = mesh.nodes[res.copyOf[i]] + push[i];
     });
-    auto copyOfNode = [&](Index v) {  // the copy's node index, or kNone
-        const Index s = slotOf(v);
-        const Index c = s == kNone ? kNone : copyOfSlot(s);
-        return c == kNone ? kNone : NI + c;
-    };
-    // Only the hexes of T hold candidate nodes, so only they can hold a split node.
+    // Only the hexes of T hold candidate nodes, so only they can hold a
+    // split node (tHex follows: the copy-step rounds read it).
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i)
-            for (Index& v : mesh.hexes[S[static_cast<std::size_t>(T[i])]])
-                if (v < NI) {
-                    const Index c = copyOfNode(v);
-                    if (c != kNone) v = c;
-                }
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            for (int k = 0; k < 8; ++k) {
+                const Index s = tSlot[i][k];
+                const Index c = s == kNone ? kNone : copyOfSlot(s);
+                if (c != kNone) tHex[i][k] = NI + c;
+            }
+            mesh.hexes[static_cast<std::size_t>(S[static_cast<std::size_t>(T[i])])] = tHex[i];
+        }
     });
     reserveHuge(mesh.hexes, H + Q);
     reserveHuge(mesh.material, H + Q);
@@ -593,8 +604,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // The hexes watched: position i < |T| is the shrink-set hex T[i] (when
     // it holds a copy), position |T| + q the new hex of quad q.
     const std::size_t W = T.size() + Q;
-    auto watchHex = [&](std::size_t i) {
-        return i < T.size() ? S[static_cast<std::size_t>(T[i])] : static_cast<Index>(H + (i - T.size()));
+    auto watchHex = [&](std::size_t i) -> const Hex& {
+        return i < T.size() ? tHex[i] : mesh.hexes[H + (i - T.size())];
     };
     // Each round, every inverted hex around a copy that moved asks how many
     // more halvings of its copies' steps (all together, up to maxHalvings) make
@@ -625,14 +636,13 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             for (std::size_t j = r.begin(); j != r.end(); ++j) {
                 // The corners are scattered over the node array: fetch the
                 // hex a few positions ahead and its corners a few less.
-                if (j + 16 < r.end()) prefetch(&mesh.hexes[static_cast<std::size_t>(watchHex(position(j + 16)))]);
+                if (j + 16 < r.end()) prefetch(&watchHex(position(j + 16)));
                 if (j + 8 < r.end())
-                    for (Index v : mesh.hexes[static_cast<std::size_t>(watchHex(position(j + 8)))])
+                    for (Index v : watchHex(position(j + 8)))
                         prefetch(&mesh.nodes[static_cast<std::size_t>(v)]);
                 const std::size_t i = position(j);
                 watch[i].ask = 0;
-                const Index h = watchHex(i);
-                const Hex& hx = mesh.hexes[h];
+                const Hex& hx = watchHex(i);
                 if (round == 0 && std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI; })) continue;
                 const Vec3* x[8];
                 for (int c = 0; c < 8; ++c) x[c] = &mesh.nodes[static_cast<std::size_t>(hx[c])];
@@ -686,7 +696,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, A, 4096), [&](const auto& r) {
             for (std::size_t j = r.begin(); j != r.end(); ++j)
                 if (const std::size_t i = position(j); watch[i].ask)
-                    for (Index v : mesh.hexes[static_cast<std::size_t>(watchHex(i))])
+                    for (Index v : watchHex(i))
                         if (v >= NI) {
                             std::atomic_ref<int> w(want[static_cast<std::size_t>(v - NI)]);
                             int cur = w.load(std::memory_order_relaxed);
