@@ -264,12 +264,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             std::uint64_t* parity = parities.local().data();
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const Hex& hx = mesh.hexes[S[i]];
-                std::uint64_t r[8], fh[6];
+                std::uint64_t nodeHash[8], fh[6];
                 for (int c = 0; c < 8; ++c)
-                    r[c] = mix64(static_cast<std::uint64_t>(static_cast<std::uint32_t>(hx[c])) + 0x9E3779B97F4A7C15ull);
+                    nodeHash[c] = mix64(static_cast<std::uint64_t>(static_cast<std::uint32_t>(hx[c])) + 0x9E3779B97F4A7C15ull);
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
-                    fh[f] = r[lf[0]] + r[lf[1]] + r[lf[2]] + r[lf[3]];
+                    fh[f] = nodeHash[lf[0]] + nodeHash[lf[1]] + nodeHash[lf[2]] + nodeHash[lf[3]];
                 }
                 for (int c = 0; c < 8; ++c)
                     parity[hx[c]] ^= fh[kCornerFaces[c][0]] ^ fh[kCornerFaces[c][1]] ^ fh[kCornerFaces[c][2]];
@@ -540,11 +540,12 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             }
             const double len = norm(normal);
             Vec3 dir = len > 0 ? (-1.0 / len) * normal : Vec3{0, 0, 0};
-            // The centroid's sum in another order (per hex first) differs
-            // from the sum corner by corner by at most 2 (n - 1) u n B per
-            // coordinate (u = 2^-53), so the test against the centroid has
-            // the same outcome as with the exact sum wherever it passes by
-            // a margin well above that; elsewhere the exact sum decides.
+            // The centroid from the per-hex sums (another order of the same
+            // n terms) is within about 2 n u B per coordinate of the one
+            // summed corner by corner (u = 2^-53, B the largest coordinate),
+            // so where the sign test passes by the margin 16 (n + 8) u B it
+            // passes with the corner-by-corner sum too; elsewhere (about
+            // 0.5% of the copies of ch2bet) that sum is made and decides.
             Vec3 c{0, 0, 0};
             int n = 0;
             for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it) {
@@ -619,13 +620,13 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     BigVec<int> halvings(C, 0), want(C, 0);
     struct Watch {
         std::uint8_t bad = 0, hopeless = 0, ask = 0;
-        std::uint8_t dirty = 1;  // round 0 checks every hex with a copy
+        std::uint8_t dirty = 0;  // a copy of it moved: checked next round
     };
     BigVec<Watch> watch(W);
     auto place = [&](std::size_t c, int k) {
         return mesh.nodes[res.copyOf[c]] + std::ldexp(1.0, -k) * push[c];
     };
-    BigVec<Index> active;  // the dirty positions (after round 0)
+    BigVec<Index> active;  // the dirty positions (round 0 checks every hex with a copy)
     for (int round = 0; round <= maxK; ++round) {
         if (round > 0) active = keepWhere(W, [&](std::size_t i) { return watch[i].dirty != 0; });
         const std::size_t A = round == 0 ? W : active.size();
