@@ -103,7 +103,9 @@ bool jacobianPositive(const Vec3* const x[8]) {
 
 // An allocator for pillow's own large temporaries: whole 2 MiB pages,
 // aligned and advised as above, so a buffer costs a few faults instead of one
-// per 4 KiB (small ones come from operator new as usual).
+// per 4 KiB, mapped for it alone and unmapped when it goes (so its memory
+// returns to the system at once, and malloc's own thresholds are left
+// alone). Small ones come from operator new as usual.
 constexpr std::size_t kHugePage = std::size_t{1} << 21;
 constexpr std::size_t kHugeFrom = std::size_t{1} << 20;  // bytes
 
@@ -113,26 +115,44 @@ struct HugeAlloc {
     HugeAlloc() = default;
     template <class U>
     HugeAlloc(const HugeAlloc<U>&) {}
+    static std::size_t rounded(std::size_t bytes) { return (bytes + kHugePage - 1) & ~(kHugePage - 1); }
     T* allocate(std::size_t n) {
         const std::size_t bytes = n * sizeof(T);
-        if (bytes < kHugeFrom) return static_cast<T*>(::operator new(bytes));
-        const std::size_t rounded = (bytes + kHugePage - 1) & ~(kHugePage - 1);
-        void* p = std::aligned_alloc(kHugePage, rounded);
-        if (!p) throw std::bad_alloc();
-        adviseHugePages(p, rounded);
-        return static_cast<T*>(p);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (bytes >= kHugeFrom) {
+            const std::size_t size = rounded(bytes);
+            void* m = mmap(nullptr, size + kHugePage, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+            if (m == MAP_FAILED) throw std::bad_alloc();
+            const auto start = reinterpret_cast<std::uintptr_t>(m);
+            const auto begin = (start + kHugePage - 1) & ~(kHugePage - 1);
+            if (begin > start) munmap(m, begin - start);
+            if (begin - start < kHugePage) munmap(reinterpret_cast<void*>(begin + size), kHugePage - (begin - start));
+            adviseHugePages(reinterpret_cast<void*>(begin), size);
+            return reinterpret_cast<T*>(begin);
+        }
+#endif
+        return static_cast<T*>(::operator new(bytes));
     }
     void deallocate(T* p, std::size_t n) {
-        if (n * sizeof(T) < kHugeFrom)
-            ::operator delete(p);
-        else
-            std::free(p);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (n * sizeof(T) >= kHugeFrom) {
+            munmap(p, rounded(n * sizeof(T)));
+            return;
+        }
+#endif
+        ::operator delete(p);
     }
     template <class U>
     bool operator==(const HugeAlloc<U>&) const { return true; }
 };
 template <class T>
 using BigVec = std::vector<T, HugeAlloc<T>>;
+
+// Gives a buffer's memory back at once (the large ones go back to the system).
+template <class V>
+void release(V& v) {
+    V().swap(v);
+}
 
 // Rows of items (a CSR) in BigVecs.
 struct Rows {
@@ -468,6 +488,8 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         throw Error(msg);
     }
 
+    release(slot);  // the corners' slots are in tSlot from here on
+
     // Split nodes (the slots on the boundary faces), numbered in increasing
     // original index.
     PillowResult res;
@@ -567,6 +589,9 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         }
     });
 
+    release(quadGeometry);
+    release(cornerSum);
+
     // Apply: copies, shrink-set hexes take them, one new hex per boundary quad.
     reserveHuge(mesh.nodes, N + C);
     reserveHuge(mesh.nodeClass, N + C);
@@ -600,6 +625,10 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             mesh.material[H + i] = mesh.material[faces[i].first];
         }
     });
+    release(tSlot);
+    release(faces);
+    release(quadNodes);
+    release(quadSlots);
 
     // Shorten the inward step of copies where a hex around them inverted.
     // The hexes watched: position i < |T| is the shrink-set hex T[i] (when
