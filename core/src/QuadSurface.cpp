@@ -14,6 +14,11 @@ ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std:
     // node -> (quad, corner) items
     const Csr around = detail::bucketItems(nodeCount, quads.size() * 4,
                                            [&](std::size_t i) { return quads[i / 4][i % 4]; });
+    return checkManifold(quads.data(), around.offsets.data(), around.items.data(), nodeCount, closed);
+}
+
+ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowOffsets, const Index* rowItems,
+                            std::size_t nodeCount, bool closed) {
     std::vector<std::uint8_t> nodeBad(nodeCount, 0);
     tbb::enumerable_thread_specific<std::vector<std::array<Index, 2>>> badEdgesLocal;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodeCount, 256), [&](const auto& r) {
@@ -22,13 +27,13 @@ ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std:
         std::vector<Index> parent;
         auto& bad = badEdgesLocal.local();
         for (std::size_t v = r.begin(); v != r.end(); ++v) {
-            const std::size_t n = around.size(v);
+            const std::size_t n = static_cast<std::size_t>(rowOffsets[v + 1] - rowOffsets[v]);
             if (n == 0) continue;
             spokes.clear();
             parent.resize(n);
             for (std::size_t s = 0; s < n; ++s) {
                 parent[s] = static_cast<Index>(s);
-                const Index item = around.begin(v)[s];
+                const Index item = rowItems[rowOffsets[v] + static_cast<Index>(s)];
                 const auto& q = quads[item / 4];
                 const int c = item % 4;
                 spokes.emplace_back(q[(c + 1) % 4], static_cast<Index>(s));

@@ -2,7 +2,10 @@
 
 #include <string>
 
+#include <algorithm>
 #include <set>
+
+#include <tbb/global_control.h>
 
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
@@ -134,6 +137,37 @@ TEST(Pillow, ASubsetGetsASheetAgainstTheRestOfTheMesh) {
     EXPECT_EQ(m.hexCount() - before, 24u);  // the 2x2x2 cube has 24 boundary quads
     EXPECT_TRUE(validate(m).ok());
     EXPECT_EQ(invertedCount(m), 0u);
+}
+
+TEST(Pillow, SameMeshForAnyThreadCountAndAnyOrderOfTheShrinkSet) {
+    // A block with a cavity and a dent; the shrink set given sorted on one
+    // thread, then reversed with repeats on several: the same mesh, bit for bit.
+    const HexMesh base = classifiedBlock(8, 7, 6);
+    std::vector<Index> shrink;
+    for (Index h = 0; h < static_cast<Index>(base.hexCount()); ++h)
+        if (h != 0 && h != (2 * 7 + 3) * 8 + 3) shrink.push_back(h);
+    std::vector<HexMesh> meshes;
+    std::vector<PillowResult> results;
+    for (int threads : {1, 2, 4}) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+        std::vector<Index> order = shrink;
+        if (threads > 1) {
+            std::reverse(order.begin(), order.end());
+            order.insert(order.end(), shrink.begin(), shrink.begin() + 20);
+        }
+        HexMesh m = base;
+        results.push_back(pillow(m, order));
+        meshes.push_back(std::move(m));
+    }
+    EXPECT_TRUE(validate(meshes[0]).ok());
+    for (std::size_t i = 1; i < meshes.size(); ++i) {
+        EXPECT_EQ(meshes[i].hexes, meshes[0].hexes);
+        EXPECT_EQ(meshes[i].nodes, meshes[0].nodes);
+        EXPECT_EQ(meshes[i].nodeClass, meshes[0].nodeClass);
+        EXPECT_EQ(meshes[i].material, meshes[0].material);
+        EXPECT_EQ(results[i].copyOf, results[0].copyOf);
+        EXPECT_EQ(results[i].invertedAtStart, results[0].invertedAtStart);
+    }
 }
 
 TEST(Pillow, TheParityShortcutGivesTheSameSheetAsTheFullAdjacency) {

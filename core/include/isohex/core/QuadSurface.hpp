@@ -21,4 +21,10 @@ struct ManifoldCheck {
 // must be in exactly two quads; otherwise one or two.
 ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std::size_t nodeCount, bool closed);
 
+// The same with the node -> (quad, corner) rows already built: row v is
+// rowItems[rowOffsets[v] .. rowOffsets[v + 1]), the items 4 * quad + corner
+// of every corner of a quad at node v, in increasing order.
+ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowOffsets, const Index* rowItems,
+                            std::size_t nodeCount, bool closed);
+
 }  // namespace isohex
