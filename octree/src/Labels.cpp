@@ -164,8 +164,11 @@ int badPairs(const std::array<std::int32_t, 8>& mat) {
     return bad;
 }
 
-int badMaterials(const std::array<std::int32_t, 8>& mat) {
-    int bad = 0;
+// Sums score(pattern) over the materials of a block, where pattern has bit d
+// set for the corners d holding that material.
+template <class Score>
+int sumOverMaterials(const std::array<std::int32_t, 8>& mat, Score score) {
+    int sum = 0;
     for (int c = 0; c < 8; ++c) {
         bool first = true;
         for (int d = 0; d < c; ++d)
@@ -174,9 +177,13 @@ int badMaterials(const std::array<std::int32_t, 8>& mat) {
         unsigned p = 0;
         for (int d = 0; d < 8; ++d)
             if (mat[d] == mat[c]) p |= 1u << d;
-        bad += !kTable.ok[p];
+        sum += score(p);
     }
-    return bad + badPairs(mat);
+    return sum;
+}
+
+int badMaterials(const std::array<std::int32_t, 8>& mat) {
+    return sumOverMaterials(mat, [](unsigned p) { return kTable.ok[p] ? 0 : 1; }) + badPairs(mat);
 }
 
 bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials(mat) == 0; }
@@ -184,18 +191,7 @@ bool blockManifold(const std::array<std::int32_t, 8>& mat) { return badMaterials
 // As badMaterials, but a material whose points and whose complement are both
 // split inside the block counts twice: zero exactly when badMaterials is.
 int badness(const std::array<std::int32_t, 8>& mat) {
-    int bad = 0;
-    for (int c = 0; c < 8; ++c) {
-        bool first = true;
-        for (int d = 0; d < c; ++d)
-            if (mat[d] == mat[c]) first = false;
-        if (!first) continue;
-        unsigned p = 0;
-        for (int d = 0; d < 8; ++d)
-            if (mat[d] == mat[c]) p |= 1u << d;
-        bad += kTable.pieces[p];
-    }
-    return bad + badPairs(mat);
+    return sumOverMaterials(mat, [](unsigned p) { return static_cast<int>(kTable.pieces[p]); }) + badPairs(mat);
 }
 
 bool uniformBlock(const std::array<std::int32_t, 8>& mat) {

@@ -374,17 +374,23 @@ TEST(LbieCellTests, SmoothLargeShapePassesAndThinFeatureFails) {
     EXPECT_GT(lbieFailures(sampleLabels(plate, unitGrid(33))), 0u);
 }
 
+// Samples d on an n^3 unit grid, repairs it and extracts the hexes (with the
+// background out to the grid's box when `exterior`).
+static HexMesh repairedAndExtracted(const AnalyticDomain& d, int n, bool exterior) {
+    Labels l = sampleLabels(d, unitGrid(n));
+    repairNonManifold(l, d);
+    ExtractOptions opt;
+    opt.meshExterior = exterior;
+    return dualContourHexes(l, d, opt);
+}
+
 TEST(DualContour, NodeClassesFromTheGridEqualThoseFromTheHexFaces) {
     // dualContourHexes classifies nodes from the grid labels; classifyBoundaryNodes
     // finds them from the hexes' faces. Both must agree: several materials,
     // interfaces, curves where they meet the boundary, and a meshed exterior.
     const AnalyticDomain d({box({3, 3, 3}, {9.5, 13, 13}), box({9.5, 3, 3}, {15, 13, 13}), sphere({9, 8, 8}, 3.3)});
     for (bool exterior : {false, true}) {
-        Labels l = sampleLabels(d, unitGrid(18));
-        repairNonManifold(l, d);
-        ExtractOptions opt;
-        opt.meshExterior = exterior;
-        const HexMesh m = dualContourHexes(l, d, opt);
+        const HexMesh m = repairedAndExtracted(d, 18, exterior);
         HexMesh again = m;
         classifyBoundaryNodes(again);
         EXPECT_EQ(m.surfaces, again.surfaces) << "exterior " << exterior;
@@ -486,11 +492,7 @@ TEST(DualContour, CurveNodesNameTheThreeMaterialsMeetingThere) {
     // curve (-1) where four meet or where the box around a meshed exterior is one of them.
     const AnalyticDomain d({box({3, 3, 3}, {9.5, 13, 13}), box({9.5, 3, 3}, {15, 13, 13}), sphere({9, 8, 12.2}, 3.3)});
     for (bool exterior : {false, true}) {
-        Labels l = sampleLabels(d, unitGrid(18));
-        repairNonManifold(l, d);
-        ExtractOptions opt;
-        opt.meshExterior = exterior;
-        const HexMesh m = dualContourHexes(l, d, opt);
+        const HexMesh m = repairedAndExtracted(d, 18, exterior);
         const Topology t = buildTopology(m);
         ASSERT_FALSE(m.curves.empty());
         EXPECT_TRUE(std::is_sorted(m.curves.begin(), m.curves.end()));
