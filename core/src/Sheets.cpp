@@ -173,9 +173,10 @@ inline void prefetch(const void* p) {
 
 // Positions i in [0, n) where flag(i) holds, in increasing order, found in
 // parallel over fixed blocks (so the same for any thread count); flag is
-// evaluated once per position, and onKept(i, rank) is called for each kept one.
-template <class Flag, class OnKept>
-BigVec<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
+// evaluated once per position, onCount(kept) is called once the number kept
+// is known, then onKept(i, rank) for each kept one.
+template <class Flag, class OnCount, class OnKept>
+BigVec<Index> keepWhere(std::size_t n, Flag flag, OnCount onCount, OnKept onKept) {
     constexpr std::size_t B = std::size_t{1} << 14;
     const std::size_t blocks = (n + B - 1) / B;
     BigVec<std::uint8_t> f(n);
@@ -188,6 +189,7 @@ BigVec<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
         }
     });
     for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
+    onCount(static_cast<std::size_t>(count[blocks]));
     BigVec<Index> out(static_cast<std::size_t>(count[blocks]));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
         for (std::size_t b = r.begin(); b != r.end(); ++b) {
@@ -204,7 +206,7 @@ BigVec<Index> keepWhere(std::size_t n, Flag flag, OnKept onKept) {
 
 template <class Flag>
 BigVec<Index> keepWhere(std::size_t n, Flag flag) {
-    return keepWhere(n, flag, [](std::size_t, Index) {});
+    return keepWhere(n, flag, [](std::size_t) {}, [](std::size_t, Index) {});
 }
 
 // Rows 0..rows-1 of the pairs (row, item) that forEachIn(lo, hi, emit)
@@ -270,23 +272,26 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     const std::span<const Index> S = increasing ? std::span<const Index>(shrinkSet) : std::span<const Index>(sorted);
 
     // Nodes on the boundary of the shrink set, by parity: each face of a
-    // shrink-set hex XORs a 64-bit hash of its four nodes (the sum of one
+    // shrink-set hex XORs a 32-bit hash of its four nodes (the sum of one
     // hash per node, so the same in any order) into each of them. A
     // face two shrink-set hexes share cancels, so a node stays 0 unless a
-    // boundary face meets it (or, with chance 2^-64 per node, its boundary
+    // boundary face meets it (or, with chance 2^-32 per node, its boundary
     // faces' hashes cancel: then the sheet misses faces, the checks below
     // fail and the exact pass over the whole shrink set is used). Each thread
     // XORs into its own array (XOR commutes: the same result for any thread
-    // count, without an atomic per corner).
-    tbb::enumerable_thread_specific<BigVec<std::uint64_t>> parities([N] { return BigVec<std::uint64_t>(N, 0); });
+    // count, without an atomic per corner). 32 bits rather than 64 halve
+    // the arrays these scattered writes land in; a miss only costs the exact
+    // pass.
+    tbb::enumerable_thread_specific<BigVec<std::uint32_t>> parities([N] { return BigVec<std::uint32_t>(N, 0); });
     if (!opt.exactBoundary)
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, S.size(), 4096), [&](const auto& r) {
-            std::uint64_t* parity = parities.local().data();
+            std::uint32_t* parity = parities.local().data();
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
                 const Hex& hx = mesh.hexes[S[i]];
-                std::uint64_t nodeHash[8], fh[6];
+                std::uint32_t nodeHash[8], fh[6];
                 for (int c = 0; c < 8; ++c)
-                    nodeHash[c] = mix64(static_cast<std::uint64_t>(static_cast<std::uint32_t>(hx[c])) + 0x9E3779B97F4A7C15ull);
+                    nodeHash[c] = static_cast<std::uint32_t>(
+                        mix64(static_cast<std::uint64_t>(static_cast<std::uint32_t>(hx[c])) + 0x9E3779B97F4A7C15ull) >> 32);
                 for (int f = 0; f < 6; ++f) {
                     const auto& lf = hexcell::kFaces[f];
                     fh[f] = nodeHash[lf[0]] + nodeHash[lf[1]] + nodeHash[lf[2]] + nodeHash[lf[3]];
@@ -301,10 +306,14 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     // node order ("slots"), and on the hexes of S that hold one (T). Only
     // those hexes need the node -> hex adjacency.
     // Per node, its slot or kNoSlot (in fast mode the storage of the first
-    // parity array, so no further N-sized array is written).
-    constexpr std::uint64_t kNoSlot = ~std::uint64_t{0};
-    BigVec<std::uint64_t> slot;
+    // parity array, so no further N-sized array is written), and one bit per
+    // node for "is a candidate" (small enough to stay in cache while every
+    // hex of S is tested against it).
+    constexpr std::uint32_t kNoSlot = ~std::uint32_t{0};
+    BigVec<std::uint32_t> slot;
+    BigVec<std::uint64_t> isCand;
     auto slotOf = [&](Index v) { return static_cast<Index>(slot[static_cast<std::size_t>(v)]); };  // kNoSlot: kNone
+    auto candidate = [&](Index v) { return (isCand[static_cast<std::size_t>(v) >> 6] >> (v & 63) & 1) != 0; };
     BigVec<Index> candNode;      // per slot, its node
     BigVec<Index> T;             // positions in S of the hexes that hold a candidate node
     Rows nodeT;                  // slot -> positions in T of the hexes holding it, increasing
@@ -323,10 +332,11 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             std::iota(slot.begin(), slot.end(), 0);
             candNode.resize(N);
             std::iota(candNode.begin(), candNode.end(), 0);
+            isCand.assign((N + 63) / 64, ~std::uint64_t{0});
         } else {
             // XOR the threads' arrays into the first, then number the nodes
             // whose parity is not 0 in increasing order, in fixed blocks.
-            std::vector<BigVec<std::uint64_t>*> locals;
+            std::vector<BigVec<std::uint32_t>*> locals;
             for (auto& local : parities) locals.push_back(&local);
             slot = std::move(*locals[0]);
             constexpr std::size_t B = std::size_t{1} << 14;
@@ -336,7 +346,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
                 for (std::size_t b = r.begin(); b != r.end(); ++b) {
                     Index k = 0;
                     for (std::size_t v = b * B, e = std::min(N, v + B); v < e; ++v) {
-                        std::uint64_t p = slot[v];
+                        std::uint32_t p = slot[v];
                         for (std::size_t l = 1; l < locals.size(); ++l) p ^= (*locals[l])[v];
                         slot[v] = p;
                         k += p != 0;
@@ -346,13 +356,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             });
             for (std::size_t b = 0; b < blocks; ++b) count[b + 1] += count[b];
             candNode.resize(static_cast<std::size_t>(count[blocks]));
+            isCand.assign((N + 63) / 64, 0);  // B is a multiple of 64: each block owns whole words
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const auto& r) {
                 for (std::size_t b = r.begin(); b != r.end(); ++b) {
                     Index k = count[b];
                     for (std::size_t v = b * B, e = std::min(N, v + B); v < e; ++v)
                         if (slot[v] != 0) {
                             candNode[static_cast<std::size_t>(k)] = static_cast<Index>(v);
-                            slot[v] = static_cast<std::uint64_t>(k++);
+                            slot[v] = static_cast<std::uint32_t>(k++);
+                            isCand[v >> 6] |= std::uint64_t{1} << (v & 63);
                         } else {
                             slot[v] = kNoSlot;
                         }
@@ -361,19 +373,25 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
             parities.clear();
         }
         const std::size_t nCand = candNode.size();
-        T = keepWhere(S.size(), [&](std::size_t i) {
-            for (Index v : mesh.hexes[S[i]])
-                if (slotOf(v) != kNone) return true;
-            return false;
-        });
-        tHex.resize(T.size());
-        tSlot.resize(T.size());
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, T.size(), 4096), [&](const auto& r) {
-            for (std::size_t t = r.begin(); t != r.end(); ++t) {
-                tHex[t] = mesh.hexes[static_cast<std::size_t>(S[static_cast<std::size_t>(T[t])])];
-                for (int c = 0; c < 8; ++c) tSlot[t][c] = slotOf(tHex[t][c]);
-            }
-        });
+        // T, with each kept hex and its corners' slots copied out as it is
+        // written (one pass over S instead of a second, scattered one).
+        T = keepWhere(
+            S.size(),
+            [&](std::size_t i) {
+                for (Index v : mesh.hexes[S[i]])
+                    if (candidate(v)) return true;
+                return false;
+            },
+            [&](std::size_t kept) {
+                tHex.resize(kept);
+                tSlot.resize(kept);
+            },
+            [&](std::size_t i, Index t) {
+                const Hex& hx = mesh.hexes[S[i]];
+                tHex[static_cast<std::size_t>(t)] = hx;
+                for (int c = 0; c < 8; ++c) tSlot[static_cast<std::size_t>(t)][c] = slotOf(hx[c]);
+            });
+        release(isCand);
         nodeT = rowsInOrder(nCand, T.size(), [&](std::size_t lo, std::size_t hi, auto emit) {
             for (std::size_t t = lo; t < hi; ++t)
                 for (Index s : tSlot[t])
