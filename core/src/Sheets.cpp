@@ -667,7 +667,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     BigVec<int> halvings(C, 0), want(C, 0);
     struct Watch {
         std::uint8_t bad = 0, hopeless = 0, ask = 0;
-        std::uint8_t dirty = 0;  // a copy of it moved: checked next round
+        std::uint16_t next = 0;  // the round that checks it again (a copy of it moved): nothing to clear between rounds
     };
     BigVec<Watch> watch(W);
     auto place = [&](std::size_t c, int k) {
@@ -675,7 +675,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     };
     BigVec<Index> active;  // the dirty positions (round 0 checks every hex with a copy)
     for (int round = 0; round <= maxK; ++round) {
-        if (round > 0) active = keepWhere(W, [&](std::size_t i) { return watch[i].dirty != 0; });
+        if (round > 0) active = keepWhere(W, [&](std::size_t i) { return watch[i].next == round; });
         const std::size_t A = round == 0 ? W : active.size();
         auto position = [&](std::size_t j) { return round == 0 ? j : static_cast<std::size_t>(active[j]); };
         std::atomic<std::size_t> triggers{0};
@@ -769,17 +769,15 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
         const BigVec<Index> moved = keepWhere(touched.size(), [&](std::size_t j) { return didMove[j] != 0; });
         if (moved.empty()) break;
         // The hexes around the copies that moved are checked next round.
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, W, 1 << 14), [&](const auto& r) {
-            for (std::size_t i = r.begin(); i != r.end(); ++i) watch[i].dirty = 0;
-        });
+        const auto next = static_cast<std::uint16_t>(round + 1);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, moved.size(), 1024), [&](const auto& r) {
             for (std::size_t j = r.begin(); j != r.end(); ++j) {
                 const Index s = copySlot[static_cast<std::size_t>(touched[static_cast<std::size_t>(moved[j])])];
                 for (const Index* it = nodeT.begin(s); it != nodeT.end(s); ++it)
-                    std::atomic_ref<std::uint8_t>(watch[static_cast<std::size_t>(*it)].dirty).store(1, std::memory_order_relaxed);
+                    std::atomic_ref<std::uint16_t>(watch[static_cast<std::size_t>(*it)].next).store(next, std::memory_order_relaxed);
                 for (const Index* it = around.begin(s); it != around.end(s); ++it)
-                    std::atomic_ref<std::uint8_t>(watch[T.size() + static_cast<std::size_t>(*it / 4)].dirty)
-                        .store(1, std::memory_order_relaxed);
+                    std::atomic_ref<std::uint16_t>(watch[T.size() + static_cast<std::size_t>(*it / 4)].next)
+                        .store(next, std::memory_order_relaxed);
             }
         });
     }
