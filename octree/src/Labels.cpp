@@ -313,6 +313,188 @@ int topoNumber(const std::array<bool, 27>& in, int adjacency) {
     return count;
 }
 
+// The exact local test with the polygoniser's own cell table (see
+// CellEdgeGroups). Toggling a point changes the signs of the cells around it
+// only; the surface's vertices are (cell, vertex of the cell's pattern), its
+// faces the crossed grid edges (each joining the vertices of the 4 cells
+// around it that hold the edge). Take the cells R whose lowest corner is
+// within -2..1 of the point on every axis and the grid edges within -2..2
+// (every face touching a vertex in R): the faces, the vertices in R and the
+// edges with an end in R are all that can change. The global surface keeps
+// its Euler characteristic when V(R) - E(R) + F(box) does, and its components
+// when the faces in the box join the vertices of the cells outside R (the
+// ports) in the same groups and leave as many pieces without a port.
+struct McWindow {
+    static constexpr int kCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1},
+                                          {0, 1, 0}, {1, 1, 0}, {1, 1, 1}, {0, 1, 1}};
+    // per axis: the 4 cells around a grid edge in cyclic order (lowest corner
+    // offset from the edge's start) and the cell edge (1..12) it is in each
+    std::array<std::array<std::array<int, 3>, 4>, 3> cell{};
+    std::array<std::array<int, 4>, 3> edge{};
+    McWindow() {
+        constexpr int kEdge[12][2] = {{0, 1}, {1, 2}, {3, 2}, {0, 3}, {4, 5}, {5, 6},
+                                      {7, 6}, {4, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+        const int ring[4][2] = {{-1, -1}, {0, -1}, {0, 0}, {-1, 0}};
+        for (int a = 0; a < 3; ++a)
+            for (int n = 0; n < 4; ++n) {
+                const int b = (a + 1) % 3, c = (a + 2) % 3;
+                auto& o = cell[a][n];
+                o[a] = 0;
+                o[b] = ring[n][0];
+                o[c] = ring[n][1];
+                // the edge's ends in the cell's own coordinates
+                int lo[3], hi[3];
+                for (int d = 0; d < 3; ++d) lo[d] = hi[d] = -o[d];
+                hi[a] = 1;
+                for (int e = 0; e < 12; ++e) {
+                    const int* u = kCorner[kEdge[e][0]];
+                    const int* v = kCorner[kEdge[e][1]];
+                    const bool same = (u[0] == lo[0] && u[1] == lo[1] && u[2] == lo[2] && v[0] == hi[0] &&
+                                       v[1] == hi[1] && v[2] == hi[2]) ||
+                                      (v[0] == lo[0] && v[1] == lo[1] && v[2] == lo[2] && u[0] == hi[0] &&
+                                       u[1] == hi[1] && u[2] == hi[2]);
+                    if (same) edge[a][n] = e + 1;
+                }
+            }
+    }
+};
+const McWindow kMcWindow;
+
+// What mcLocal computes for one state of the window.
+struct McLocal {
+    long long chi = 0;
+    int closed = 0;                           // pieces without a port
+    std::array<std::int16_t, 864> portGroup;  // per vertex: first port of its piece (-1: not a port)
+};
+
+// Pattern of a cell as the polygoniser uses it: its signs, inverted when its
+// ambiguous face meets the opposite ambiguous face of its neighbour.
+inline std::uint8_t correctedSigns(std::uint8_t raw, std::uint8_t neighbourRaw, const CellEdgeGroups& t) {
+    static constexpr std::uint8_t kOpposite[7] = {0, 3, 4, 1, 2, 6, 5};
+    const std::uint8_t f = t.ambiguousFace[raw];
+    return f != 0 && t.ambiguousFace[neighbourRaw] == kOpposite[f] ? static_cast<std::uint8_t>(~raw) : raw;
+}
+
+// in: the window's points (offsets -4..4, x fastest), true when inside.
+void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& out) {
+    auto pt = [](int x, int y, int z) { return x + 9 * (y + 9 * z); };
+    // raw patterns of the cells with lowest corner at offsets -4..3 (index 0..7)
+    std::array<std::uint8_t, 512> raw;
+    for (int z = 0; z < 8; ++z)
+        for (int y = 0; y < 8; ++y)
+            for (int x = 0; x < 8; ++x) {
+                unsigned sg = 0;
+                for (int v = 0; v < 8; ++v)
+                    if (in[pt(x + McWindow::kCorner[v][0], y + McWindow::kCorner[v][1], z + McWindow::kCorner[v][2])])
+                        sg |= 1u << v;
+                raw[x + 8 * (y + 8 * z)] = static_cast<std::uint8_t>(sg);
+            }
+    // patterns of the cells at offsets -3..2 (index 0..5 here, 1..6 in raw)
+    auto cid = [](int x, int y, int z) { return x + 6 * (y + 6 * z); };
+    std::array<std::uint8_t, 216> signs;
+    static constexpr int kFace[7][3] = {{0, 0, 0}, {0, 0, -1}, {1, 0, 0}, {0, 0, 1}, {-1, 0, 0}, {0, -1, 0}, {0, 1, 0}};
+    for (int z = 0; z < 6; ++z)
+        for (int y = 0; y < 6; ++y)
+            for (int x = 0; x < 6; ++x) {
+                const std::uint8_t r = raw[(x + 1) + 8 * ((y + 1) + 8 * (z + 1))];
+                const int f = t.ambiguousFace[r];
+                const std::uint8_t nb =
+                    raw[(x + 1 + kFace[f][0]) + 8 * ((y + 1 + kFace[f][1]) + 8 * (z + 1 + kFace[f][2]))];
+                signs[cid(x, y, z)] = correctedSigns(r, nb, t);
+            }
+    const auto& g = t.edgeGroups;
+    auto inR = [](int c) {
+        const int x = c % 6, y = c / 6 % 6, z = c / 36;
+        return x >= 1 && x <= 4 && y >= 1 && y <= 4 && z >= 1 && z <= 4;
+    };
+    std::array<std::int16_t, 864> parent;
+    for (int v = 0; v < 864; ++v) parent[v] = static_cast<std::int16_t>(v);
+    auto find = [&](int a) {
+        while (parent[a] != a) a = parent[a] = parent[parent[a]];
+        return a;
+    };
+    long long v = 0, f = 0;
+    for (int c = 0; c < 216; ++c)
+        if (inR(c)) v += g[signs[c]][0];
+    std::array<std::uint32_t, 1200> edges;
+    int ne = 0;
+    // grid edges within the box: points at offsets -2..2 (window 2..6; cell
+    // index = window point index - 1)
+    for (int a = 0; a < 3; ++a)
+        for (int z = 2; z <= 6; ++z)
+            for (int y = 2; y <= 6; ++y)
+                for (int x = 2; x <= 6; ++x) {
+                    int e[3] = {x, y, z};
+                    ++e[a];
+                    if (e[a] > 6) continue;
+                    if (in[pt(x, y, z)] == in[pt(e[0], e[1], e[2])]) continue;
+                    ++f;
+                    int vert[4], cellOf[4];
+                    for (int n = 0; n < 4; ++n) {
+                        const auto& o = kMcWindow.cell[a][n];
+                        const int c = cid(x - 1 + o[0], y - 1 + o[1], z - 1 + o[2]);
+                        const int gr = g[signs[c]][kMcWindow.edge[a][n]];
+                        cellOf[n] = c;
+                        vert[n] = c * 4 + std::max(gr - 1, 0);
+                    }
+                    for (int n = 0; n < 4; ++n) {
+                        const int p = vert[n], q = vert[(n + 1) % 4];
+                        const int rp = find(p), rq = find(q);
+                        if (rp != rq) parent[std::max(rp, rq)] = static_cast<std::int16_t>(std::min(rp, rq));
+                        if (inR(cellOf[n]) || inR(cellOf[(n + 1) % 4]))
+                            edges[ne++] = static_cast<std::uint32_t>(std::min(p, q)) << 16 |
+                                          static_cast<std::uint32_t>(std::max(p, q));
+                    }
+                }
+    std::sort(edges.begin(), edges.begin() + ne);
+    const long long e = std::unique(edges.begin(), edges.begin() + ne) - edges.begin();
+    out.chi = v - e + f;
+    // ports: the vertices of the cells outside R, in a fixed order
+    std::array<std::int16_t, 864> firstPort;
+    firstPort.fill(-1);
+    out.portGroup.fill(-1);
+    for (int c = 0; c < 216; ++c) {
+        if (inR(c)) continue;
+        for (int k = 0; k < g[signs[c]][0]; ++k) {
+            const int p = c * 4 + k, r = find(p);
+            if (firstPort[r] < 0) firstPort[r] = static_cast<std::int16_t>(p);
+            out.portGroup[p] = firstPort[r];
+        }
+    }
+    out.closed = 0;
+    for (int c = 0; c < 216; ++c) {
+        if (!inR(c)) continue;
+        for (int k = 0; k < g[signs[c]][0]; ++k) {
+            const int p = c * 4 + k;
+            if (find(p) == p && firstPort[p] < 0) ++out.closed;
+        }
+    }
+}
+
+// Whether point (i, j, k) joining or leaving material m keeps the components
+// and Euler characteristic of the polygoniser's surface of m (m's points
+// inside, every other point outside).
+// (eulerChange: the change of the surface's Euler characteristic, exact.)
+bool mcKeeps(const Labels& l, int i, int j, int k, std::int32_t m, const CellEdgeGroups& t,
+             long long* eulerChange = nullptr) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    std::array<bool, 729> in{};
+    for (int z = 0; z < 9; ++z)
+        for (int y = 0; y < 9; ++y)
+            for (int x = 0; x < 9; ++x) {
+                const int a = i + x - 4, b = j + y - 4, c = k + z - 4;
+                const bool inside = a >= 0 && b >= 0 && c >= 0 && a < nx && b < ny && c < nz;
+                in[x + 9 * (y + 9 * z)] = inside && l.material[l.grid.index(a, b, c)] == m;
+            }
+    McLocal before, after;
+    mcLocal(in, t, before);
+    const int centre = 4 + 9 * (4 + 9 * 4);
+    in[centre] = !in[centre];
+    mcLocal(in, t, after);
+    if (eulerChange) *eulerChange = after.chi - before.chi;
+    return before.chi == after.chi && before.closed == after.closed && before.portGroup == after.portGroup;
+}
+
 // Region ids of the repair (see repairNonManifold): union-find over ids, so a
 // flip that has to join two regions merges their ids.
 struct RegionIds {
@@ -340,7 +522,8 @@ struct RegionIds {
 // 2 when the flip is simple for both materials; 1 when only what lies
 // outside them keeps its topology (the model of the regions is coarser than
 // marching cubes, that of the outside matches it); 0 otherwise.
-int flipTier(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
+int flipTier(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to,
+             const CellEdgeGroups* mc) {
     const auto [nx, ny, nz] = l.grid.dims;
     std::array<std::int32_t, 27> mat;
     std::array<std::size_t, 27> pt{};
@@ -373,11 +556,23 @@ int flipTier(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t fr
         }
         check(to, several ? -1 : region);
     }
-    return restKeeps ? (regionKeeps ? 2 : 1) : 0;
+    const int model = restKeeps ? (regionKeeps ? 2 : 1) : 0;
+    if (!mc) return model;
+    // with the polygoniser's tables: 3 when the flip keeps both surfaces
+    // exactly; 2 when it keeps the Euler characteristic of both (it may join
+    // or split pieces: one tunnel for one component); else the model's tier
+    long long dFrom = 0, dTo = 0;
+    const bool exact = (from == 0 || mcKeeps(l, i, j, k, from, *mc, &dFrom)) &&
+                       (to == 0 || mcKeeps(l, i, j, k, to, *mc, &dTo));
+    if (exact) return 3;
+    // (a flip that fails for `from` does not test `to`: test it for the Euler change)
+    if (from != 0 && to != 0 && dTo == 0) mcKeeps(l, i, j, k, to, *mc, &dTo);
+    return dFrom == 0 && dTo == 0 ? 2 : std::min(model, 1);
 }
 
-bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to) {
-    return flipTier(l, r, i, j, k, from, to) == 2;
+bool simpleFlip(const Labels& l, RegionIds& r, int i, int j, int k, std::int32_t from, std::int32_t to,
+                const CellEdgeGroups* mc) {
+    return flipTier(l, r, i, j, k, from, to, mc) == (mc ? 3 : 2);
 }
 
 // Gives point p material `to`, with the region id of its new neighbours
@@ -404,6 +599,20 @@ void flipPoint(Labels& l, RegionIds& r, std::size_t p, std::int32_t to) {
 }
 
 }  // namespace
+
+bool flipKeepsPolygonTopology(const Labels& labels, int i, int j, int k, std::int32_t to, const CellEdgeGroups& table,
+                              long long* eulerChange) {
+    const std::int32_t from = labels.material[labels.grid.index(i, j, k)];
+    if (from == to) {
+        if (eulerChange) *eulerChange = 0;
+        return true;
+    }
+    long long dFrom = 0, dTo = 0;
+    const bool keepsFrom = from == 0 || mcKeeps(labels, i, j, k, from, table, &dFrom);
+    const bool keepsTo = to == 0 || mcKeeps(labels, i, j, k, to, table, &dTo);
+    if (eulerChange) *eulerChange = dFrom + dTo;
+    return keepsFrom && keepsTo;
+}
 
 std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labels).size(); }
 
@@ -510,7 +719,8 @@ RegionIds initialRegions(const Labels& labels, const std::vector<std::int32_t>* 
 
 }  // namespace
 
-RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::vector<std::int32_t>* regions) {
+RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::vector<std::int32_t>* regions,
+                               const CellEdgeGroups* marchingCubes) {
     RepairReport rep;
     const Grid& g = labels.grid;
     const auto [nx, ny, nz] = g.dims;
@@ -581,8 +791,8 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                     // (simpleFlip), then those that mend it most, then those
                     // that keep every region's Euler characteristic, then the
                     // one nearest the surface.
-                    const int tier = plain ? 0 : flipTier(labels, ids, pi, pj, pk, v.mat[c], t);
-                    const bool simple = tier == 2;
+                    const int tier = plain ? 0 : flipTier(labels, ids, pi, pj, pk, v.mat[c], t, marchingCubes);
+                    const bool simple = tier == (marchingCubes ? 3 : 2);
                     const bool keepsEuler = (v.mat[c] == 0 || eulerChange(labels, pi, pj, pk, v.mat[c], false) == 0) &&
                                             (t == 0 || eulerChange(labels, pi, pj, pk, t, true) == 0);
                     const bool better =
@@ -625,14 +835,14 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                             if (from != 0 && isBorder(yi, yj, yk)) continue;
                             const std::size_t y = g.index(yi, yj, yk);
                             if (labels.material[y] != t || flips[y] >= kMaxFlipsPerPoint) continue;
-                            if (!simpleFlip(labels, ids, yi, yj, yk, t, from)) continue;
+                            if (!simpleFlip(labels, ids, yi, yj, yk, t, from, marchingCubes)) continue;
                             const std::int32_t keepId = ids.id[y];
                             const std::size_t keepParents = ids.parent.size();
                             flipPoint(labels, ids, y, from);
                             const BlockView w = block(labels, i, j, k);
                             auto trial = w.mat;
                             trial[c] = t;
-                            const bool ok = badness(trial) < badNow && simpleFlip(labels, ids, pi, pj, pk, from, t);
+                            const bool ok = badness(trial) < badNow && simpleFlip(labels, ids, pi, pj, pk, from, t, marchingCubes);
                             labels.material[y] = t;  // undo (y's new neighbours were one region: no merge)
                             ids.id[y] = keepId;
                             ids.parent.resize(keepParents);

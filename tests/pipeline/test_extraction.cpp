@@ -20,6 +20,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -471,6 +472,75 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
               << " (with the held-back positions "
               << (vh.defects.count("inverted_hex") ? vh.defects.at("inverted_hex").count : 0) << ")\n";
     expectOnTheIsosurface(c.name, f);
+}
+
+// The repair's preferred flips keep the topology of the surface volumeToMesh
+// draws: octree::flipKeepsPolygonTopology decides from the points around a
+// flip; here every verdict on random labellings (one and two materials, dense
+// in edge and corner contacts, where the 26/6 digital model and marching
+// cubes disagree) is checked against volumeToMesh of the whole grid before
+// and after the flip. A flip it accepts changes neither the components nor
+// the Euler characteristic of either material's surface, and the Euler
+// change it reports is the polygonisation's.
+TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
+    octree::CellEdgeGroups table;
+    for (int p = 0; p < 256; ++p) {
+        for (int e = 0; e < 13; ++e) table.edgeGroups[p][e] = openvdb::tools::volume_to_mesh_internal::sEdgeGroupTable[p][e];
+        table.ambiguousFace[p] = openvdb::tools::volume_to_mesh_internal::sAmbiguousFace[p];
+    }
+    auto surface = [](const octree::Labels& l, std::int32_t m) {
+        auto grid = openvdb::FloatGrid::create(1.0f);
+        auto acc = grid->getAccessor();
+        const auto [nx, ny, nz] = l.grid.dims;
+        for (int k = 0; k < nz; ++k)
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i)
+                    if (l.material[l.grid.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
+        return vdbTopology(*grid);
+    };
+    std::mt19937 rng(20261123);
+    std::size_t kept = 0, changed = 0;
+    for (int materials : {1, 2})
+        for (int trial = 0; trial < 150; ++trial) {
+            octree::Labels l;
+            l.grid.dims = {11, 11, 11};
+            l.grid.origin = {0, 0, 0};
+            l.grid.axes = {{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
+            l.material.assign(l.grid.size(), 0);
+            std::uniform_real_distribution<double> u(0, 1);
+            const double density = 0.3 + 0.4 * u(rng);
+            for (int k = 1; k < 10; ++k)
+                for (int j = 1; j < 10; ++j)
+                    for (int i = 1; i < 10; ++i)
+                        if (u(rng) < density)
+                            l.material[l.grid.index(i, j, k)] = materials == 1 ? 1 : 1 + static_cast<int>(u(rng) * 2);
+            std::uniform_int_distribution<int> inner(3, 7);  // the whole 9^3 window inside the grid
+            for (int flip = 0; flip < 10; ++flip) {
+                const int i = inner(rng), j = inner(rng), k = inner(rng);
+                const std::int32_t from = l.material[l.grid.index(i, j, k)];
+                std::int32_t to = static_cast<std::int32_t>(u(rng) * (materials + 1));
+                if (to == from) to = (to + 1) % (materials + 1);
+                long long dchi = 0;
+                const bool keeps = octree::flipKeepsPolygonTopology(l, i, j, k, to, table, &dchi);
+                std::map<std::int32_t, SurfaceTopology> before, after;
+                for (std::int32_t m : {from, to})
+                    if (m != 0) before[m] = surface(l, m);
+                l.material[l.grid.index(i, j, k)] = to;
+                long long actual = 0;
+                bool same = true;
+                for (auto& [m, t] : before) {
+                    after[m] = surface(l, m);
+                    actual += after[m].euler - t.euler;
+                    same = same && after[m].components == t.components && after[m].euler == t.euler;
+                }
+                EXPECT_EQ(dchi, actual) << "trial " << trial << " point " << i << "," << j << "," << k;
+                if (keeps) EXPECT_TRUE(same) << "trial " << trial << " point " << i << "," << j << "," << k;
+                (same ? kept : changed) += 1;
+            }
+        }
+    // the random labellings exercise both verdicts
+    EXPECT_GT(kept, 100u);
+    EXPECT_GT(changed, 100u);
 }
 
 // Label maps: each label's surface is the 0.5 level of its trilinear

@@ -3,6 +3,7 @@
 // dual contouring): label the grid points, make the labelled regions 2-manifold,
 // then one hex per labelled grid point whose corners are the dual vertices of
 // the 8 grid cells around it (QEF minimisers where the surface crosses a cell).
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -54,8 +55,41 @@ std::size_t countNonManifoldBlocks(const Labels& labels);
 // apart, e.g. the components of OpenVDB's volumeToMesh surface; points of one
 // material with different ids stay apart even where they touch along an edge
 // or at a corner. Without it, each material's 26-connected components.
+// The cell tables of a marching-cubes polygoniser. edgeGroups: for each of
+// the 256 sign patterns of a cell (bit v set when corner v is inside; corners
+// numbered (0,0,0) (1,0,0) (1,0,1) (0,0,1) (0,1,0) (1,1,0) (1,1,1) (0,1,1)),
+// entry 0 the number of surface vertices in the cell and entry e (1..12) the
+// vertex (1-based, 0 when the edge is not crossed) on cell edge e, edges 0-1
+// 1-2 3-2 0-3 4-5 5-6 7-6 4-7 0-4 1-5 2-6 3-7. ambiguousFace: 0, or the face
+// (1..6: -z +x +z -x -y +y) of an ambiguous pattern; a cell whose neighbour
+// across that face has the opposite face ambiguous (1-3, 2-4, 5-6) takes
+// the vertices of its inverted pattern. OpenVDB's volumeToMesh has both
+// (volume_to_mesh_internal::sEdgeGroupTable, sAmbiguousFace); the pipeline
+// passes them in.
+struct CellEdgeGroups {
+    std::array<std::array<std::uint8_t, 13>, 256> edgeGroups{};
+    std::array<std::uint8_t, 256> ambiguousFace{};
+};
+
+// Whether grid point (i, j, k) taking material `to` keeps the components
+// and Euler characteristic of the polygoniser's surface of its material and
+// of `to` (each material's points inside, all others outside), decided from
+// the 9x9x9 points around it (the repair's preferred flips). *eulerChange,
+// if given: the exact change of the sum of the two surfaces' Euler
+// characteristics.
+bool flipKeepsPolygonTopology(const Labels& labels, int i, int j, int k, std::int32_t to,
+                              const CellEdgeGroups& table, long long* eulerChange = nullptr);
+
+// `marchingCubes` (optional): the polygoniser's tables; with them a flip
+// counts as topology-keeping only when flipKeepsPolygonTopology says so (the
+// 26/6 digital model above is only close to marching cubes: on ch2bet at
+// 2 mm about a thousand of its "simple" flips change volumeToMesh's surface,
+// with changes that happen to cancel). Not used by the pipeline yet: with it
+// the ~15 contacts of ch2bet at 2 mm that no single flip or pocket move can
+// mend exactly no longer cancel (see docs/DESIGN.md).
 RepairReport repairNonManifold(Labels& labels, const Domain& domain,
-                               const std::vector<std::int32_t>* regions = nullptr);
+                               const std::vector<std::int32_t>* regions = nullptr,
+                               const CellEdgeGroups* marchingCubes = nullptr);
 
 // Topology of each material region's boundary: connected components and
 // Euler characteristic (a closed surface of genus g per component has chi = 2 - 2g).
