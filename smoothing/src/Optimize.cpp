@@ -1,4 +1,5 @@
 #include "isohex/smoothing/Optimize.hpp"
+#include "isohex/core/VecMath.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -166,6 +167,13 @@ private:
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
     std::vector<std::uint8_t> everMoved_;
+    // Where each node started and the mean length of its edges there: no
+    // untangling move takes a node farther than untangleMaxTravel of those
+    // lengths from its start. Knupp's target (beta ~ L^3) grows with the
+    // edges a node stretches, so without a bound a node could chase it across
+    // the mesh (ch2bet 2 mm: surface nodes 80 mm from where they started).
+    std::vector<double> refLength_;
+    std::vector<Vec3> start_;
     std::vector<std::uint8_t> touched_;  // moved by untangling since the last mean-ratio phase
     bool guarded_ = true;  // untangling moves may not invert a valid corner
     bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
@@ -304,7 +312,23 @@ void Smoother::setUp() {
     buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
         [n = maxTerms_] { return std::vector<CornerTerm>(n); });
     everMoved_.assign(N, 0);
+    {
+        std::vector<double> sum(N, 0.0);
+        std::vector<int> count(N, 0);
+        for (const auto& e : topo_.edges) {
+            const auto a = static_cast<std::size_t>(e[0]), b = static_cast<std::size_t>(e[1]);
+            const double l = vec::norm(vec::operator-(mesh_.nodes[a], mesh_.nodes[b]));
+            sum[a] += l;
+            sum[b] += l;
+            ++count[a];
+            ++count[b];
+        }
+        refLength_.resize(N);
+        for (std::size_t v = 0; v < N; ++v)
+            refLength_[v] = count[v] ? sum[v] / count[v] : std::numeric_limits<double>::infinity();
+    }
     touched_.assign(N, 0);
+    start_ = mesh_.nodes;
 }
 
 Smoother::Visit Smoother::interiorStep(Index v, std::vector<CornerTerm>& buf) const {
@@ -632,9 +656,22 @@ void Smoother::untanglePhase() {
                     if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[sv]) break;
                 }
                 if (t < 1.0 / 64) return;
-                released_[sv] = 1;
             }
             if (r.move.steps > 0) {
+                const double cap = opt_.untangleMaxTravel * refLength_[sv];
+                auto far = [&](const Vec3& p) {
+                    const double dx = p[0] - start_[sv][0], dy = p[1] - start_[sv][1], dz = p[2] - start_[sv][2];
+                    return dx * dx + dy * dy + dz * dz > cap * cap;
+                };
+                if (far(to)) {
+                    if (onSurface && !releaseSurface_) return;
+                    const Vec3& x = mesh_.nodes[sv];
+                    const Vector3 d(to[0] - x[0], to[1] - x[1], to[2] - x[2]);
+                    double t = 0.5;
+                    for (int k = 0; k < 6 && far(to = displaced(x, t * d)); ++k) t *= 0.5;
+                    if (far(to)) return;
+                }
+                if (onSurface && releaseSurface_) released_[sv] = 1;
                 mesh_.nodes[sv] = to;
                 everMoved_[sv] = 1;
                 touched_[sv] = 1;

@@ -101,6 +101,29 @@ class SmoothingOnRealInputs(unittest.TestCase):
             if name != "jhu":  # labels: volume against the union isosurface, see tests/pipeline
                 self.assertLess(abs(r1["fidelity"]["volume_change_percent"]), 2.0, name)
 
+    def test_untangling_keeps_nodes_near_where_they_started(self):
+        # ch2bet at 2 mm has thousands of hexes inverted when the sheet goes
+        # in. Untangling once sized its target determinant by the current edge
+        # lengths, so a node that stretched its hexes raised its own target
+        # and kept going: surface nodes ended 80 mm away, in hexes with
+        # 100 mm edges, yet the report saw only their scaled Jacobian.
+        size = 2.0
+        out, rep = self.mesh("brain_2mm", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
+                             "--size", str(size), "--keep-largest")
+        grid = read_vtu(out)
+        pts = ns.vtk_to_numpy(grid.GetPoints().GetData())
+        hexes = ns.vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 8)
+        longest = np.zeros(len(hexes))
+        for a, b in [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
+                     (0, 4), (1, 5), (2, 6), (3, 7)]:
+            longest = np.maximum(longest, np.linalg.norm(pts[hexes[:, a]] - pts[hexes[:, b]], axis=1))
+        print(f"brain 2 mm: longest hex edge {longest.max():.2f} mm, "
+              f"{rep['optimization']['inverted_before']} inverted before untangling, "
+              f"{rep['optimization']['inverted_after']} after")
+        self.assertGreater(rep["optimization"]["inverted_before"], 1000)  # the case this test is about
+        self.assertLess(longest.max(), 4 * size)
+        self.assertLess(rep["optimization"]["inverted_after"], 1e-4 * len(hexes))
+
     def test_output_is_identical_for_one_and_two_threads(self):
         # The skull exercises every stage: untangling rounds, the release of
         # surface nodes and the mean-ratio sweeps.

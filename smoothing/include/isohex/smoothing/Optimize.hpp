@@ -54,6 +54,12 @@ struct SmoothingOptions {
     // shortened until none does). Without this guard Knupp's measure can trade
     // one deep inversion for several shallow ones.
     bool untangleKeepsValidCorners = true;
+    // No untangling move takes a node farther than this many of its starting
+    // mean edge lengths from where it started (a longer move is shortened by
+    // halves, a surface node's is refused). Without it a node could chase
+    // Knupp's target, which grows with the edges it stretches, across the
+    // mesh: ch2bet at 2 mm had pillow hexes with 84 mm edges.
+    double untangleMaxTravel = 2.0;
     // Untangle / mean-ratio rounds: while hexes stay inverted after a round
     // and the last round removed some, untangle again around them.
     int untangleRounds = 4;
