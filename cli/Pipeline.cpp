@@ -591,6 +591,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     }
     sink.progress(0.5);
     const std::vector<std::int32_t> regions = marchingCubesRegions(p.labels);
+    const auto repairStart = std::chrono::steady_clock::now();
     octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain, &regions);
     // Repair can cut a thin bridge; keep the largest region again and re-check.
     if (settings.keepLargest && octree::keepLargestComponents(p.labels) > 0) {
@@ -599,6 +600,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         rep.pointsRemoved += again.pointsRemoved;
         rep.rounds += again.rounds;
     }
+    const double repairSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - repairStart).count();
     {
         auto repaired = std::make_shared<octree::RepairedDomain>(*domain, sampled, p.labels);
         grid["repaired_field_points"] = repaired->changedPoints();
@@ -612,7 +614,8 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     grid["repair"] = {{"nonmanifold_blocks_before", rep.nonManifoldBefore},
                       {"points_added", rep.pointsAdded},
                       {"points_removed", rep.pointsRemoved},
-                      {"rounds", rep.rounds}};
+                      {"rounds", rep.rounds},
+                      {"seconds", repairSeconds}};
     for (const auto& t : topo)
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});

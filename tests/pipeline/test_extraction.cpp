@@ -620,6 +620,58 @@ TEST(Ch2bet, KeepLargestIsManifoldAndValidAtTwoAndOneMillimetre) {
     }
 }
 
+// ch2bet against volumeToMesh of the scan's own field (not the repaired one)
+// at the extraction grid's points, with and without --keep-largest (then the
+// field outside the kept points is taken as outside). The repair does not
+// match it exactly yet (issue 4; see docs/DESIGN.md, "Topology against
+// OpenVDB"): the test holds the gap to what the repair reaches now, so a
+// change that widens it fails. The boundary's topology is that of the
+// repaired labels (regionTopology; the tests above check the mesh against it).
+TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
+    struct Bound {
+        double size;
+        bool keepLargest;
+        long long components, euler;  // largest |ours - volumeToMesh| allowed
+    };
+    // measured: 2 mm 323/542 against 324/544, with --keep-largest 297/492
+    // against 299/494; 1 mm 591/848 against 594/878, with --keep-largest
+    // 483/632 against 491/674 (components/chi)
+    for (const Bound& b : {Bound{2.0, false, 1, 2}, Bound{2.0, true, 2, 2}, Bound{1.0, false, 3, 30},
+                           Bound{1.0, true, 8, 42}}) {
+        const std::string name = "ch2bet_" + std::string(b.keepLargest ? "keep_largest_" : "") +
+                                 std::to_string(static_cast<int>(b.size)) + "mm";
+        cli::MeshSettings s = intensity(std::nullopt, b.size, b.keepLargest);
+        QuietSink sink;
+        const cli::Prepared p = cli::prepare(sharedData() + "/ch2bet.nii.gz", s, sink);
+        EXPECT_EQ(octree::countNonManifoldBlocks(p.labels), 0u) << name;
+        const auto topo = octree::regionTopology(p.labels);
+        ASSERT_EQ(topo.size(), 1u) << name;
+        const octree::Grid& g = p.labels.grid;
+        octree::Labels kept = octree::sampleLabels(*p.domain, g);
+        if (b.keepLargest) octree::keepLargestComponents(kept);
+        const auto& field = p.selection->materials.at(0).field;
+        auto grid = sampleOnGrid(g, [&](const Vec3& x) { return field.value(x); });
+        {
+            // points --keep-largest dropped are outside
+            auto acc = grid->getAccessor();
+            const auto [nx, ny, nz] = g.dims;
+            for (int k = 0; k < nz; ++k)
+                for (int j = 0; j < ny; ++j)
+                    for (int i = 0; i < nx; ++i)
+                        if (kept.material[g.index(i, j, k)] == 0 && acc.getValue(openvdb::Coord(i, j, k)) < 0)
+                            acc.setValue(openvdb::Coord(i, j, k), 1e-3f);
+        }
+        const SurfaceTopology vdb = vdbTopology(*grid);
+        const long long dc = static_cast<long long>(topo[0].components) - static_cast<long long>(vdb.components);
+        const long long de = topo[0].euler - vdb.euler;
+        std::cout << "[figures] " << name << " repaired labels " << topo[0].components << " components, chi "
+                  << topo[0].euler << "; volumeToMesh of the scan's field " << vdb.components << ", chi " << vdb.euler
+                  << "\n";
+        EXPECT_LE(std::abs(dc), b.components) << name;
+        EXPECT_LE(std::abs(de), b.euler) << name;
+    }
+}
+
 // The extraction of a real scan is the same for any thread count (the field is
 // sampled through per-thread accessors, the repair and the classification run
 // in a fixed order).
