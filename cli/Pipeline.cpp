@@ -19,6 +19,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
@@ -377,15 +378,9 @@ std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
     const octree::Grid& g = l.grid;
     const auto [nx, ny, nz] = g.dims;
     const std::size_t n = l.material.size();
-    std::vector<std::int32_t> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](std::int32_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    DisjointSets<std::int32_t> parts(n);
     auto unite = [&](std::size_t a, std::size_t b) {
-        const std::int32_t ra = find(static_cast<std::int32_t>(a)), rb = find(static_cast<std::int32_t>(b));
-        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+        parts.unite(static_cast<std::int32_t>(a), static_cast<std::int32_t>(b));
     };
     std::map<std::int32_t, openvdb::CoordBBox> boxes;
     for (int k = 0; k < nz; ++k)
@@ -412,21 +407,11 @@ std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
         std::vector<openvdb::Vec4I> quads;
         openvdb::tools::volumeToMesh(*grid, pts, tris, quads, 0.0);
         // surface components over the polygons' vertices
-        std::vector<std::uint32_t> sp(pts.size());
-        std::iota(sp.begin(), sp.end(), 0u);
-        auto sfind = [&](std::uint32_t a) {
-            while (sp[a] != a) a = sp[a] = sp[sp[a]];
-            return a;
-        };
-        auto sunite = [&](std::uint32_t a, std::uint32_t b) {
-            a = sfind(a);
-            b = sfind(b);
-            if (a != b) sp[std::max(a, b)] = std::min(a, b);
-        };
+        DisjointSets<std::uint32_t> surface(pts.size());
         for (const auto& q : quads)
-            for (int e = 0; e < 4; ++e) sunite(q[e], q[(e + 1) % 4]);
+            for (int e = 0; e < 4; ++e) surface.unite(q[e], q[(e + 1) % 4]);
         for (const auto& t : tris)
-            for (int e = 0; e < 3; ++e) sunite(t[e], t[(e + 1) % 3]);
+            for (int e = 0; e < 3; ++e) surface.unite(t[e], t[(e + 1) % 3]);
         std::vector<std::int64_t> inner(pts.size(), -1);  // per surface component: a point on its inner side
         for (const auto& q : quads) {
             // the 4 vertices lie in the 4 cells around the crossed edge: equal
@@ -447,14 +432,14 @@ std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
             const std::size_t a = g.index(s[0], s[1], s[2]), b = g.index(t[0], t[1], t[2]);
             if ((l.material[a] == m) == (l.material[b] == m)) continue;
             const std::size_t in = l.material[a] == m ? a : b;
-            const std::uint32_t comp = sfind(q[0]);
+            const std::uint32_t comp = surface.find(q[0]);
             if (inner[comp] < 0) inner[comp] = static_cast<std::int64_t>(in);
             else unite(in, static_cast<std::size_t>(inner[comp]));
         }
     }
     std::vector<std::int32_t> id(n, -1);
     for (std::size_t p = 0; p < n; ++p)
-        if (l.material[p] != 0) id[p] = find(static_cast<std::int32_t>(p));
+        if (l.material[p] != 0) id[p] = parts.find(static_cast<std::int32_t>(p));
     return id;
 }
 

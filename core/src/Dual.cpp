@@ -3,13 +3,14 @@
 #include <algorithm>
 
 #include "Parallel.hpp"
+#include "isohex/core/DisjointSets.hpp"
 
 namespace isohex {
 
 namespace {
 
-// Numbers the classes of a union-find by their smallest member, in order.
-std::vector<Index> numberClasses(detail::MinUnionFind& uf, std::size_t n, std::size_t& classes) {
+// Numbers the classes of a union-find by their smallest member (the root), in order.
+std::vector<Index> numberClasses(DisjointSets<Index>& uf, std::size_t n, std::size_t& classes) {
     std::vector<Index> cls(n, kNone);
     Index next = 0;
     for (std::size_t i = 0; i < n; ++i) {
@@ -45,7 +46,7 @@ Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t
 
 DualSheets buildSheets(const HexMesh& mesh, const Topology& topo) {
     const std::size_t H = mesh.hexes.size();
-    detail::MinUnionFind uf(topo.edges.size());
+    DisjointSets<Index> uf(topo.edges.size());
     for (std::size_t h = 0; h < H; ++h)
         for (int d = 0; d < 3; ++d)
             for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
@@ -62,7 +63,7 @@ DualSheets buildSheets(const HexMesh& mesh, const Topology& topo) {
 
 DualChords buildChords(const HexMesh& mesh, const Topology& topo) {
     const std::size_t H = mesh.hexes.size();
-    detail::MinUnionFind uf(topo.quads.size());
+    DisjointSets<Index> uf(topo.quads.size());
     for (std::size_t h = 0; h < H; ++h)
         for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
     DualChords c;

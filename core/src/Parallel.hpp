@@ -41,30 +41,4 @@ Csr bucketItems(std::size_t buckets, std::size_t items, BucketOf bucketOf) {
     return c;
 }
 
-// Union-find whose representative is always the smallest member, so class
-// numbering by representative is deterministic.
-class MinUnionFind {
-public:
-    explicit MinUnionFind(std::size_t n) : parent_(n) {
-        for (std::size_t i = 0; i < n; ++i) parent_[i] = static_cast<Index>(i);
-    }
-    Index find(Index a) {
-        while (parent_[a] != a) {
-            parent_[a] = parent_[parent_[a]];
-            a = parent_[a];
-        }
-        return a;
-    }
-    void unite(Index a, Index b) {
-        a = find(a);
-        b = find(b);
-        if (a == b) return;
-        if (a < b) parent_[b] = a;
-        else parent_[a] = b;
-    }
-
-private:
-    std::vector<Index> parent_;
-};
-
 }  // namespace isohex::detail

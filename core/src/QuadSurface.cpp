@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "Parallel.hpp"
+#include "isohex/core/DisjointSets.hpp"
 
 namespace isohex {
 
@@ -24,15 +25,14 @@ ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowO
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodeCount, 256), [&](const auto& r) {
         // (neighbour node, local quad slot) pairs and a tiny union-find over the quads at v
         std::vector<std::pair<Index, Index>> spokes;
-        std::vector<Index> parent;
+        DisjointSets<Index> fans;
         auto& bad = badEdgesLocal.local();
         for (std::size_t v = r.begin(); v != r.end(); ++v) {
             const std::size_t n = static_cast<std::size_t>(rowOffsets[v + 1] - rowOffsets[v]);
             if (n == 0) continue;
             spokes.clear();
-            parent.resize(n);
+            fans.reset(n);
             for (std::size_t s = 0; s < n; ++s) {
-                parent[s] = static_cast<Index>(s);
                 const Index item = rowItems[rowOffsets[v] + static_cast<Index>(s)];
                 const auto& q = quads[item / 4];
                 const int c = item % 4;
@@ -40,10 +40,6 @@ ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowO
                 spokes.emplace_back(q[(c + 3) % 4], static_cast<Index>(s));
             }
             std::sort(spokes.begin(), spokes.end());
-            auto find = [&](Index a) {
-                while (parent[a] != a) a = parent[a] = parent[parent[a]];
-                return a;
-            };
             for (std::size_t i = 0; i < spokes.size();) {
                 std::size_t j = i;
                 while (j < spokes.size() && spokes[j].first == spokes[i].first) ++j;
@@ -52,15 +48,11 @@ ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowO
                 if (uses > 2 || (closed && uses == 1)) {
                     if (static_cast<Index>(v) < w) bad.push_back({static_cast<Index>(v), w});
                 } else if (uses == 2) {
-                    const Index a = find(spokes[i].second), b = find(spokes[i + 1].second);
-                    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                    fans.unite(spokes[i].second, spokes[i + 1].second);
                 }
                 i = j;
             }
-            std::size_t components = 0;
-            for (std::size_t s = 0; s < n; ++s)
-                if (find(static_cast<Index>(s)) == static_cast<Index>(s)) ++components;
-            if (components > 1) nodeBad[v] = 1;
+            if (fans.countSets() > 1) nodeBad[v] = 1;
         }
     });
     ManifoldCheck out;

@@ -11,6 +11,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "Parallel.hpp"
+#include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
@@ -249,12 +250,8 @@ SurfaceAcc checkSurfaceFans(const HexMesh& mesh, const Topology& topo, const Sur
     return reduceOver<SurfaceAcc>(mesh.nodes.size(), 1024, [&](const auto& r, SurfaceAcc& acc) {
         std::vector<Index> row;                  // distinct surface quads at the node
         std::vector<std::pair<Index, int>> nb;   // (other end of an edge through v, position in row)
-        std::vector<int> parent;
+        DisjointSets<int> fanSets;               // the quads of one surface at the node, joined into fans
         std::vector<Index> badEdges;             // other ends of flagged edges (v < w)
-        auto find = [&](int a) {
-            while (parent[a] != a) a = parent[a] = parent[parent[a]];
-            return a;
-        };
         // Does a quad of another surface than `surf` in `row` have edge (v, w)?
         auto otherSurfaceHas = [&](Index v, Index w, Index surf) {
             for (Index sq : row) {
@@ -290,24 +287,20 @@ SurfaceAcc checkSurfaceFans(const HexMesh& mesh, const Topology& topo, const Sur
                 }
                 std::sort(nb.begin(), nb.end());
                 nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
-                parent.resize(e - g);
-                for (std::size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int>(i);
+                fanSets.reset(e - g);
                 for (std::size_t a = 0; a < nb.size();) {
                     std::size_t b = a;
                     while (b < nb.size() && nb[b].first == nb[a].first) ++b;
                     const std::size_t quadsOnEdge = b - a;
                     // Only an edge with exactly two quads of this surface joins
                     // two quads into one fan.
-                    if (quadsOnEdge == 2) parent[find(nb[a].second)] = find(nb[a + 1].second);
+                    if (quadsOnEdge == 2) fanSets.unite(nb[a].second, nb[a + 1].second);
                     const Index w = nb[a].first;
                     if (v < w && (quadsOnEdge >= 3 || (quadsOnEdge == 1 && !otherSurfaceHas(v, w, surf))))
                         badEdges.push_back(w);
                     a = b;
                 }
-                int fans = 0;
-                for (std::size_t i = 0; i < parent.size(); ++i)
-                    if (find(static_cast<int>(i)) == static_cast<int>(i)) ++fans;
-                if (fans > 1) pinched = true;
+                if (fanSets.countSets() > 1) pinched = true;
                 g = e;
             }
             if (pinched) acc.nodes.add(v);

@@ -11,6 +11,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/octree/DualContour.hpp"
 
@@ -141,24 +142,16 @@ int badPairs(const std::array<std::int32_t, 8>& mat) {
                 if ((p == a && q == b) || (p == b && q == a)) faces |= 1u << e;
             }
             if (faces == 0) continue;
-            int parent[12];
-            for (int e = 0; e < 12; ++e) parent[e] = e;
-            auto find = [&](int e) {
-                while (parent[e] != e) e = parent[e] = parent[parent[e]];
-                return e;
-            };
+            FixedDisjointSets<int, 12> sets;
             for (const auto& sq : squares) {
                 int in[4], n = 0;
                 for (int e : sq)
                     if (faces >> e & 1) in[n++] = e;
-                if (n == 2) {
-                    const int ra = find(in[0]), rb = find(in[1]);
-                    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
-                }
+                if (n == 2) sets.unite(in[0], in[1]);
             }
             int components = 0;
             for (int e = 0; e < 12; ++e)
-                if ((faces >> e & 1) && find(e) == e) ++components;
+                if ((faces >> e & 1) && sets.isRoot(e)) ++components;
             bad += components > 1;
         }
     return bad;
@@ -407,12 +400,8 @@ void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& 
         const int x = c % 6, y = c / 6 % 6, z = c / 36;
         return x >= 1 && x <= 4 && y >= 1 && y <= 4 && z >= 1 && z <= 4;
     };
-    std::array<std::int16_t, 864> parent;
-    for (int v = 0; v < 864; ++v) parent[v] = static_cast<std::int16_t>(v);
-    auto find = [&](int a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    FixedDisjointSets<std::int16_t, 864> sets;
+    auto find = [&](int a) -> int { return sets.find(static_cast<std::int16_t>(a)); };
     long long v = 0, f = 0;
     for (int c = 0; c < 216; ++c)
         if (inR(c)) v += g[signs[c]][0];
@@ -439,8 +428,7 @@ void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& 
                     }
                     for (int n = 0; n < 4; ++n) {
                         const int p = vert[n], q = vert[(n + 1) % 4];
-                        const int rp = find(p), rq = find(q);
-                        if (rp != rq) parent[std::max(rp, rq)] = static_cast<std::int16_t>(std::min(rp, rq));
+                        sets.unite(static_cast<std::int16_t>(p), static_cast<std::int16_t>(q));
                         if (inR(cellOf[n]) || inR(cellOf[(n + 1) % 4]))
                             edges[ne++] = static_cast<std::uint32_t>(std::min(p, q)) << 16 |
                                           static_cast<std::uint32_t>(std::max(p, q));
@@ -498,17 +486,10 @@ bool mcKeeps(const Labels& l, int i, int j, int k, std::int32_t m, const CellEdg
 // Region ids of the repair (see repairNonManifold): union-find over ids, so a
 // flip that has to join two regions merges their ids.
 struct RegionIds {
-    std::vector<std::int32_t> id;      // per grid point (meaningful for material points)
-    std::vector<std::int32_t> parent;  // per id
-    std::int32_t find(std::int32_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    }
-    std::int32_t of(std::size_t p) { return find(id[p]); }
-    std::int32_t fresh() {
-        parent.push_back(static_cast<std::int32_t>(parent.size()));
-        return parent.back();
-    }
+    std::vector<std::int32_t> id;        // per grid point (meaningful for material points)
+    DisjointSets<std::int32_t> regions;  // over the ids (root: the smallest id of the merged ones)
+    std::int32_t of(std::size_t p) { return regions.find(id[p]); }
+    std::int32_t fresh() { return regions.add(); }
 };
 
 // Whether point (i, j, k) may leave material `from` and join `to` without
@@ -590,10 +571,8 @@ void flipPoint(Labels& l, RegionIds& r, std::size_t p, std::int32_t to) {
         if (l.material[o] != to) continue;
         const std::int32_t ro = r.of(o);
         if (region < 0) region = ro;
-        else if (ro != region) {
-            r.parent[std::max(ro, region)] = std::min(ro, region);
-            region = std::min(ro, region);
-        }
+        else if (ro != region)
+            region = r.regions.unite(ro, region);
     }
     r.id[p] = region >= 0 ? region : r.fresh();
 }
@@ -619,15 +598,10 @@ std::size_t countNonManifoldBlocks(const Labels& labels) { return badBlocks(labe
 std::size_t keepLargestComponents(Labels& labels) {
     const auto [nx, ny, nz] = labels.grid.dims;
     const std::size_t n = labels.material.size();
-    std::vector<std::uint32_t> parent(n);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto find = [&](std::uint32_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    DisjointSets<std::uint32_t> sets(n);
+    auto find = [&](std::size_t a) { return sets.find(static_cast<std::uint32_t>(a)); };
     auto unite = [&](std::size_t a, std::size_t b) {
-        const std::uint32_t ra = find(static_cast<std::uint32_t>(a)), rb = find(static_cast<std::uint32_t>(b));
-        if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+        sets.unite(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
     };
     const Grid& g = labels.grid;
     for (int k = 0; k < nz; ++k)
@@ -643,18 +617,18 @@ std::size_t keepLargestComponents(Labels& labels) {
     // size of each component, then the largest root per material (ties: smallest root)
     std::vector<std::uint32_t> size(n, 0);
     for (std::size_t p = 0; p < n; ++p)
-        if (labels.material[p] != 0) ++size[find(static_cast<std::uint32_t>(p))];
+        if (labels.material[p] != 0) ++size[find(p)];
     std::map<std::int32_t, std::uint32_t> best;
     for (std::size_t p = 0; p < n; ++p) {
         const std::int32_t m = labels.material[p];
-        if (m == 0 || parent[p] != p) continue;
+        if (m == 0 || !sets.isRoot(static_cast<std::uint32_t>(p))) continue;
         auto it = best.find(m);
         if (it == best.end() || size[p] > size[it->second]) best[m] = static_cast<std::uint32_t>(p);
     }
     std::size_t removed = 0;
     for (std::size_t p = 0; p < n; ++p) {
         const std::int32_t m = labels.material[p];
-        if (m != 0 && find(static_cast<std::uint32_t>(p)) != best[m]) {
+        if (m != 0 && find(p) != best[m]) {
             labels.material[p] = 0;
             ++removed;
         }
@@ -678,18 +652,12 @@ RegionIds initialRegions(const Labels& labels, const std::vector<std::int32_t>* 
                 auto [it, fresh] = dense.emplace((*given)[p], static_cast<std::int32_t>(dense.size()));
                 r.id[p] = it->second;
             }
-        r.parent.resize(dense.size());
-        std::iota(r.parent.begin(), r.parent.end(), 0);
+        r.regions.reset(dense.size());
         return r;
     }
     const Grid& g = labels.grid;
     const auto [nx, ny, nz] = g.dims;
-    std::vector<std::int32_t> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](std::int32_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    DisjointSets<std::int32_t> sets(n);
     for (int k = 0; k < nz; ++k)
         for (int j = 0; j < ny; ++j)
             for (int i = 0; i < nx; ++i) {
@@ -702,18 +670,16 @@ RegionIds initialRegions(const Labels& labels, const std::vector<std::int32_t>* 
                     if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
                     const std::size_t o = g.index(x, y, z);
                     if (labels.material[o] != m) continue;
-                    const std::int32_t a = find(static_cast<std::int32_t>(p)), b = find(static_cast<std::int32_t>(o));
-                    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+                    sets.unite(static_cast<std::int32_t>(p), static_cast<std::int32_t>(o));
                 }
             }
     std::map<std::int32_t, std::int32_t> dense;
     for (std::size_t p = 0; p < n; ++p)
         if (labels.material[p] != 0) {
-            auto [it, fresh] = dense.emplace(find(static_cast<std::int32_t>(p)), static_cast<std::int32_t>(dense.size()));
+            auto [it, fresh] = dense.emplace(sets.find(static_cast<std::int32_t>(p)), static_cast<std::int32_t>(dense.size()));
             r.id[p] = it->second;
         }
-    r.parent.resize(dense.size());
-    std::iota(r.parent.begin(), r.parent.end(), 0);
+    r.regions.reset(dense.size());
     return r;
 }
 
@@ -841,7 +807,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                             if (labels.material[y] != t || flips[y] >= kMaxFlipsPerPoint) continue;
                             if (!simpleFlip(labels, ids, yi, yj, yk, t, from, marchingCubes)) continue;
                             const std::int32_t keepId = ids.id[y];
-                            const std::size_t keepParents = ids.parent.size();
+                            const std::size_t keepRegions = ids.regions.size();
                             flipPoint(labels, ids, y, from);
                             const BlockView w = block(labels, i, j, k);
                             auto trial = w.mat;
@@ -849,7 +815,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                             const bool ok = badness(trial) < badNow && simpleFlip(labels, ids, pi, pj, pk, from, t, marchingCubes);
                             labels.material[y] = t;  // undo (y's new neighbours were one region: no merge)
                             ids.id[y] = keepId;
-                            ids.parent.resize(keepParents);
+                            ids.regions.truncate(keepRegions);
                             if (!ok) continue;
                             const double cost = std::abs(domain.value(t != 0 ? t : from, g.point(pi, pj, pk))) +
                                                 std::abs(domain.value(from != 0 ? from : t, g.point(yi, yj, yk)));
@@ -989,12 +955,7 @@ std::vector<RegionTopology> regionTopology(const Labels& l) {
         mixed.insert(mixed.end(), acc.mixed.begin(), acc.mixed.end());
     }
     std::sort(mixed.begin(), mixed.end());
-    std::vector<std::size_t> parent(mixed.size());
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](std::size_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
-    };
+    DisjointSets<std::size_t> sets(mixed.size());
     for (std::size_t n = 0; n < mixed.size(); ++n) {
         const auto [m, b] = mixed[n];
         const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
@@ -1013,12 +974,11 @@ std::vector<RegionTopology> regionTopology(const Labels& l) {
             const auto it = std::lower_bound(mixed.begin(), mixed.end(), std::make_pair(m, l.grid.index(ni, nj, nk)));
             if (it == mixed.end() || it->first != m) continue;
             const std::size_t other = static_cast<std::size_t>(it - mixed.begin());
-            const std::size_t ra = find(n), rb = find(other);
-            if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+            sets.unite(n, other);
         }
     }
     for (std::size_t n = 0; n < mixed.size(); ++n)
-        if (find(n) == n) ++out[mixed[n].first].components;
+        if (sets.isRoot(n)) ++out[mixed[n].first].components;
     std::vector<RegionTopology> v;
     for (auto& [m, t] : out) v.push_back(t);
     return v;

@@ -31,6 +31,7 @@
 #include <tbb/parallel_for.h>
 
 #include "Pipeline.hpp"
+#include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/Validate.hpp"
@@ -85,15 +86,11 @@ struct SurfaceTopology {
 template <class Polygons>
 SurfaceTopology polygonTopology(const Polygons& polys) {
     std::map<std::size_t, std::size_t> vid;  // compact vertex ids
-    std::vector<std::size_t> parent;
+    DisjointSets<std::size_t> sets;
     auto id = [&](std::size_t v) {
-        auto [it, fresh] = vid.emplace(v, parent.size());
-        if (fresh) parent.push_back(parent.size());
+        auto [it, fresh] = vid.emplace(v, sets.size());
+        if (fresh) sets.add();
         return it->second;
-    };
-    auto find = [&](std::size_t a) {
-        while (parent[a] != a) a = parent[a] = parent[parent[a]];
-        return a;
     };
     std::set<std::pair<std::size_t, std::size_t>> edges;
     SurfaceTopology t;
@@ -103,12 +100,11 @@ SurfaceTopology polygonTopology(const Polygons& polys) {
         for (std::size_t i = 0; i < n; ++i) {
             const std::size_t a = id(poly[i]), b = id(poly[(i + 1) % n]);
             edges.emplace(std::min(a, b), std::max(a, b));
-            const std::size_t ra = find(a), rb = find(b);
-            if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+            sets.unite(a, b);
         }
     }
-    for (std::size_t v = 0; v < parent.size(); ++v) t.components += find(v) == v;
-    t.euler = static_cast<long long>(parent.size()) - static_cast<long long>(edges.size()) +
+    t.components = sets.countSets();
+    t.euler = static_cast<long long>(sets.size()) - static_cast<long long>(edges.size()) +
               static_cast<long long>(t.faces);
     return t;
 }
