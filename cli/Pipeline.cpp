@@ -585,6 +585,21 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         rep.pointsRemoved += again.pointsRemoved;
         rep.rounds += again.rounds;
     }
+    // One-cell pits go after the repair (which can open them) and before the
+    // repaired field is built, so their new boundary gets a field too.
+    std::size_t pitsFilled = 0;
+    if (settings.fillPits && settings.method == "dual") {
+        pitsFilled = octree::fillOneCellPits(p.labels);
+        if (pitsFilled > 0) {
+            const octree::RepairReport again = octree::repairNonManifold(p.labels, *domain);
+            rep.pointsAdded += again.pointsAdded;
+            rep.pointsRemoved += again.pointsRemoved;
+            rep.rounds += again.rounds;
+            sink.note("info", "filled " + std::to_string(pitsFilled) +
+                                  " grid points of pits and wells one element wide (--keep-pits keeps them)");
+        }
+    }
+    grid["pits_filled"] = pitsFilled;
     const double repairSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - repairStart).count();
     {
         auto repaired = std::make_shared<octree::RepairedDomain>(*domain, sampled, p.labels);

@@ -994,4 +994,81 @@ std::string describe(const std::vector<RegionTopology>& t) {
     return s.str();
 }
 
+std::size_t fillOneCellPits(Labels& labels) {
+    const auto [nx, ny, nz] = labels.grid.dims;
+    if (nx < 3 || ny < 3 || nz < 3) return 0;
+    auto& mat = labels.material;
+    const std::ptrdiff_t sx = static_cast<std::ptrdiff_t>(labels.grid.index(1, 0, 0) - labels.grid.index(0, 0, 0));
+    const std::ptrdiff_t sy = static_cast<std::ptrdiff_t>(labels.grid.index(0, 1, 0) - labels.grid.index(0, 0, 0));
+    const std::ptrdiff_t sz = static_cast<std::ptrdiff_t>(labels.grid.index(0, 0, 1) - labels.grid.index(0, 0, 0));
+    const std::array<std::ptrdiff_t, 6> step{-sx, sx, -sy, sy, -sz, sz};
+    auto interior = [&](std::size_t q) {
+        const auto i = static_cast<int>(q % static_cast<std::size_t>(nx));
+        const auto j = static_cast<int>(q / static_cast<std::size_t>(nx) % static_cast<std::size_t>(ny));
+        const auto k = static_cast<int>(q / (static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny)));
+        return i > 0 && j > 0 && k > 0 && i + 1 < nx && j + 1 < ny && k + 1 < nz;
+    };
+    // Material a pit would join (0: not a pit); `open` gets the face
+    // neighbour through which it opens.
+    auto pitMaterial = [&](std::size_t q, std::size_t* open) -> std::int32_t {
+        if (mat[q] != 0 || !interior(q)) return 0;
+        std::int32_t m = 0;
+        int count = 0, background = 0;
+        for (int d = 0; d < 6; ++d) {
+            const std::size_t n = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(q) + step[d]);
+            const std::int32_t b = mat[n];
+            if (b == 0) {
+                ++background;
+                if (open) *open = n;
+            } else if (m == 0 || b == m) {
+                m = b;
+                ++count;
+            }
+        }
+        return count == 5 && background == 1 ? m : 0;
+    };
+    std::vector<std::size_t> candidates;
+    {
+        // first pass: the whole grid, slab by slab in parallel, in index order
+        std::vector<std::vector<std::size_t>> perSlab(static_cast<std::size_t>(nz));
+        tbb::parallel_for(tbb::blocked_range<int>(1, nz - 1), [&](const auto& r) {
+            for (int k = r.begin(); k != r.end(); ++k)
+                for (int j = 1; j + 1 < ny; ++j)
+                    for (int i = 1; i + 1 < nx; ++i) {
+                        const std::size_t q = labels.grid.index(i, j, k);
+                        if (mat[q] == 0 && pitMaterial(q, nullptr) != 0) perSlab[static_cast<std::size_t>(k)].push_back(q);
+                    }
+        });
+        for (auto& v : perSlab) candidates.insert(candidates.end(), v.begin(), v.end());
+    }
+    std::size_t filled = 0;
+    std::vector<std::size_t> fill;
+    std::vector<std::int32_t> to;
+    while (!candidates.empty()) {
+        std::sort(candidates.begin(), candidates.end());
+        candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+        fill.clear();
+        to.clear();
+        for (std::size_t q : candidates) {
+            std::size_t open = 0;
+            const std::int32_t m = pitMaterial(q, &open);
+            // two pits opening into each other are a closed two-point cavity
+            if (m != 0 && pitMaterial(open, nullptr) == 0) {
+                fill.push_back(q);
+                to.push_back(m);
+            }
+        }
+        for (std::size_t t = 0; t < fill.size(); ++t) mat[fill[t]] = to[t];
+        filled += fill.size();
+        // only the background neighbours of what was filled can have become pits
+        candidates.clear();
+        for (std::size_t q : fill)
+            for (int d = 0; d < 6; ++d) {
+                const std::size_t n = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(q) + step[d]);
+                if (mat[n] == 0 && pitMaterial(n, nullptr) != 0) candidates.push_back(n);
+            }
+    }
+    return filled;
+}
+
 }  // namespace isohex::octree

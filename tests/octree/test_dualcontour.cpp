@@ -519,3 +519,41 @@ TEST(DualContour, CurveNodesNameTheThreeMaterialsMeetingThere) {
         EXPECT_GT(unnamed, 0u) << "exterior " << exterior;  // where the ball meets both boxes and the outside
     }
 }
+
+TEST(FillPits, FillsOneCellPitsAndWellsButKeepsCavitiesAndWiderGaps) {
+    const int n = 12;
+    auto v = grid3(n);
+    for (int k = 2; k <= 9; ++k)
+        for (int j = 2; j <= 9; ++j)
+            for (int i = 2; i <= 9; ++i) set(v, n, i, j, k);
+    set(v, n, 5, 5, 9, 0);                                           // a pit one cell deep, open at the top
+    for (int k = 7; k <= 9; ++k) set(v, n, 3, 3, k, 0);              // a well three cells deep
+    set(v, n, 7, 4, 5, 0);                                           // a one-point cavity
+    set(v, n, 4, 7, 4, 0), set(v, n, 4, 7, 5, 0);                    // a two-point cavity
+    set(v, n, 7, 7, 9, 0), set(v, n, 8, 7, 9, 0);                    // a trench two cells wide
+    const PointSetDomain d({n, n, n}, v);
+    Labels l = sampleLabels(d, unitGrid(n));
+    const auto before = regionTopology(l);
+    const std::size_t filled = fillOneCellPits(l);
+    auto at = [&](int i, int j, int k) { return l.material[l.grid.index(i, j, k)]; };
+    EXPECT_EQ(filled, 4u);
+    EXPECT_EQ(at(5, 5, 9), 1);
+    for (int k = 7; k <= 9; ++k) EXPECT_EQ(at(3, 3, k), 1) << k;
+    EXPECT_EQ(at(7, 4, 5), 0);
+    EXPECT_EQ(at(4, 7, 4), 0);
+    EXPECT_EQ(at(4, 7, 5), 0);
+    EXPECT_EQ(at(7, 7, 9), 0);
+    EXPECT_EQ(at(8, 7, 9), 0);
+    EXPECT_EQ(at(5, 5, 10), 0);  // nothing grows above the rim
+    // simple points only: components and Euler characteristic (with both cavities) unchanged
+    const auto after = regionTopology(l);
+    ASSERT_EQ(before.size(), 1u);
+    ASSERT_EQ(after.size(), 1u);
+    EXPECT_EQ(after[0].components, before[0].components);
+    EXPECT_EQ(after[0].euler, before[0].euler);
+    EXPECT_EQ(after[0].points, before[0].points + 4);
+    EXPECT_EQ(before[0].components, 3u);  // the outer surface and the two cavities
+    EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+    EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d)));
+    EXPECT_EQ(fillOneCellPits(l), 0u);  // a fixpoint
+}

@@ -33,6 +33,19 @@ Labels sampleLabels(const Domain& domain, const Grid& grid, bool keepBorder = fa
 // intensity threshold leaves around an organ. Returns the points removed.
 std::size_t keepLargestComponents(Labels& labels);
 
+// Fills one-grid-cell pits of the background: a background point with exactly
+// five face neighbours of one material (the sixth is background) joins that
+// material, and again for the points this uncovers, until none is left, so a
+// well one cell wide is filled to its rim. Such a pit's floor is a boundary
+// quad whose four corners each have three boundary quads; the fundamental
+// sheet then needs a convex hex over a nearly flat floor with four 90-degree
+// corners, which no node placement gives (the last inverted hexes on ch2bet).
+// The filled points are simple (dead ends of the background, 26-joined to
+// the material), so no region gains or loses a component, tunnel or cavity;
+// two pits facing each other (a two-point cavity) are left alone. Points on
+// the grid's outer layer are never filled. Returns the points filled.
+std::size_t fillOneCellPits(Labels& labels);
+
 struct RepairReport {
     std::size_t nonManifoldBefore = 0;   // 2x2x2 blocks whose regions were not manifold
     std::size_t pointsAdded = 0;         // grid points given to a region
