@@ -94,8 +94,10 @@ class SmoothingOnRealInputs(unittest.TestCase):
             # thousands of flat hexes)
             self.assertLess(inv1, 1e-4 * len(s1), name)
             self.assertLess(inv0, 1e-3 * len(s0), name)
-            # the report's count of what could not be untangled is VTK's
-            self.assertEqual(r1["optimization"]["inverted_after"], inv1, name)
+            # the report's final count is VTK's; the worst-hex pass after the
+            # optimiser may lift an inverted hex but never inverts one
+            self.assertEqual(r1["scaled_jacobian"]["inverted"] + r1["scaled_jacobian"]["degenerate"], inv1, name)
+            self.assertGreaterEqual(r1["optimization"]["inverted_after"], inv1, name)
             # nodes released from the surface stay near it: a node thrown off
             # would show in the volume (ch2bet at 2 mm once gained 12%)
             if name != "jhu":  # labels: volume against the union isosurface, see tests/pipeline
