@@ -19,9 +19,9 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
     cmd->add_flag("--keep-largest", s.keepLargest,
                   "Keep only the largest connected region of each material (drops noise specks)")
         ->group(sel);
-    cmd->add_flag("--keep-pits{false}", s.fillPits,
-                  "Do not fill pits and wells one element wide (filled by default: the boundary sheet cannot "
-                  "give their floor a valid hex)")
+    cmd->add_flag("--fill-pits", s.fillPits,
+                  "Fill background pits and wells one element wide before meshing (the boundary sheet cannot "
+                  "give their floor a good hex; topology is kept)")
         ->group(sel);
     cmd->add_option("--min-label-voxels", s.select.minLabelVoxels, "Drop (and report) labels with fewer voxels")
         ->group(sel);

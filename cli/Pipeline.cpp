@@ -596,7 +596,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
             rep.pointsRemoved += again.pointsRemoved;
             rep.rounds += again.rounds;
             sink.note("info", "filled " + std::to_string(pitsFilled) +
-                                  " grid points of pits and wells one element wide (--keep-pits keeps them)");
+                                  " grid points of pits and wells one element wide (--fill-pits)");
         }
     }
     grid["pits_filled"] = pitsFilled;

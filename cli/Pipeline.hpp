@@ -29,7 +29,7 @@ struct MeshSettings {
     std::optional<int> level;     // grid step 2^level voxels (exclusive with size)
     std::string method = "dual";  // "dual" (dual contouring), "voxel" (one hex per voxel, the baseline), "sheets" (surfaces)
     bool keepLargest = false;     // only the largest connected region of each material
-    bool fillPits = true;         // fill background pits one grid cell wide (octree::fillOneCellPits)
+    bool fillPits = false;        // fill background pits one grid cell wide (octree::fillOneCellPits)
     bool pillow = true;
     int boundaryLayers = 1;
     bool meshExterior = false;

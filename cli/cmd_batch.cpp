@@ -183,8 +183,8 @@ const std::vector<Column>& columns() {
          }},
         {"keep_largest", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.keepLargest = toBool(f.scalar()); }},
-        {"keep_pits", "true/false",
-         [](const Field& f, MeshArgs& a, JobFields&) { a.settings.fillPits = !toBool(f.scalar()); }},
+        {"fill_pits", "true/false",
+         [](const Field& f, MeshArgs& a, JobFields&) { a.settings.fillPits = toBool(f.scalar()); }},
         {"min_label_voxels", "whole number",
          [](const Field& f, MeshArgs& a, JobFields&) {
              const long long v = toInteger(f.scalar());

@@ -131,11 +131,11 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # three boundary quads each; the sheet cannot put a good hex over it.
         # The brain at 3 mm has a few hundred such points (narrow sulci).
         src = os.path.join(SHARED_DATA, "ch2bet.nii.gz")
-        _, filled = self.mesh("brain_3mm_pits_filled", src, "--size", "3", "--keep-largest")
-        _, kept = self.mesh("brain_3mm_pits_kept", src, "--size", "3", "--keep-largest", "--keep-pits")
+        _, filled = self.mesh("brain_3mm_pits_filled", src, "--size", "3", "--keep-largest", "--fill-pits")
+        _, kept = self.mesh("brain_3mm_pits_kept", src, "--size", "3", "--keep-largest")
         print(f"brain 3 mm: {filled['grid']['pits_filled']} pit points filled; below 0.2 "
-              f"{filled['scaled_jacobian']['below_0_2']} against {kept['scaled_jacobian']['below_0_2']} with "
-              f"--keep-pits, inverted {filled['scaled_jacobian']['inverted']} against {kept['scaled_jacobian']['inverted']}")
+              f"{filled['scaled_jacobian']['below_0_2']} against {kept['scaled_jacobian']['below_0_2']} without "
+              f"--fill-pits, inverted {filled['scaled_jacobian']['inverted']} against {kept['scaled_jacobian']['inverted']}")
         self.assertGreater(filled["grid"]["pits_filled"], 0)
         self.assertEqual(kept["grid"]["pits_filled"], 0)
         self.assertEqual(filled["grid"]["topology"], kept["grid"]["topology"])
