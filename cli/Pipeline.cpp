@@ -9,7 +9,6 @@
 #include <cctype>
 #include <filesystem>
 #include <limits>
-#include <numeric>
 #include <optional>
 #include <sstream>
 

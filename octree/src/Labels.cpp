@@ -3,7 +3,6 @@
 #include <array>
 #include <cmath>
 #include <map>
-#include <numeric>
 #include <set>
 #include <sstream>
 
@@ -1036,7 +1035,7 @@ std::size_t fillOneCellPits(Labels& labels) {
                 for (int j = 1; j + 1 < ny; ++j)
                     for (int i = 1; i + 1 < nx; ++i) {
                         const std::size_t q = labels.grid.index(i, j, k);
-                        if (mat[q] == 0 && pitMaterial(q, nullptr) != 0) perSlab[static_cast<std::size_t>(k)].push_back(q);
+                        if (pitMaterial(q, nullptr) != 0) perSlab[static_cast<std::size_t>(k)].push_back(q);
                     }
         });
         for (auto& v : perSlab) candidates.insert(candidates.end(), v.begin(), v.end());
@@ -1065,7 +1064,7 @@ std::size_t fillOneCellPits(Labels& labels) {
         for (std::size_t q : fill)
             for (int d = 0; d < 6; ++d) {
                 const std::size_t n = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(q) + step[d]);
-                if (mat[n] == 0 && pitMaterial(n, nullptr) != 0) candidates.push_back(n);
+                if (pitMaterial(n, nullptr) != 0) candidates.push_back(n);
             }
     }
     return filled;

@@ -46,6 +46,14 @@ std::vector<std::int32_t> grid3(int n) { return std::vector<std::int32_t>(static
 void set(std::vector<std::int32_t>& v, int n, int i, int j, int k, std::int32_t m = 1) {
     v[(static_cast<std::size_t>(k) * n + j) * n + i] = m;
 }
+// An n^3 grid with material 1 at the points lo..hi on every axis.
+std::vector<std::int32_t> solidBlock(int n, int lo, int hi) {
+    auto v = grid3(n);
+    for (int k = lo; k <= hi; ++k)
+        for (int j = lo; j <= hi; ++j)
+            for (int i = lo; i <= hi; ++i) set(v, n, i, j, k);
+    return v;
+}
 
 }  // namespace
 
@@ -128,10 +136,7 @@ TEST(NonManifoldRepair, PocketsTouchingAlongAnEdgeStayTwoPockets) {
     // along an edge: marching cubes draws two little spheres. Filling one or
     // joining them would lose one; the repair moves a pocket by a point.
     const int n = 12;
-    auto v = grid3(n);
-    for (int k = 2; k <= 9; ++k)
-        for (int j = 2; j <= 9; ++j)
-            for (int i = 2; i <= 9; ++i) set(v, n, i, j, k);
+    auto v = solidBlock(n, 2, 9);
     set(v, n, 5, 5, 5, 0);
     set(v, n, 6, 6, 5, 0);
     const PointSetDomain d({n, n, n}, v);
@@ -522,10 +527,7 @@ TEST(DualContour, CurveNodesNameTheThreeMaterialsMeetingThere) {
 
 TEST(FillPits, FillsOneCellPitsAndWellsButKeepsCavitiesAndWiderGaps) {
     const int n = 12;
-    auto v = grid3(n);
-    for (int k = 2; k <= 9; ++k)
-        for (int j = 2; j <= 9; ++j)
-            for (int i = 2; i <= 9; ++i) set(v, n, i, j, k);
+    auto v = solidBlock(n, 2, 9);
     set(v, n, 5, 5, 9, 0);                                           // a pit one cell deep, open at the top
     for (int k = 7; k <= 9; ++k) set(v, n, 3, 3, k, 0);              // a well three cells deep
     set(v, n, 7, 4, 5, 0);                                           // a one-point cavity
