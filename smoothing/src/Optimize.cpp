@@ -864,12 +864,50 @@ SmoothingResult Smoother::run(bool meanRatio) {
 
 }  // namespace
 
+void checkOptions(const SmoothingOptions& o) {
+    auto fail = [](const char* name, double value, const char* want) {
+        throw Error(std::string("smoothing option ") + name + " is " + std::to_string(value) + "; it must be " + want);
+    };
+    // Negated comparisons so that NaN fails them too.
+    auto atLeast = [&](const char* name, double value, double lo, const char* want) {
+        if (!(value >= lo)) fail(name, value, want);
+    };
+    auto finiteAtLeast = [&](const char* name, double value, double lo, const char* want) {
+        if (!(value >= lo && std::isfinite(value))) fail(name, value, want);
+    };
+    atLeast("maxUntangleSweeps", o.maxUntangleSweeps, 0, "0 or more");
+    finiteAtLeast("untangleBeta", o.untangleBeta, 0, "a finite fraction >= 0");
+    atLeast("maxUntangleGrowth", o.maxUntangleGrowth, 0, "0 or more");
+    atLeast("untanglePolishSweeps", o.untanglePolishSweeps, 0, "0 or more");
+    if (!(o.untangleMaxTravel > 0))
+        fail("untangleMaxTravel", o.untangleMaxTravel, "a positive number of edge lengths (infinity for no bound)");
+    atLeast("untangleRounds", o.untangleRounds, 0, "0 or more");
+    finiteAtLeast("releaseDistance", o.releaseDistance, 0, "a finite number of edge lengths >= 0");
+    atLeast("releasePasses", o.releasePasses, 0, "0 or more");
+    atLeast("maxSweeps", o.maxSweeps, 0, "0 or more");
+    finiteAtLeast("relativeTolerance", o.relativeTolerance, 0, "a finite fraction >= 0");
+    finiteAtLeast("wakeTolerance", o.wakeTolerance, 0, "a finite fraction >= 0");
+    finiteAtLeast("moveTolerance", o.moveTolerance, 0, "a finite fraction >= 0");
+    finiteAtLeast("activeThreshold", o.activeThreshold, 0, "a finite number >= 0");
+    finiteAtLeast("gradientTolerance", o.gradientTolerance, 0, "a finite number >= 0");
+    finiteAtLeast("surfaceRelaxation", o.surfaceRelaxation, 0, "a finite fraction >= 0");
+    atLeast("surfaceHalvings", o.surfaceHalvings, 0, "0 or more");
+    atLeast("newton.maxIterations", o.newton.maxIterations, 0, "0 or more");
+    atLeast("newton.maxHalvings", o.newton.maxHalvings, 0, "0 or more");
+    finiteAtLeast("newton.armijo", o.newton.armijo, 0, "a finite fraction >= 0");
+    if (!(o.newton.maxStep > 0 && std::isfinite(o.newton.maxStep)))
+        fail("newton.maxStep", o.newton.maxStep, "a positive finite number of edge lengths");
+    finiteAtLeast("newton.minStep", o.newton.minStep, 0, "a finite number of edge lengths >= 0");
+}
+
 SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options,
                              const Progress& progress) {
+    checkOptions(options);
     return Smoother(mesh, projector, options, progress).run(true);
 }
 
 SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options, const Progress& progress) {
+    checkOptions(options);
     return Smoother(mesh, nullptr, options, progress).run(false);
 }
 

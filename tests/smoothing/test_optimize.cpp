@@ -10,6 +10,7 @@
 #include "MeshFixtures.hpp"
 #include "Projectors.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
 using namespace isohex;
@@ -405,4 +406,83 @@ TEST(Optimize, SurfaceFoldIsUntangledByReleasingItsNodesWithinTheirBound) {
         off += std::abs(m.nodes[v][2] + 0.1) > 1e-9;
     }
     EXPECT_EQ(off, r.surfaceNodesReleased);  // the report counts exactly the nodes left off the plane
+}
+
+namespace {
+
+// Per node, the mean length of its edges (each edge of the mesh once), as
+// the untangler measures its travel bound.
+std::vector<double> meanEdgeLengths(const HexMesh& m) {
+    const Topology topo = buildTopology(m);
+    std::vector<double> sum(m.nodeCount(), 0.0);
+    std::vector<int> count(m.nodeCount(), 0);
+    for (const auto& e : topo.edges) {
+        const double l = distance(m.nodes[static_cast<std::size_t>(e[0])], m.nodes[static_cast<std::size_t>(e[1])]);
+        for (Index u : e) {
+            sum[static_cast<std::size_t>(u)] += l;
+            ++count[static_cast<std::size_t>(u)];
+        }
+    }
+    for (std::size_t v = 0; v < sum.size(); ++v) sum[v] /= count[v];
+    return sum;
+}
+
+}  // namespace
+
+// Knupp's target grows with the edges a node stretches, so without a bound
+// a node can keep chasing it; untangling must keep every node within
+// untangleMaxTravel of its starting mean edge lengths from where it started.
+TEST(Optimize, UntanglingKeepsEveryNodeWithinItsTravelBound) {
+    HexMesh start = classifiedBlock(4);
+    const Index v = nodeAt(4, 2, 2, 2);
+    start.nodes[v][0] += 1.4;  // through the plane of its x+ neighbours
+    const std::vector<double> length = meanEdgeLengths(start);
+
+    // With the default bound the pushed node goes back most of the way.
+    HexMesh free = start;
+    const SmoothingResult rf = untangle(free);
+    ASSERT_EQ(rf.invertedAfter, 0u);
+    const double bound = 0.25;
+    ASSERT_GT(distance(free.nodes[v], start.nodes[v]), 2 * bound * length[v]);
+
+    SmoothingOptions opt;
+    opt.untangleMaxTravel = bound;
+    HexMesh capped = start;
+    const SmoothingResult rc = untangle(capped, opt);
+    EXPECT_GT(rc.nodesMoved, 0u);
+    EXPECT_GT(distance(capped.nodes[v], start.nodes[v]), 0.0);
+    for (std::size_t u = 0; u < capped.nodeCount(); ++u)
+        EXPECT_LE(distance(capped.nodes[u], start.nodes[u]), bound * length[u] * (1 + 1e-12)) << "node " << u;
+}
+
+TEST(Optimize, RejectsOutOfRangeOptionsNamingThemAndLeavesTheMeshAlone) {
+    HexMesh m = classifiedBlock(3);
+    m.nodes[nodeAt(3, 1, 1, 1)][2] -= 1.5;  // inverted: smoothing would move it
+    const HexMesh before = m;
+    auto rejected = [&](auto change, const std::string& name) {
+        SmoothingOptions opt;
+        change(opt);
+        try {
+            optimizeMesh(m, nullptr, opt);
+            ADD_FAILURE() << name << " accepted";
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+        }
+        EXPECT_THROW(untangle(m, opt), Error) << name;
+        EXPECT_EQ(m.nodes, before.nodes) << name;
+    };
+    const double nan = std::nan("");
+    rejected([&](SmoothingOptions& o) { o.untangleMaxTravel = nan; }, "untangleMaxTravel");
+    rejected([&](SmoothingOptions& o) { o.untangleMaxTravel = 0; }, "untangleMaxTravel");
+    rejected([&](SmoothingOptions& o) { o.untangleMaxTravel = -2; }, "untangleMaxTravel");
+    rejected([&](SmoothingOptions& o) { o.maxSweeps = -1; }, "maxSweeps");
+    rejected([&](SmoothingOptions& o) { o.relativeTolerance = nan; }, "relativeTolerance");
+    rejected([&](SmoothingOptions& o) { o.wakeTolerance = -0.1; }, "wakeTolerance");
+    rejected([&](SmoothingOptions& o) { o.newton.maxStep = 0; }, "newton.maxStep");
+    rejected([&](SmoothingOptions& o) { o.releaseDistance = INFINITY; }, "releaseDistance");
+
+    // No bound at all is a valid choice.
+    SmoothingOptions unbounded;
+    unbounded.untangleMaxTravel = INFINITY;
+    EXPECT_EQ(optimizeMesh(m, nullptr, unbounded).invertedAfter, 0u);
 }

@@ -147,10 +147,16 @@ struct SmoothingResult {
 // Untangles and optimises `mesh` in place. `projector` may be null, in which
 // case Surface nodes stay fixed. Nodes on the mesh boundary that are
 // classified Interior never move (classify them with classifyBoundaryNodes to
-// let them slide). Throws isohex::Error if mesh arrays disagree or a Surface
-// node names a surface the mesh does not have.
+// let them slide). Throws isohex::Error if an option is out of range
+// (checkOptions), mesh arrays disagree or a Surface node names a surface the
+// mesh does not have; the mesh is then unchanged.
 SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options = {},
                              const Progress& progress = {});
+
+// Throws isohex::Error naming the option if one is out of range (a negative
+// count or tolerance, NaN, a travel bound that is not positive); optimizeMesh
+// and untangle call it first, so a bad option never leaves a half-smoothed mesh.
+void checkOptions(const SmoothingOptions& options);
 
 // Only the untangling stage of optimizeMesh (no mean-ratio sweeps).
 SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options = {}, const Progress& progress = {});
