@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Selection.hpp"
 #include "isohex/imaging/Volume.hpp"
 #include "isohex/octree/DualContour.hpp"
@@ -82,8 +83,8 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
 
 // The max-min pass on the hexes the optimiser left below 0.3
 // (smoothing/WorstHexes.hpp), timed; returns its report block. Surface nodes
-// move only with a projector.
-nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector);
+// move only with a projector; `topo` (buildTopology(mesh)) saves building it again.
+nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, const Topology* topo = nullptr);
 
 // Volume enclosed by each selected material's isosurface vs the mesh's, and
 // the distance of boundary and interface nodes to their surfaces.

@@ -103,8 +103,10 @@ inline void raise(std::uint8_t& flag) { std::atomic_ref<std::uint8_t>(flag).stor
 
 class Smoother {
 public:
-    Smoother(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& opt, const Progress& progress)
-        : mesh_(mesh), projector_(projector), opt_(opt), progress_(progress) {}
+    Smoother(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& opt, const Progress& progress,
+             const Topology* topology)
+        : mesh_(mesh), projector_(projector), opt_(opt), progress_(progress), given_(topology),
+          topo_(topology ? *topology : ownTopology_) {}
 
     SmoothingResult run(bool meanRatio);
 
@@ -160,7 +162,9 @@ private:
     const SmoothingOptions& opt_;
     const Progress& progress_;
 
-    Topology topo_;
+    const Topology* given_;  // the caller's topology of mesh_, or null
+    Topology ownTopology_;   // built in setUp when the caller gave none
+    const Topology& topo_;
     std::vector<Mode> mode_;
     NodeColouring colouring_;
     Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
@@ -188,7 +192,11 @@ private:
 void Smoother::setUp() {
     mesh_.checkConsistent("mesh to smooth");
     const std::size_t N = mesh_.nodeCount();
-    topo_ = buildTopology(mesh_);
+    if (!given_) ownTopology_ = buildTopology(mesh_);
+    else if (topo_.nodeHexes.offsets.size() != N + 1 || topo_.hexQuads.size() != mesh_.hexCount() ||
+             topo_.nodeOnBoundary.size() != N)
+        throw Error("smoothing: the topology given is not that of the mesh (" + std::to_string(topo_.hexQuads.size()) +
+                    " hexes against " + std::to_string(mesh_.hexCount()) + "); rebuild it with buildTopology()");
 
     mode_.assign(N, Mode::Frozen);
     bool anySurface = false;
@@ -901,14 +909,14 @@ void checkOptions(const SmoothingOptions& o) {
 }
 
 SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options,
-                             const Progress& progress) {
+                             const Progress& progress, const Topology* topology) {
     checkOptions(options);
-    return Smoother(mesh, projector, options, progress).run(true);
+    return Smoother(mesh, projector, options, progress, topology).run(true);
 }
 
 SmoothingResult untangle(HexMesh& mesh, const SmoothingOptions& options, const Progress& progress) {
     checkOptions(options);
-    return Smoother(mesh, nullptr, options, progress).run(false);
+    return Smoother(mesh, nullptr, options, progress, nullptr).run(false);
 }
 
 double meanObjective(const HexMesh& mesh, std::size_t* inverted) {

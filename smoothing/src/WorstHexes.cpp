@@ -4,10 +4,12 @@
 #include <cmath>
 #include <atomic>
 #include <limits>
+#include <string>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/VecMath.hpp"
@@ -98,7 +100,8 @@ std::vector<Vec3> surfaceNormals(const HexMesh& mesh, const Topology& topo) {
     return n;
 }
 
-WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& opt) {
+WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& opt,
+                               const Topology* topology) {
     WorstHexResult res;
     const std::size_t N = mesh.nodeCount();
     std::vector<double> sj = scaledJacobians(mesh);
@@ -113,7 +116,14 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     res.belowAfter = res.belowBefore;
     if (res.belowBefore == 0) return res;
 
-    const Topology topo = buildTopology(mesh);
+    Topology own;
+    if (!topology) own = buildTopology(mesh);
+    else if (topology->nodeHexes.offsets.size() != N + 1 || topology->hexQuads.size() != mesh.hexCount() ||
+             topology->nodeOnBoundary.size() != N)
+        throw Error("worst-hex pass: the topology given is not that of the mesh (" +
+                    std::to_string(topology->hexQuads.size()) + " hexes against " + std::to_string(mesh.hexCount()) +
+                    "); rebuild it with buildTopology()");
+    const Topology& topo = topology ? *topology : own;
     auto movable = [&](Index v) {
         const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
         // (Interior-classified nodes on the boundary, Fixed nodes and Curve

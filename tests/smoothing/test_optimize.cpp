@@ -486,3 +486,23 @@ TEST(Optimize, RejectsOutOfRangeOptionsNamingThemAndLeavesTheMeshAlone) {
     unbounded.untangleMaxTravel = INFINITY;
     EXPECT_EQ(optimizeMesh(m, nullptr, unbounded).invertedAfter, 0u);
 }
+
+// The pipeline builds the topology once for the optimiser and the worst-hex
+// pass; handing it in must change nothing, and a topology of another mesh
+// must be refused before any node moves.
+TEST(Optimize, AGivenTopologyGivesTheSameResultAndOneOfAnotherMeshIsRefused) {
+    const HexMesh start = pillowedBall(6, 3.0, 0.3, 7);
+    const test::SphereProjector sphere({0, 0, 0}, 3.0);
+    HexMesh own = start, given = start;
+    const SmoothingResult a = optimizeMesh(own, &sphere);
+    const Topology topo = buildTopology(given);
+    const SmoothingResult b = optimizeMesh(given, &sphere, {}, {}, &topo);
+    ASSERT_GT(a.nodesMoved, 0u);
+    EXPECT_EQ(own.nodes, given.nodes);
+    EXPECT_EQ(a.sweeps, b.sweeps);
+
+    HexMesh other = start;
+    const Topology wrong = buildTopology(classifiedBlock(2));
+    EXPECT_THROW(optimizeMesh(other, &sphere, {}, {}, &wrong), Error);
+    EXPECT_EQ(other.nodes, start.nodes);
+}

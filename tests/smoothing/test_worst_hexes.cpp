@@ -7,6 +7,7 @@
 
 #include "MeshFixtures.hpp"
 #include "Projectors.hpp"
+#include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Topology.hpp"
@@ -74,4 +75,21 @@ TEST(WorstHexes, NeverAddsAnInvertedHexAndNeverLowersTheWorst) {
         EXPECT_GT(r.minAfter, worst) << "seed " << seed;
         EXPECT_DOUBLE_EQ(r.minAfter, test::minScaledJacobian(m)) << "seed " << seed;
     }
+}
+
+TEST(WorstHexes, AGivenTopologyGivesTheSameResultAndOneOfAnotherMeshIsRefused) {
+    HexMesh start = test::makeBlock(6, 6, 6);
+    test::perturbInterior(start, 0.6, 11);
+    HexMesh own = start, given = start;
+    const auto a = raiseWorstHexes(own, nullptr);
+    const Topology topo = buildTopology(given);
+    const auto b = raiseWorstHexes(given, nullptr, {}, &topo);
+    ASSERT_GT(a.nodesMoved, 0u);
+    EXPECT_EQ(own.nodes, given.nodes);
+    EXPECT_EQ(a.rounds, b.rounds);
+
+    HexMesh other = start;
+    const Topology wrong = buildTopology(test::makeBlock(2, 2, 2));
+    EXPECT_THROW(raiseWorstHexes(other, nullptr, {}, &wrong), Error);
+    EXPECT_EQ(other.nodes, start.nodes);
 }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/NodeOptimizer.hpp"
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
@@ -149,9 +150,11 @@ struct SmoothingResult {
 // classified Interior never move (classify them with classifyBoundaryNodes to
 // let them slide). Throws isohex::Error if an option is out of range
 // (checkOptions), mesh arrays disagree or a Surface node names a surface the
-// mesh does not have; the mesh is then unchanged.
+// mesh does not have; the mesh is then unchanged. `topology`, if given, must
+// be buildTopology(mesh) (smoothing moves nodes only, so it stays valid
+// afterwards and the worst-hex pass can reuse it); null builds it here.
 SmoothingResult optimizeMesh(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& options = {},
-                             const Progress& progress = {});
+                             const Progress& progress = {}, const Topology* topology = nullptr);
 
 // Throws isohex::Error naming the option if one is out of range (a negative
 // count or tolerance, NaN, a travel bound that is not positive); optimizeMesh

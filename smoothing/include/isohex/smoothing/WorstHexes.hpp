@@ -52,7 +52,9 @@ struct WorstHexResult {
 // Surface nodes move only with a projector, Curve nodes only with one that
 // knows their curve (3-D trial points projected onto it; never released);
 // Fixed nodes and Interior-classified nodes on the mesh boundary never move.
-WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {});
+// `topology`, if given, must be buildTopology(mesh); null builds it here.
+WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {},
+                               const Topology* topology = nullptr);
 
 // Helpers the pass uses, shared with other finishing steps (sheets' volume fit).
 
