@@ -93,3 +93,34 @@ TEST(WorstHexes, AGivenTopologyGivesTheSameResultAndOneOfAnotherMeshIsRefused) {
     EXPECT_THROW(raiseWorstHexes(other, nullptr, {}, &wrong), Error);
     EXPECT_EQ(other.nodes, start.nodes);
 }
+
+TEST(WorstHexes, JointReleaseClearsHexesTheNodeByNodeSearchLeavesInverted) {
+    // Shaken blocks (every boundary node fixed) where the compass search,
+    // one node at a time, stalls with hexes inverted: moving the nodes within
+    // two rings of each inverted hex together clears some of them. Without
+    // the joint release (jointRings = 0, the pass as it was) these two
+    // cases keep 11 and 44 inverted hexes, with it 10 and 37 (measured when
+    // written). The joint release may never add an inverted hex or lower the
+    // worst hex.
+    const test::PlaneProjector unused({0, 0, 1}, -100.0);  // no surface node: only enables the release
+    int cleared = 0;
+    for (const auto& [amount, seed] : std::vector<std::pair<double, std::uint64_t>>{
+             {0.6, 1}, {0.7, 3}}) {
+        HexMesh a = test::makeBlock(6, 6, 6);
+        test::perturbInterior(a, amount, seed);
+        HexMesh b = a;
+        WorstHexOptions nodeByNode;
+        nodeByNode.jointRings = 0;
+        const auto ra = raiseWorstHexes(a, &unused, nodeByNode);
+        const auto rb = raiseWorstHexes(b, &unused);
+        const std::size_t ia = invertedHexes(a), ib = invertedHexes(b);
+        EXPECT_LE(ib, ia) << amount << " " << seed;
+        EXPECT_GE(rb.minAfter, ra.minAfter) << amount << " " << seed;
+        EXPECT_EQ(ra.jointRegionsImproved, 0u);
+        if (ib < ia) {
+            ++cleared;
+            EXPECT_GT(rb.jointRegionsImproved, 0u);
+        }
+    }
+    EXPECT_EQ(cleared, 2);
+}

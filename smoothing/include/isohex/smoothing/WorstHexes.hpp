@@ -39,6 +39,14 @@ struct WorstHexOptions {
     // When the rounds stall with hexes still inverted, their surface nodes
     // may leave the surface by up to this many local edge lengths (0: never).
     double releaseDistance = 0.5;
+    // Then, for each hex still inverted, the movable nodes within this many
+    // rings of it move jointly (surface nodes within releaseDistance of their
+    // surface) to maximise a soft minimum of the scaled Jacobians around
+    // them; kept only where it helps (0: off). Steps in mean edge lengths,
+    // iterations per softness stage (four stages).
+    int jointRings = 2;
+    double jointStep = 0.01;
+    int jointIterations = 400;
 };
 
 struct WorstHexResult {
@@ -46,6 +54,7 @@ struct WorstHexResult {
     std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
     std::size_t nodesMoved = 0;
     std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
+    std::size_t jointRegionsImproved = 0;  // inverted hexes whose region the joint release improved
     int rounds = 0;
 };
 
