@@ -343,7 +343,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     };
     // Joint release around inverted hex h: returns true if the region got
     // better (fewer inverted hexes, or a larger smallest scaled Jacobian).
-    auto jointRelease = [&](Index h0) {
+    auto jointRelease = [&](Index h0, int iterations) {
         // Free nodes: movable non-curve nodes within jointRings rings of h0.
         std::vector<Index> free, layer;
         auto mark = [&](Index u) {
@@ -428,7 +428,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::vector<std::array<double, 9>> frames(hexes.size());
         double lr = opt.jointStep * L;
         for (const double tau : {0.05, 0.02, 0.01, 0.005}) {
-            for (int it = 0; it < opt.jointIterations; ++it) {
+            for (int it = 0; it < iterations; ++it) {
                 // Soft-min weights over all frames of the region's hexes: the
                 // gradient of -tau log sum exp(-s/tau) is the weighted sum of
                 // the frames' gradients, weights exp(-s/tau) normalised.
@@ -525,11 +525,19 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     // FrameTable): one inverted hex at a time, in index order.
     if (projector != nullptr && opt.releaseDistance > 0 && opt.jointRings > 0) {
         bool improved = false;
-        for (std::size_t h = 0; h < sj.size(); ++h)
-            if (!(sj[h] > 0) && jointRelease(static_cast<Index>(h))) {
+        for (std::size_t h = 0; h < sj.size(); ++h) {
+            if (!(sj[h] > 0) && jointRelease(static_cast<Index>(h), opt.jointIterations)) {
                 ++res.jointRegionsImproved;
                 improved = true;
             }
+            // Still inverted: once more from there with longer stages (the
+            // corner of a plate one cell thick on ch2bet at 1 mm needed it).
+            if (!(sj[h] > 0) && opt.jointRetryIterations > 0 &&
+                jointRelease(static_cast<Index>(h), opt.jointRetryIterations)) {
+                ++res.jointRegionsImproved;
+                improved = true;
+            }
+        }
         // The joint move evens out the worst frames of the region; the
         // compass rounds then lift the hexes around it towards the target.
         if (improved)

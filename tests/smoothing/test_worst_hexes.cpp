@@ -109,10 +109,11 @@ TEST(WorstHexes, JointReleaseClearsHexesTheNodeByNodeSearchLeavesInverted) {
         HexMesh a = test::makeBlock(6, 6, 6);
         test::perturbInterior(a, amount, seed);
         HexMesh b = a;
-        WorstHexOptions nodeByNode;
+        WorstHexOptions nodeByNode, oneJointMove;
         nodeByNode.jointRings = 0;
+        oneJointMove.jointRetryIterations = 0;  // the retry has its own test below
         const auto ra = raiseWorstHexes(a, &unused, nodeByNode);
-        const auto rb = raiseWorstHexes(b, &unused);
+        const auto rb = raiseWorstHexes(b, &unused, oneJointMove);
         const std::size_t ia = invertedHexes(a), ib = invertedHexes(b);
         EXPECT_LE(ib, ia) << amount << " " << seed;
         EXPECT_GE(rb.minAfter, ra.minAfter) << amount << " " << seed;
@@ -123,4 +124,22 @@ TEST(WorstHexes, JointReleaseClearsHexesTheNodeByNodeSearchLeavesInverted) {
         }
     }
     EXPECT_EQ(cleared, 2);
+}
+
+TEST(WorstHexes, ASecondLongerJointMoveClearsAHexTheFirstLeftInverted) {
+    // The first shaken block of the test above: one joint move per inverted
+    // hex (400 steps per stage) leaves 10 inverted; a second one with longer
+    // stages from where the first ended leaves 9 (measured when written). It
+    // may never leave more inverted hexes or a lower worst hex.
+    const test::PlaneProjector unused({0, 0, 1}, -100.0);
+    HexMesh a = test::makeBlock(6, 6, 6);
+    test::perturbInterior(a, 0.6, 1);
+    HexMesh b = a;
+    WorstHexOptions noRetry;
+    noRetry.jointRetryIterations = 0;
+    const auto ra = raiseWorstHexes(a, &unused, noRetry);
+    const auto rb = raiseWorstHexes(b, &unused);
+    EXPECT_LT(invertedHexes(b), invertedHexes(a));
+    EXPECT_GE(rb.minAfter, ra.minAfter);
+    EXPECT_GT(rb.jointRegionsImproved, ra.jointRegionsImproved);
 }

@@ -47,6 +47,9 @@ struct WorstHexOptions {
     int jointRings = 2;
     double jointStep = 0.01;
     int jointIterations = 400;
+    // A hex the joint move leaves inverted gets a second one, from where the
+    // first ended, with this many iterations per stage (0: no second move).
+    int jointRetryIterations = 2000;
 };
 
 struct WorstHexResult {
