@@ -112,6 +112,15 @@ Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index 
 
 }  // namespace
 
+void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who) {
+    if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size() ||
+        topo.nodeOnBoundary.size() != mesh.nodes.size())
+        throw Error(who + ": the topology was built for a different mesh (" + std::to_string(topo.hexQuads.size()) +
+                    " hexes, " + std::to_string(topo.nodeHexes.rows()) + " nodes; this mesh has " +
+                    std::to_string(mesh.hexes.size()) + " and " + std::to_string(mesh.nodes.size()) +
+                    "); rebuild it with buildTopology()");
+}
+
 Topology buildTopology(const HexMesh& mesh) {
     checkIndices(mesh);
     Topology t;

@@ -391,11 +391,7 @@ ValidityReport validate(const HexMesh& mesh, const Topology& topo) {
     if (mesh.material.size() != mesh.hexes.size())
         throw Error("validate: the mesh has " + std::to_string(mesh.hexes.size()) + " hexes but " +
                     std::to_string(mesh.material.size()) + " material ids; give every hex a material");
-    if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size())
-        throw Error("validate: the topology was built for a different mesh (" +
-                    std::to_string(topo.hexQuads.size()) + " hexes, " + std::to_string(topo.nodeHexes.rows()) +
-                    " nodes; this mesh has " + std::to_string(mesh.hexes.size()) + " and " +
-                    std::to_string(mesh.nodes.size()) + "); rebuild it with buildTopology()");
+    requireTopologyOf(mesh, topo, "validate");
 
     const HexAcc hexes = checkHexes(mesh, topo);
     const Found orientation = checkOrientation(mesh, topo);

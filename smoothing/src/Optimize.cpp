@@ -105,7 +105,7 @@ class Smoother {
 public:
     Smoother(HexMesh& mesh, const SurfaceProjector* projector, const SmoothingOptions& opt, const Progress& progress,
              const Topology* topology)
-        : mesh_(mesh), projector_(projector), opt_(opt), progress_(progress), given_(topology),
+        : mesh_(mesh), projector_(projector), opt_(opt), progress_(progress),
           topo_(topology ? *topology : ownTopology_) {}
 
     SmoothingResult run(bool meanRatio);
@@ -162,9 +162,8 @@ private:
     const SmoothingOptions& opt_;
     const Progress& progress_;
 
-    const Topology* given_;  // the caller's topology of mesh_, or null
-    Topology ownTopology_;   // built in setUp when the caller gave none
-    const Topology& topo_;
+    Topology ownTopology_;  // built in setUp when the caller gave none
+    const Topology& topo_;  // the caller's topology of mesh_, or ownTopology_
     std::vector<Mode> mode_;
     NodeColouring colouring_;
     Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
@@ -192,11 +191,8 @@ private:
 void Smoother::setUp() {
     mesh_.checkConsistent("mesh to smooth");
     const std::size_t N = mesh_.nodeCount();
-    if (!given_) ownTopology_ = buildTopology(mesh_);
-    else if (topo_.nodeHexes.offsets.size() != N + 1 || topo_.hexQuads.size() != mesh_.hexCount() ||
-             topo_.nodeOnBoundary.size() != N)
-        throw Error("smoothing: the topology given is not that of the mesh (" + std::to_string(topo_.hexQuads.size()) +
-                    " hexes against " + std::to_string(mesh_.hexCount()) + "); rebuild it with buildTopology()");
+    if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_);
+    else requireTopologyOf(mesh_, topo_, "smoothing");
 
     mode_.assign(N, Mode::Frozen);
     bool anySurface = false;

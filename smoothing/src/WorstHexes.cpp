@@ -4,12 +4,10 @@
 #include <cmath>
 #include <atomic>
 #include <limits>
-#include <string>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/VecMath.hpp"
@@ -219,11 +217,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
 
     Topology own;
     if (!topology) own = buildTopology(mesh);
-    else if (topology->nodeHexes.offsets.size() != N + 1 || topology->hexQuads.size() != mesh.hexCount() ||
-             topology->nodeOnBoundary.size() != N)
-        throw Error("worst-hex pass: the topology given is not that of the mesh (" +
-                    std::to_string(topology->hexQuads.size()) + " hexes against " + std::to_string(mesh.hexCount()) +
-                    "); rebuild it with buildTopology()");
+    else requireTopologyOf(mesh, *topology, "worst-hex pass");
     const Topology& topo = topology ? *topology : own;
     auto movable = [&](Index v) {
         const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];

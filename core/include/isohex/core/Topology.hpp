@@ -8,6 +8,7 @@
 // order, so ids are the same for any thread count.
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
@@ -52,6 +53,11 @@ struct Topology {
 // Builds every field of Topology. Hexes with repeated nodes still get their
 // faces and edges (validate() reports them); indices out of range throw.
 Topology buildTopology(const HexMesh& mesh);
+
+// Throws isohex::Error, naming `who`, if `topo` cannot be buildTopology(mesh)
+// (its hex or node counts differ): for functions that take a prebuilt
+// topology instead of building their own.
+void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who);
 
 // The id of the edge joining nodes a and b, or kNone if no hex has that edge.
 Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b);
