@@ -749,6 +749,7 @@ nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* pr
             {"nodes_moved", w.nodesMoved},
             {"surface_nodes_released", w.surfaceNodesReleased},
             {"joint_regions_improved", w.jointRegionsImproved},
+            {"joint_seconds", w.jointSeconds},
             {"rounds", w.rounds},
             {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
 }

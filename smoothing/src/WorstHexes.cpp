@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <atomic>
+#include <chrono>
 #include <limits>
 
 #include <tbb/blocked_range.h>
@@ -99,33 +100,52 @@ const FrameTable& frameTable() {
     return t;
 }
 
-// Scaled Jacobian of each of the 9 frames of a hex; with `grad`, also adds
-// weight[f] * d s_f / d x_n to grad[n] for the hex's 8 nodes.
-void frameValues(const HexCoords& x, std::array<double, 9>& s, const double* weight, std::array<Vec3, 8>* grad) {
+// What the soft minimum needs of each of a hex's 9 frames: the scaled
+// Jacobian and, to differentiate it, the columns, their lengths and their
+// cross products. frameValues fills it once per step; frameGradients reuses
+// it instead of forming the frames again.
+struct FrameState {
+    std::array<Vec3, 3> col, cross;  // cross = b x c, c x a, a x b
+    double la, lb, lc, len, s;
+    bool collapsed;
+};
+using HexFrames = std::array<FrameState, 9>;
+
+// Scaled Jacobian of each of the 9 frames of a hex (-2 for a collapsed frame).
+void frameValues(const HexCoords& x, HexFrames& out) {
     const FrameTable& t = frameTable();
     for (std::size_t f = 0; f < 9; ++f) {
-        std::array<Vec3, 3> col{};
+        FrameState& st = out[f];
         for (std::size_t j = 0; j < 3; ++j) {
             Vec3 v{0, 0, 0};
             for (std::size_t n = 0; n < 8; ++n)
                 if (t.c[f][j][n] != 0) v = v + t.c[f][j][n] * x[n];
-            col[j] = v;
+            st.col[j] = v;
         }
-        const double la = norm(col[0]), lb = norm(col[1]), lc = norm(col[2]);
-        const double len = la * lb * lc;
-        if (!(len > 1e-300)) {  // a collapsed frame: as bad as it gets, no direction
-            s[f] = -2;
+        st.la = norm(st.col[0]), st.lb = norm(st.col[1]), st.lc = norm(st.col[2]);
+        st.len = st.la * st.lb * st.lc;
+        st.collapsed = !(st.len > 1e-300);
+        if (st.collapsed) {  // as bad as it gets, no direction
+            st.s = -2;
             continue;
         }
-        const Vec3 bc = cross(col[1], col[2]), ca = cross(col[2], col[0]), ab = cross(col[0], col[1]);
-        s[f] = dot(col[0], bc) / len;
-        if (!grad || weight[f] == 0) continue;
-        const std::array<Vec3, 3> g = {(1.0 / len) * bc - (s[f] / (la * la)) * col[0],
-                                       (1.0 / len) * ca - (s[f] / (lb * lb)) * col[1],
-                                       (1.0 / len) * ab - (s[f] / (lc * lc)) * col[2]};
+        st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
+        st.s = dot(st.col[0], st.cross[0]) / st.len;
+    }
+}
+
+// Adds weight[f] * d s_f / d x_n to grad[n] for the hex's 8 nodes.
+void frameGradients(const HexFrames& frames, const double* weight, std::array<Vec3, 8>& grad) {
+    const FrameTable& t = frameTable();
+    for (std::size_t f = 0; f < 9; ++f) {
+        const FrameState& st = frames[f];
+        if (st.collapsed || weight[f] == 0) continue;
+        const std::array<Vec3, 3> g = {(1.0 / st.len) * st.cross[0] - (st.s / (st.la * st.la)) * st.col[0],
+                                       (1.0 / st.len) * st.cross[1] - (st.s / (st.lb * st.lb)) * st.col[1],
+                                       (1.0 / st.len) * st.cross[2] - (st.s / (st.lc * st.lc)) * st.col[2]};
         for (std::size_t j = 0; j < 3; ++j)
             for (std::size_t n = 0; n < 8; ++n)
-                if (t.c[f][j][n] != 0) (*grad)[n] = (*grad)[n] + (weight[f] * t.c[f][j][n]) * g[j];
+                if (t.c[f][j][n] != 0) grad[n] = grad[n] + (weight[f] * t.c[f][j][n]) * g[j];
     }
 }
 
@@ -337,9 +357,16 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     };
     // Joint release around inverted hex h: returns true if the region got
     // better (fewer inverted hexes, or a larger smallest scaled Jacobian).
-    auto jointRelease = [&](Index h0, int iterations) {
-        // Free nodes: movable non-curve nodes within jointRings rings of h0.
-        std::vector<Index> free, layer;
+    // The region of inverted hex h0: its free nodes (movable non-curve nodes
+    // within jointRings rings of h0) and the hexes around them, both sorted.
+    // It depends on the connectivity only, not on where the nodes are.
+    struct Region {
+        std::vector<Index> free, hexes;
+    };
+    auto regionOf = [&](Index h0) {
+        Region r;
+        std::vector<Index>& free = r.free;
+        std::vector<Index> layer;
         auto mark = [&](Index u) {
             if (std::find(free.begin(), free.end(), u) != free.end()) return false;
             free.push_back(u);
@@ -365,14 +392,22 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                                              mesh.nodeClass[static_cast<std::size_t>(u)].kind == NodeKind::Curve;
                                   }),
                    free.end());
-        if (free.empty()) return false;
-        std::vector<Index> hexes;
         for (Index v : free)
             for (const Index* h = topo.nodeHexes.begin(static_cast<std::size_t>(v));
                  h != topo.nodeHexes.end(static_cast<std::size_t>(v)); ++h)
-                hexes.push_back(*h);
-        std::sort(hexes.begin(), hexes.end());
-        hexes.erase(std::unique(hexes.begin(), hexes.end()), hexes.end());
+                r.hexes.push_back(*h);
+        std::sort(r.hexes.begin(), r.hexes.end());
+        r.hexes.erase(std::unique(r.hexes.begin(), r.hexes.end()), r.hexes.end());
+        return r;
+    };
+    // Joint release of a region: returns true if it got better (fewer
+    // inverted hexes, or a larger smallest scaled Jacobian). It reads and
+    // writes only the region's free nodes, the nodes of its hexes and their
+    // entries of sj, everMoved and released.
+    auto jointRelease = [&](const Region& region, int iterations) {
+        const std::vector<Index>& free = region.free;
+        const std::vector<Index>& hexes = region.hexes;
+        if (free.empty()) return false;
         // Local numbering of the free nodes, their bounds and starting points.
         const std::size_t F = free.size();
         std::vector<Vec3> start(F);
@@ -419,7 +454,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         };
         std::vector<Vec3> m1(F, Vec3{0, 0, 0}), m2(F, Vec3{0, 0, 0}), grad(F);
         std::vector<double> w(9 * hexes.size());
-        std::vector<std::array<double, 9>> frames(hexes.size());
+        std::vector<HexFrames> frames(hexes.size());
         double lr = opt.jointStep * L;
         for (const double tau : {0.05, 0.02, 0.01, 0.005}) {
             for (int it = 0; it < iterations; ++it) {
@@ -428,13 +463,13 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 // the frames' gradients, weights exp(-s/tau) normalised.
                 double lowest = std::numeric_limits<double>::infinity();
                 for (std::size_t k = 0; k < hexes.size(); ++k) {
-                    frameValues(hexCoords(mesh, hexes[k]), frames[k], nullptr, nullptr);
-                    for (double v : frames[k]) lowest = std::min(lowest, v);
+                    frameValues(hexCoords(mesh, hexes[k]), frames[k]);
+                    for (const FrameState& st : frames[k]) lowest = std::min(lowest, st.s);
                 }
                 double total = 0;
                 for (std::size_t k = 0; k < hexes.size(); ++k)
                     for (std::size_t f = 0; f < 9; ++f) {
-                        const double e = std::exp(-(frames[k][f] - lowest) / tau);
+                        const double e = std::exp(-(frames[k][f].s - lowest) / tau);
                         w[9 * k + f] = e > 1e-12 ? e : 0.0;
                         total += w[9 * k + f];
                     }
@@ -443,7 +478,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                     for (std::size_t f = 0; f < 9; ++f) w[9 * k + f] /= total;
                     std::array<Vec3, 8> g{};
                     g.fill(Vec3{0, 0, 0});
-                    frameValues(hexCoords(mesh, hexes[k]), frames[k], &w[9 * k], &g);
+                    frameGradients(frames[k], &w[9 * k], g);
                     const Hex& hx = mesh.hexes[static_cast<std::size_t>(hexes[k])];
                     for (std::size_t n = 0; n < 8; ++n) {
                         const std::ptrdiff_t i = local(hx[n]);
@@ -516,22 +551,58 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         for (int round = 0; round < opt.maxRounds && runRound(true); ++round) {
         }
     // Joint release of what is still inverted (see the comment above
-    // FrameTable): one inverted hex at a time, in index order.
+    // FrameTable), one inverted hex at a time in index order, or what is
+    // equivalent: regions that share no hex are independent (a region's move
+    // reads and writes only its own hexes' nodes), so each batch takes, in
+    // index order, the hexes whose region shares no hex with the region of
+    // any hex before them still waiting, and runs them in parallel. The result
+    // is the serial one for any number of threads.
     if (projector != nullptr && opt.releaseDistance > 0 && opt.jointRings > 0) {
-        bool improved = false;
-        for (std::size_t h = 0; h < sj.size(); ++h) {
-            if (!(sj[h] > 0) && jointRelease(static_cast<Index>(h), opt.jointIterations)) {
-                ++res.jointRegionsImproved;
-                improved = true;
+        const auto t0 = std::chrono::steady_clock::now();
+        std::atomic<std::size_t> improvedCount{0};
+        std::vector<std::pair<Index, Region>> pending;
+        for (std::size_t h = 0; h < sj.size(); ++h)
+            if (!(sj[h] > 0)) pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h)));
+        std::vector<std::uint8_t> claimed(sj.size(), 0);
+        while (!pending.empty()) {
+            std::vector<std::size_t> batch;
+            std::vector<std::pair<Index, Region>> later;
+            std::vector<std::size_t> touched;
+            for (std::size_t i = 0; i < pending.size(); ++i) {
+                const auto& [h0, region] = pending[i];
+                bool clash = claimed[static_cast<std::size_t>(h0)] != 0;
+                for (Index h : region.hexes) clash = clash || claimed[static_cast<std::size_t>(h)] != 0;
+                if (!clash) batch.push_back(i);
+                for (Index h : region.hexes) {
+                    claimed[static_cast<std::size_t>(h)] = 1;
+                    touched.push_back(h);
+                }
+                claimed[static_cast<std::size_t>(h0)] = 1;
+                touched.push_back(h0);
             }
-            // Still inverted: once more from there with longer stages (the
-            // corner of a plate one cell thick on ch2bet at 1 mm needed it).
-            if (!(sj[h] > 0) && opt.jointRetryIterations > 0 &&
-                jointRelease(static_cast<Index>(h), opt.jointRetryIterations)) {
-                ++res.jointRegionsImproved;
-                improved = true;
+            for (Index h : touched) claimed[static_cast<std::size_t>(h)] = 0;
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, batch.size(), 1), [&](const auto& range) {
+                for (std::size_t b = range.begin(); b != range.end(); ++b) {
+                    const auto& [h0, region] = pending[batch[b]];
+                    const auto sh = static_cast<std::size_t>(h0);
+                    if (!(sj[sh] > 0) && jointRelease(region, opt.jointIterations)) improvedCount.fetch_add(1);
+                    // Still inverted: once more from there with longer stages
+                    // (the corner of a plate one cell thick on ch2bet at 1 mm
+                    // needed it).
+                    if (!(sj[sh] > 0) && opt.jointRetryIterations > 0 && jointRelease(region, opt.jointRetryIterations))
+                        improvedCount.fetch_add(1);
+                }
+            });
+            std::size_t b = 0;
+            for (std::size_t i = 0; i < pending.size(); ++i) {
+                if (b < batch.size() && batch[b] == i) ++b;
+                else later.push_back(std::move(pending[i]));
             }
+            pending.swap(later);
         }
+        res.jointRegionsImproved = improvedCount.load();
+        res.jointSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const bool improved = res.jointRegionsImproved > 0;
         // The joint move evens out the worst frames of the region; the
         // compass rounds then lift the hexes around it towards the target.
         if (improved)

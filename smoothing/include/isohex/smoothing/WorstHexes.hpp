@@ -58,6 +58,7 @@ struct WorstHexResult {
     std::size_t nodesMoved = 0;
     std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
     std::size_t jointRegionsImproved = 0;  // inverted hexes whose region the joint release improved
+    double jointSeconds = 0;               // time in the joint release
     int rounds = 0;
 };
 
