@@ -748,6 +748,7 @@ nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* pr
             {"below_target_after", w.belowAfter},
             {"nodes_moved", w.nodesMoved},
             {"surface_nodes_released", w.surfaceNodesReleased},
+            {"joint_regions_tried", w.jointRegionsTried},
             {"joint_regions_improved", w.jointRegionsImproved},
             {"joint_seconds", w.jointSeconds},
             {"rounds", w.rounds},

@@ -559,7 +559,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     // is the serial one for any number of threads.
     if (projector != nullptr && opt.releaseDistance > 0 && opt.jointRings > 0) {
         const auto t0 = std::chrono::steady_clock::now();
-        std::atomic<std::size_t> improvedCount{0};
+        std::atomic<std::size_t> improvedCount{0}, triedCount{0};
         std::vector<std::pair<Index, Region>> pending;
         for (std::size_t h = 0; h < sj.size(); ++h)
             if (!(sj[h] > 0)) pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h)));
@@ -585,12 +585,17 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 for (std::size_t b = range.begin(); b != range.end(); ++b) {
                     const auto& [h0, region] = pending[batch[b]];
                     const auto sh = static_cast<std::size_t>(h0);
-                    if (!(sj[sh] > 0) && jointRelease(region, opt.jointIterations)) improvedCount.fetch_add(1);
+                    if (!(sj[sh] > 0)) {
+                        triedCount.fetch_add(1);
+                        if (jointRelease(region, opt.jointIterations)) improvedCount.fetch_add(1);
+                    }
                     // Still inverted: once more from there with longer stages
                     // (the corner of a plate one cell thick on ch2bet at 1 mm
                     // needed it).
-                    if (!(sj[sh] > 0) && opt.jointRetryIterations > 0 && jointRelease(region, opt.jointRetryIterations))
-                        improvedCount.fetch_add(1);
+                    if (!(sj[sh] > 0) && opt.jointRetryIterations > 0) {
+                        triedCount.fetch_add(1);
+                        if (jointRelease(region, opt.jointRetryIterations)) improvedCount.fetch_add(1);
+                    }
                 }
             });
             std::size_t b = 0;
@@ -601,6 +606,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             pending.swap(later);
         }
         res.jointRegionsImproved = improvedCount.load();
+        res.jointRegionsTried = triedCount.load();
         res.jointSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const bool improved = res.jointRegionsImproved > 0;
         // The joint move evens out the worst frames of the region; the

@@ -57,6 +57,7 @@ struct WorstHexResult {
     std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
     std::size_t nodesMoved = 0;
     std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
+    std::size_t jointRegionsTried = 0;     // joint moves made (an inverted hex's region, first or second move)
     std::size_t jointRegionsImproved = 0;  // inverted hexes whose region the joint release improved
     double jointSeconds = 0;               // time in the joint release
     int rounds = 0;
