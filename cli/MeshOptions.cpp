@@ -60,8 +60,16 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
     cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
         ->group(grid);
     cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
-    cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
-                  "After the mean-ratio optimisation, do not run the max-min pass on hexes below 0.3")
+    auto* noWorst = cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
+                                  "After the mean-ratio optimisation, do not run the max-min pass on the hexes "
+                                  "below --worst-hex-target")
+                        ->group(grid);
+    cmd->add_option("--worst-hex-target", s.worstHexTarget,
+                    "Scaled Jacobian the max-min pass lifts hexes towards (default 0.3). Higher can raise the "
+                    "minimum on smooth surfaces, for a slightly lower mean and more time; where hexes are stuck "
+                    "(thin folds, pits) it can leave more below 0.2")
+        ->check(CLI::Range(0.0, 1.0))
+        ->excludes(noWorst)
         ->group(grid);
 }
 

@@ -710,7 +710,9 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
                                 [&](std::string_view, double f) { sink.progress(f); }, &topo);
     // The optimiser minimises a sum over all corners; the few hexes it leaves
     // poor (surface folds, spurs thinner than an element) get a max-min pass.
-    if (settings.worstHexPass) j["worst_hexes"] = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, &topo);
+    if (settings.worstHexPass)
+        j["worst_hexes"] =
+            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, &topo);
     j["fix_boundary"] = settings.fixBoundary;
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
@@ -737,9 +739,11 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     return j;
 }
 
-nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, const Topology* topo) {
+nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
+                            const Topology* topo) {
     const auto t0 = std::chrono::steady_clock::now();
-    const smoothing::WorstHexOptions wo;
+    smoothing::WorstHexOptions wo;
+    wo.target = target;
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, projector, wo, topo);
     return {{"target", wo.target},
             {"min_scaled_jacobian_before", w.minBefore},

@@ -37,7 +37,8 @@ struct MeshSettings {
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     bool fixBoundary = false;
-    bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below 0.3
+    bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
+    double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
     int randomSheetSeed = 1;
 };
 
@@ -81,10 +82,11 @@ nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSi
 // Untangling and mean-ratio optimisation with surface nodes kept on the isosurface.
 nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink);
 
-// The max-min pass on the hexes the optimiser left below 0.3
+// The max-min pass on the hexes the optimiser left below `target`
 // (smoothing/WorstHexes.hpp), timed; returns its report block. Surface nodes
 // move only with a projector; `topo` (buildTopology(mesh)) saves building it again.
-nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, const Topology* topo = nullptr);
+nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
+                            const Topology* topo = nullptr);
 
 // Volume enclosed by each selected material's isosurface vs the mesh's, and
 // the distance of boundary and interface nodes to their surfaces.

@@ -90,13 +90,13 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
                                       {"sweeps", sr.sweeps},
                                       {"untangle_sweeps", sr.untangleSweeps},
                                       {"seconds", sr.seconds}};
-        // The optimiser minimises a sum; what it leaves below 0.3 (hexes
+        // The optimiser minimises a sum; what it leaves below the target (hexes
         // whose surface quad sits on detail smaller than an element) gets a
         // max-min pass, then the surface nodes are fitted so the boundary
         // quads enclose the triangles' volume instead of cutting chords.
         if (!settings.fixBoundary) {
             if (settings.worstHexPass)
-                out.report["worst_hexes"] = stage(sink, "worst_hexes", [&] { return worstHexPass(out.mesh, &geometry); });
+                out.report["worst_hexes"] = stage(sink, "worst_hexes", [&] { return worstHexPass(out.mesh, &geometry, settings.worstHexTarget); });
             const auto fr =
                 stage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
             out.report["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},

@@ -166,6 +166,34 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertEqual(int((sj <= 0).sum()), 0)
         self.assertLess(rep["fidelity"]["boundary_distance_mean_voxels"], 0.1)
 
+    def test_a_higher_worst_hex_target_lifts_the_femurs_worst_hexes(self):
+        # --worst-hex-target sets the scaled Jacobian the max-min pass aims
+        # at (default 0.3). On the femur's smooth surface a target of 0.6
+        # works on every hex below 0.6; they end higher, so VTK's minimum
+        # rises and fewer hexes stay below 0.6, with the surface kept.
+        src = os.path.join(SHARED_DATA, "femur.off")
+        a, ra = self.mesh("femur_target_default", src)
+        b, rb = self.mesh("femur_target_06", src, "--worst-hex-target", "0.6")
+        sa, sb = vtk_sj(a), vtk_sj(b)
+        print(f"femur: VTK SJ min {sa.min():.3f} / {sb.min():.3f}, mean {sa.mean():.4f} / {sb.mean():.4f}, "
+              f"below 0.6 {(sa < 0.6).sum()} / {(sb < 0.6).sum()} (target 0.3 / 0.6)")
+        self.assertEqual(rb["optimization"]["worst_hexes"]["target"], 0.6)
+        self.assertGreater((sa < 0.6).sum(), 0)  # there is something to lift
+        self.assertGreater(sb.min(), sa.min())
+        self.assertLess((sb < 0.6).sum(), (sa < 0.6).sum())
+        self.assertEqual(int((sb <= 0).sum()), 0)
+        self.assertLess(rb["fidelity"]["boundary_distance_mean_voxels"], 0.1)
+        # out of range: refused before anything is read or written
+        bad = os.path.join(self.dir, "femur_target_bad.vtu")
+        p = run(["mesh", src, "--worst-hex-target", "1.5", "-o", bad, "-q"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--worst-hex-target", p.stderr)
+        self.assertFalse(os.path.exists(bad))
+        p = run(["mesh", src, "--worst-hex-target", "0.5", "--no-worst-hex-pass", "-o", bad, "-q"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("excludes", p.stderr)
+        self.assertFalse(os.path.exists(bad))
+
     def test_output_is_identical_for_one_and_two_threads(self):
         # The skull exercises every stage: untangling rounds, the release of
         # surface nodes and the mean-ratio sweeps.
