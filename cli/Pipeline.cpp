@@ -755,6 +755,9 @@ nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* pr
             {"joint_regions_tried", w.jointRegionsTried},
             {"joint_regions_improved", w.jointRegionsImproved},
             {"joint_seconds", w.jointSeconds},
+            {"mean_rounds", w.meanRounds},
+            {"mean_gain", w.meanGain},
+            {"mean_seconds", w.meanSeconds},
             {"rounds", w.rounds},
             {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};
 }

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iostream>
 
 #include <tbb/global_control.h>
 
@@ -13,6 +14,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 #include "support/Blocks.hpp"
 
@@ -171,4 +173,42 @@ TEST(WorstHexes, JointReleaseOfSeveralRegionsGivesTheSameMeshForAnyThreadCount) 
     ASSERT_EQ(out[0].nodeCount(), out[1].nodeCount());
     for (std::size_t v = 0; v < out[0].nodeCount(); ++v)
         for (int c = 0; c < 3; ++c) ASSERT_EQ(out[0].nodes[v][c], out[1].nodes[v][c]) << "node " << v;
+}
+
+TEST(WorstHexes, MeanRoundsRaiseTheMeanAndKeepEveryHexAboveItsFloor) {
+    // A pillowed ball, optimised: its sheet hexes are well short of 1. The
+    // mean rounds come after everything else in the pass, so the pass
+    // without them leaves the state they start from. They must raise the
+    // mean scaled Jacobian, and every hex must end at least at the smaller
+    // of its value before them and the target, with surface nodes still on
+    // the sphere.
+    const double radius = 3.0;
+    HexMesh start = test::ballFromBlock(6, radius);
+    pillowAllMaterials(start);
+    const test::SphereProjector sphere({0, 0, 0}, radius);
+    smoothing::optimizeMesh(start, &sphere);
+    for (const double target : {0.3, 0.8}) {
+        HexMesh a = start, b = start;
+        WorstHexOptions off, on;
+        off.target = on.target = target;
+        off.meanRounds = 0;
+        const auto ra = raiseWorstHexes(a, &sphere, off);
+        const auto rb = raiseWorstHexes(b, &sphere, on);
+        const std::vector<double> sa = scaledJacobians(a), sb = scaledJacobians(b);
+        double meanA = 0, meanB = 0;
+        for (std::size_t h = 0; h < sa.size(); ++h) {
+            meanA += sa[h] / static_cast<double>(sa.size());
+            meanB += sb[h] / static_cast<double>(sb.size());
+            EXPECT_GE(sb[h], std::min(sa[h], target)) << "hex " << h << ", target " << target;
+        }
+        EXPECT_GT(meanB, meanA + 1e-3) << "target " << target;
+        EXPECT_NEAR(rb.meanGain, meanB - meanA, 1e-9);
+        EXPECT_EQ(ra.meanRounds, 0);
+        EXPECT_GE(rb.meanRounds, 1);
+        for (std::size_t v = 0; v < b.nodeCount(); ++v)
+            if (b.nodeClass[v].kind == NodeKind::Surface) EXPECT_LT(sphere.distance(b.nodes[v]), 1e-9) << "node " << v;
+        std::cout << "[ info ] target " << target << ": mean scaled Jacobian " << meanA << " -> " << meanB
+                  << ", min " << *std::min_element(sa.begin(), sa.end()) << " -> "
+                  << *std::min_element(sb.begin(), sb.end()) << "\n";
+    }
 }

@@ -50,6 +50,17 @@ struct WorstHexOptions {
     // A hex the joint move leaves inverted gets a second one, from where the
     // first ended, with this many iterations per stage (0: no second move).
     int jointRetryIterations = 2000;
+    // Last, up to meanRounds rounds over the movable nodes of the hexes below
+    // meanBelow: each node moves (compass search along the axes, or in its
+    // tangent plane, from meanFirstStep edge lengths, at most
+    // meanMovesPerVisit moves) to raise the summed scaled Jacobian of its
+    // hexes, where no hex may end below its value before the move, nor below
+    // the target if it was above it. Raises the mean; never lowers the
+    // minimum below min(minimum before, target) (0 rounds: off).
+    int meanRounds = 1;
+    double meanBelow = 0.9;
+    double meanFirstStep = 1.0 / 16.0;
+    int meanMovesPerVisit = 4;
 };
 
 struct WorstHexResult {
@@ -60,6 +71,9 @@ struct WorstHexResult {
     std::size_t jointRegionsTried = 0;     // joint moves made (an inverted hex's region, first or second move)
     std::size_t jointRegionsImproved = 0;  // inverted hexes whose region the joint release improved
     double jointSeconds = 0;               // time in the joint release
+    int meanRounds = 0;                    // mean rounds in which a node moved
+    double meanGain = 0;                   // mean scaled Jacobian after the mean rounds minus before
+    double meanSeconds = 0;                // time in the mean rounds
     int rounds = 0;
 };
 
