@@ -384,8 +384,11 @@ TEST(WorstHexes, FixedNodesDoNotMove) {
     // Its interior neighbours may move, the fixed node itself not.
     const HexMesh before = m;
     raiseWorstHexes(m, nullptr);
-    for (std::size_t i = 0; i < m.nodeCount(); ++i)
-        if (m.nodeClass[i].kind == NodeKind::Fixed) EXPECT_EQ(m.nodes[i], before.nodes[i]);
+    for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+        if (m.nodeClass[i].kind == NodeKind::Fixed) {
+            EXPECT_EQ(m.nodes[i], before.nodes[i]);
+        }
+    }
 }
 
 TEST(WorstHexes, SurfaceNodesStayOnTheirSurfaceAndNoHexGetsWorse) {

@@ -15,6 +15,12 @@
 // so the next node can). So no hex around a node turns inverted, and none ends
 // below the worst value that node's hexes had.
 //
+// It ends with mean rounds: the nodes of the hexes below 0.9 move, by the
+// same kind of search, to raise the summed scaled Jacobian of their hexes
+// while no hex goes below the smaller of its value and the target (the
+// optimiser's inverse mean ratio is not the scaled Jacobian, and the sheet
+// hexes keep room to rise).
+//
 // Each round colours the nodes involved so that nodes of one colour share no
 // hex, and moves each colour's nodes in parallel, colours in order: the
 // result does not depend on the thread count.
