@@ -205,8 +205,11 @@ TEST(WorstHexes, MeanRoundsRaiseTheMeanAndKeepEveryHexAboveItsFloor) {
         EXPECT_NEAR(rb.meanGain, meanB - meanA, 1e-9);
         EXPECT_EQ(ra.meanRounds, 0);
         EXPECT_GE(rb.meanRounds, 1);
-        for (std::size_t v = 0; v < b.nodeCount(); ++v)
-            if (b.nodeClass[v].kind == NodeKind::Surface) EXPECT_LT(sphere.distance(b.nodes[v]), 1e-9) << "node " << v;
+        for (std::size_t v = 0; v < b.nodeCount(); ++v) {
+            if (b.nodeClass[v].kind == NodeKind::Surface) {
+                EXPECT_LT(sphere.distance(b.nodes[v]), 1e-9) << "node " << v;
+            }
+        }
         std::cout << "[ info ] target " << target << ": mean scaled Jacobian " << meanA << " -> " << meanB
                   << ", min " << *std::min_element(sa.begin(), sa.end()) << " -> "
                   << *std::min_element(sb.begin(), sb.end()) << "\n";
