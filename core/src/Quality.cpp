@@ -34,11 +34,7 @@ struct NineFrames {
 
 NineFrames frames(const HexCoords& x) {
     NineFrames f;
-    for (int c = 0; c < 3; ++c) {
-        f.v[0][0][c] = (x[1][c] + x[2][c] + x[5][c] + x[6][c]) - (x[0][c] + x[3][c] + x[4][c] + x[7][c]);
-        f.v[0][1][c] = (x[2][c] + x[3][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[4][c] + x[5][c]);
-        f.v[0][2][c] = (x[4][c] + x[5][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
-    }
+    f.v[0] = centreAxes(x);
     for (int k = 0; k < 8; ++k)
         for (int j = 0; j < 3; ++j) f.v[k + 1][j] = sub(x[hexcell::kCornerNeighbours[k][j]], x[k]);
     return f;
@@ -48,13 +44,13 @@ NineFrames frames(const HexCoords& x) {
 
 double scaledJacobian(const HexCoords& x) {
     const NineFrames f = frames(x);
-    double best = kHuge;
+    double best = kScaledJacobianCollapsed;
     for (const auto& [a, b, c] : f.v) {
-        const double la = dot(a, a), lb = dot(b, b), lc = dot(c, c);
-        if (la <= kTiny || lb <= kTiny || lc <= kTiny) return kHuge;
-        best = std::min(best, dot(a, cross(b, c)) / std::sqrt(la * lb * lc));
+        const double s = frameScaledJacobian(a, b, c);
+        if (s == kScaledJacobianCollapsed) return s;
+        best = std::min(best, s);
     }
-    return best > 0 ? std::min(best, kHuge) : std::max(best, -kHuge);
+    return clampScaledJacobian(best);
 }
 
 double inverseMeanRatio(const HexCoords& x) {

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -12,6 +13,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
@@ -74,21 +76,16 @@ ObjectiveSum objectiveSum(const HexMesh& mesh) {
 
 double meanOf(const ObjectiveSum& s) { return s.finite ? s.sum / static_cast<double>(s.finite) : 0.0; }
 
-// Per hex: 1 if some corner determinant is <= 0 (or not a number).
-std::vector<std::uint8_t> invertedFlags(const HexMesh& mesh, std::size_t& count) {
-    std::vector<std::uint8_t> flags(mesh.hexCount());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, flags.size(), kBlock), [&](const auto& r) {
-        for (std::size_t h = r.begin(); h != r.end(); ++h)
-            flags[h] = !(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0);
-    });
-    count = static_cast<std::size_t>(std::count(flags.begin(), flags.end(), std::uint8_t{1}));
-    return flags;
-}
-
+// Hexes with a corner or centre determinant <= 0 (or not a number).
 std::size_t invertedCount(const HexMesh& mesh) {
-    std::size_t count = 0;
-    invertedFlags(mesh, count);
-    return count;
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, mesh.hexCount(), kBlock), std::size_t{0},
+        [&](const auto& r, std::size_t n) {
+            for (std::size_t h = r.begin(); h != r.end(); ++h)
+                n += !(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0);
+            return n;
+        },
+        std::plus<>());
 }
 
 // With `terms` describing the node moved by `applied` from its original
@@ -652,8 +649,7 @@ bool Smoother::untangleRound(bool guard, std::size_t before) {
 void Smoother::untanglePhase() {
     const auto t0 = Clock::now();
     const std::size_t N = mesh_.nodeCount(), H = mesh_.hexCount();
-    std::size_t count = 0;
-    count = invertedNow();
+    std::size_t count = invertedNow();
     std::vector<std::uint8_t> inverted = hexInverted_;
     std::vector<std::uint8_t> inRegion(N, 0), hexInRegion(H, 0);
     std::vector<Index> regionNodes, regionHexes;  // regionHexes: hexes whose status region nodes can change

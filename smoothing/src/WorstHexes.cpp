@@ -31,9 +31,9 @@ struct Around {
 // The scaled Jacobians of the hexes around one node as the node moves, for
 // the compass searches, which try many positions of the same node. Of a
 // hex's 9 frames (centre, corners) the node enters 5; the other 4 corner
-// frames are evaluated once, at construction. Each frame is computed as
-// core's scaledJacobian computes it (Verdict's thresholds included), so the
-// values are that function's to the last bit.
+// frames are evaluated once, at construction. The frames go through core's
+// pieces of scaledJacobian, so the values are usableScaledJacobian's to the
+// last bit.
 class NodeHexes {
 public:
     NodeHexes(const HexMesh& mesh, const Topology& topo, Index v) {
@@ -43,15 +43,13 @@ public:
             e.hex = *h;
             e.x = hexCoords(mesh, *h);
             const Hex& hx = mesh.hexes[static_cast<std::size_t>(*h)];
-            e.local = -1;
             for (int i = 0; i < 8 && e.local < 0; ++i)
                 if (hx[static_cast<std::size_t>(i)] == v) e.local = i;
             if (e.local < 0) continue;
             for (int k = 0; k < 8; ++k) {
                 if (involves(k, e.local)) continue;
-                const auto& nb = hexcell::kCornerNeighbours[static_cast<std::size_t>(k)];
-                const double f = frame(sub(e.x[nb[0]], e.x[k]), sub(e.x[nb[1]], e.x[k]), sub(e.x[nb[2]], e.x[k]));
-                if (f == kHuge) e.collapsed = true;
+                const double f = cornerFrame(e.x, k);
+                if (f == kScaledJacobianCollapsed) e.collapsed = true;
                 e.fixedMin = std::min(e.fixedMin, f);
             }
             entries_.push_back(e);
@@ -65,34 +63,26 @@ public:
         if (e.collapsed) return -2.0;
         HexCoords x = e.x;
         x[static_cast<std::size_t>(e.local)] = p;
-        double best = e.fixedMin;
-        Vec3 axis[3];
-        for (int c = 0; c < 3; ++c) {
-            axis[0][c] = (x[1][c] + x[2][c] + x[5][c] + x[6][c]) - (x[0][c] + x[3][c] + x[4][c] + x[7][c]);
-            axis[1][c] = (x[2][c] + x[3][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[4][c] + x[5][c]);
-            axis[2][c] = (x[4][c] + x[5][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
-        }
-        double f = frame(axis[0], axis[1], axis[2]);
-        if (f == kHuge) return -2.0;
-        best = std::min(best, f);
-        for (int k = 0; k < 8; ++k) {
-            if (!involves(k, e.local)) continue;
-            const auto& nb = hexcell::kCornerNeighbours[static_cast<std::size_t>(k)];
-            f = frame(sub(x[nb[0]], x[k]), sub(x[nb[1]], x[k]), sub(x[nb[2]], x[k]));
-            if (f == kHuge) return -2.0;
+        const std::array<Vec3, 3> axes = centreAxes(x);
+        double f = frameScaledJacobian(axes[0], axes[1], axes[2]);
+        if (f == kScaledJacobianCollapsed) return -2.0;
+        double best = std::min(e.fixedMin, f);
+        for (int c = 0; c < 8; ++c) {
+            if (!involves(c, e.local)) continue;
+            f = cornerFrame(x, c);
+            if (f == kScaledJacobianCollapsed) return -2.0;
             best = std::min(best, f);
         }
-        const double sj = best > 0 ? std::min(best, kHuge) : std::max(best, -kHuge);
+        const double sj = clampScaledJacobian(best);
         return sj > 1.0 + 1e-9 ? -2.0 : sj;
     }
 
 private:
-    static constexpr double kTiny = 1e-30, kHuge = 1e30;  // Verdict's, as in core/Quality.cpp
     struct Entry {
         Index hex = kNone;
         HexCoords x;
         int local = -1;
-        double fixedMin = kHuge;
+        double fixedMin = kScaledJacobianCollapsed;
         bool collapsed = false;
     };
     static bool involves(int corner, int node) {
@@ -101,56 +91,21 @@ private:
             if (n == node) return true;
         return false;
     }
-    static Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-    // One frame's scaled Jacobian; kHuge if a column is (nearly) zero.
-    static double frame(const Vec3& a, const Vec3& b, const Vec3& c) {
-        const double la = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
-        const double lb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-        const double lc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-        if (la <= kTiny || lb <= kTiny || lc <= kTiny) return kHuge;
-        const Vec3 bc{b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
-        return (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / std::sqrt(la * lb * lc);
+    static double cornerFrame(const HexCoords& x, int k) {
+        const auto& nb = hexcell::kCornerNeighbours[static_cast<std::size_t>(k)];
+        return frameScaledJacobian(x[nb[0]] - x[k], x[nb[1]] - x[k], x[nb[2]] - x[k]);
     }
     std::vector<Entry> entries_;
 };
 
-// For the mean rounds: the node's hexes with the node at p, where
-// `floors[k]` is the least the k-th may have. `inverted` counts the hexes
-// under their floor; `sum` is their summed scaled Jacobians.
-Around aroundWithFloors(const NodeHexes& nh, const Vec3& p, const double* floors) {
+// The node's hexes with the node at p, summarised. With `floors` (the mean
+// rounds: floors[k] is the least the k-th hex may have), `inverted` counts
+// the hexes under their floor instead of those with no positive value.
+Around around(const NodeHexes& nh, const Vec3& p, double target, const double* floors = nullptr) {
     Around a;
     for (std::size_t k = 0; k < nh.size(); ++k) {
         const double s = nh.value(k, p);
-        a.inverted += !(s >= floors[k]);
-        a.min = std::min(a.min, s);
-        a.sum += s;
-    }
-    return a;
-}
-
-// The same summary as `around` below, from a NodeHexes of the node.
-Around around(const NodeHexes& nh, const Vec3& p, double target) {
-    Around a;
-    for (std::size_t k = 0; k < nh.size(); ++k) {
-        const double s = nh.value(k, p);
-        a.inverted += !(s > 0);
-        a.min = std::min(a.min, s);
-        a.sum += s;
-        if (s < target) a.shortfall += (target - s) * (target - s);
-    }
-    return a;
-}
-
-Around around(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p, double target) {
-    Around a;
-    const auto sv = static_cast<std::size_t>(v);
-    for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h) {
-        HexCoords x = hexCoords(mesh, *h);
-        const Hex& hx = mesh.hexes[static_cast<std::size_t>(*h)];
-        for (int i = 0; i < 8; ++i)
-            if (hx[static_cast<std::size_t>(i)] == v) x[static_cast<std::size_t>(i)] = p;
-        const double s = usableScaledJacobian(x);
-        a.inverted += !(s > 0);
+        a.inverted += floors ? !(s >= floors[k]) : !(s > 0);
         a.min = std::min(a.min, s);
         a.sum += s;
         if (s < target) a.shortfall += (target - s) * (target - s);
@@ -292,7 +247,7 @@ double usableScaledJacobian(const HexCoords& x) {
 }
 
 double minScaledJacobianAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p) {
-    return around(mesh, topo, v, p, 0.0).min;
+    return around(NodeHexes(mesh, topo, v), p, 0.0).min;
 }
 
 double meanEdgeLengthAt(const HexMesh& mesh, const Topology& topo, Index v) {
@@ -416,7 +371,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         if (mean)
             for (std::size_t k = 0; k < nh.size(); ++k) floors.push_back(std::min(sj[static_cast<std::size_t>(nh.hex(k))], opt.target));
         auto evaluate = [&](const Vec3& p) {
-            return mean ? aroundWithFloors(nh, p, floors.data()) : around(nh, p, opt.target);
+            return around(nh, p, opt.target, mean ? floors.data() : nullptr);
         };
         auto improves = [&](const Around& trial, const Around& current) {
             if (!mean) return better(trial, current);

@@ -1,7 +1,9 @@
 #pragma once
 // Element quality, with Verdict's definitions so numbers agree with VTK,
 // ParaView and CUBIT.
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -18,6 +20,33 @@ using HexCoords = std::array<Vec3, 8>;
 // axes. Returns 1e30, like Verdict, when any of those vectors has squared
 // length <= 1e-30 (a collapsed hex): treat values > 1 as degenerate.
 double scaledJacobian(const HexCoords& x);
+
+// The pieces of scaledJacobian, for callers that evaluate a hex again and
+// again with one node moved (the worst-hex pass keeps the frames the node is
+// not part of): one frame's a.(b x c)/(|a||b||c|), or kScaledJacobianCollapsed
+// when a vector has squared length <= 1e-30; the centre principal axes (sums
+// of four edges each); and the clamp applied to the minimum over the frames.
+inline constexpr double kScaledJacobianCollapsed = 1e30;
+inline double frameScaledJacobian(const Vec3& a, const Vec3& b, const Vec3& c) {
+    const double la = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+    const double lb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
+    const double lc = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    if (la <= 1e-30 || lb <= 1e-30 || lc <= 1e-30) return kScaledJacobianCollapsed;
+    const Vec3 bc{b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
+    return (a[0] * bc[0] + a[1] * bc[1] + a[2] * bc[2]) / std::sqrt(la * lb * lc);
+}
+inline std::array<Vec3, 3> centreAxes(const HexCoords& x) {
+    std::array<Vec3, 3> v;
+    for (int c = 0; c < 3; ++c) {
+        v[0][c] = (x[1][c] + x[2][c] + x[5][c] + x[6][c]) - (x[0][c] + x[3][c] + x[4][c] + x[7][c]);
+        v[1][c] = (x[2][c] + x[3][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[4][c] + x[5][c]);
+        v[2][c] = (x[4][c] + x[5][c] + x[6][c] + x[7][c]) - (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
+    }
+    return v;
+}
+inline double clampScaledJacobian(double best) {
+    return best > 0 ? std::min(best, kScaledJacobianCollapsed) : std::max(best, -kScaledJacobianCollapsed);
+}
 // Knupp's inverse mean ratio averaged over the 8 corners: |A|_F^2 / (3 det(A)^(2/3))
 // per corner with A = [x_a - x_k, x_b - x_k, x_c - x_k]; 1 for a cube,
 // +infinity if any corner determinant is <= 0.
