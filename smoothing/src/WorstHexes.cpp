@@ -305,7 +305,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     res.belowAfter = res.belowBefore;
     const bool meanRounds =
         opt.meanRounds > 0 && std::any_of(sj.begin(), sj.end(), [&](double s) { return s < opt.meanBelow; });
-    if (res.belowBefore == 0 && !meanRounds) return res;
+    if (res.belowBefore == 0 && !meanRounds && !(projector != nullptr && opt.returnPasses > 0)) return res;
 
     Topology own;
     if (!topology) own = buildTopology(mesh);
@@ -720,6 +720,75 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         for (double v : sj) after += v;
         res.meanGain = sj.empty() ? 0.0 : (after - before) / static_cast<double>(sj.size());
         res.meanSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+    // Finally, surface nodes still off their surface (released here or by the
+    // optimiser) go back towards it as far as the hexes around them allow:
+    // the largest of 1, 1/2, ... 1/64 of the way to their projection that
+    // leaves no hex around them below the smaller of its value and the
+    // target, so the minimum cannot fall. One node at a time in index order
+    // (few nodes; the same result for any thread count), repeated while a
+    // node gets closer, since one node's return can make room for the next.
+    if (projector != nullptr && opt.returnPasses > 0) {
+        const auto t0 = std::chrono::steady_clock::now();
+        std::vector<double> off(N, 0.0);
+        auto distanceOff = [&](std::size_t v) {
+            const Vec3 q = projector->project(mesh.nodeClass[v].id, mesh.nodes[v]);
+            return std::isfinite(q[0]) && std::isfinite(q[1]) && std::isfinite(q[2]) ? norm(q - mesh.nodes[v]) : 0.0;
+        };
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 1024), [&](const auto& r) {
+            for (std::size_t v = r.begin(); v != r.end(); ++v)
+                if (mesh.nodeClass[v].kind == NodeKind::Surface && movable(static_cast<Index>(v)))
+                    off[v] = distanceOff(v);
+        });
+        std::vector<Index> candidates;
+        for (std::size_t v = 0; v < N; ++v) {
+            if (!(off[v] > 0)) continue;
+            const double L = meanEdgeLengthAt(mesh, topo, static_cast<Index>(v));
+            if (off[v] > opt.returnTolerance * L) candidates.push_back(static_cast<Index>(v));
+        }
+        res.surfaceNodesOffBefore = candidates.size();
+        for (int pass = 0; pass < opt.returnPasses && !candidates.empty(); ++pass) {
+            bool closer = false;
+            for (Index v : candidates) {
+                const auto sv = static_cast<std::size_t>(v);
+                const Vec3 x = mesh.nodes[sv];
+                const Vec3 q = projector->project(mesh.nodeClass[sv].id, x);
+                if (!std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2])) continue;
+                const NodeHexes nh(mesh, topo, v);
+                std::vector<double> floors;
+                for (std::size_t k = 0; k < nh.size(); ++k) {
+                    const double s0 = sj[static_cast<std::size_t>(nh.hex(k))];
+                    // (a valid hex stays valid even with a target of 0)
+                    floors.push_back(s0 > 0 ? std::max(std::min(s0, opt.target), std::numeric_limits<double>::min())
+                                            : s0);
+                }
+                double t = 1;
+                for (int k = 0; k <= 6; ++k, t *= 0.5) {
+                    const Vec3 p = k == 0 ? q : x + t * (q - x);
+                    if (around(nh, p, opt.target, floors.data()).inverted == 0) {
+                        mesh.nodes[sv] = p;
+                        everMoved[sv] = 1;
+                        closer = true;
+                        for (std::size_t j = 0; j < nh.size(); ++j) {
+                            const Index h = nh.hex(j);
+                            sj[static_cast<std::size_t>(h)] = usableScaledJacobian(hexCoords(mesh, h));
+                        }
+                        break;
+                    }
+                }
+            }
+            std::vector<Index> still;
+            for (Index v : candidates) {
+                const auto sv = static_cast<std::size_t>(v);
+                if (distanceOff(sv) > opt.returnTolerance * meanEdgeLengthAt(mesh, topo, v)) still.push_back(v);
+                else released[sv] = 0;
+            }
+            candidates.swap(still);
+            if (!closer) break;
+        }
+        for (Index v : candidates) released[static_cast<std::size_t>(v)] = 1;
+        res.surfaceNodesOffAfter = candidates.size();
+        res.returnSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
     res.minAfter = *std::min_element(sj.begin(), sj.end());
     res.belowAfter = countBelow();

@@ -215,3 +215,42 @@ TEST(WorstHexes, MeanRoundsRaiseTheMeanAndKeepEveryHexAboveItsFloor) {
                   << *std::min_element(sb.begin(), sb.end()) << "\n";
     }
 }
+
+TEST(WorstHexes, SurfaceNodesLeftOffTheSurfaceGoBackWhereTheHexesAllowIt) {
+    // An optimised, pillowed ball with some surface nodes pushed off the
+    // sphere, as the release rounds or a held-back extraction corner leave
+    // them. The pass's last step must bring them back onto the sphere
+    // (the pushed positions are worse than the sphere's, so nothing stops
+    // them) while no hex ends below the smaller of its value without the
+    // step and the target; with the step off they stay where they were.
+    const double radius = 3.0;
+    HexMesh start = test::ballFromBlock(6, radius);
+    pillowAllMaterials(start);
+    const test::SphereProjector sphere({0, 0, 0}, radius);
+    smoothing::optimizeMesh(start, &sphere);
+    std::vector<std::size_t> pushed;
+    for (std::size_t v = 0; v < start.nodeCount(); ++v)
+        if (start.nodeClass[v].kind == NodeKind::Surface && v % 9 == 0) {
+            Vec3& p = start.nodes[v];
+            for (int i = 0; i < 3; ++i) p[static_cast<std::size_t>(i)] *= (radius + 0.08) / radius;
+            pushed.push_back(v);
+        }
+    ASSERT_GE(pushed.size(), 5u);
+    ASSERT_EQ(invertedHexes(start), 0u);
+    HexMesh a = start, b = start;
+    WorstHexOptions off, on;
+    off.meanRounds = on.meanRounds = 0;  // they would move surface nodes onto the sphere too
+    off.returnPasses = 0;
+    const auto ra = raiseWorstHexes(a, &sphere, off);
+    const auto rb = raiseWorstHexes(b, &sphere, on);
+    std::size_t stillOff = 0;
+    for (std::size_t v : pushed) stillOff += sphere.distance(a.nodes[v]) > 0.05;
+    EXPECT_EQ(stillOff, pushed.size()) << "without the step the pushed nodes should stay off";
+    for (std::size_t v : pushed) EXPECT_LT(sphere.distance(b.nodes[v]), 1e-9) << "node " << v;
+    EXPECT_EQ(rb.surfaceNodesOffBefore, pushed.size());
+    EXPECT_EQ(rb.surfaceNodesOffAfter, 0u);
+    EXPECT_EQ(ra.surfaceNodesOffBefore, 0u);  // (not measured when off)
+    const std::vector<double> sa = scaledJacobians(a), sb = scaledJacobians(b);
+    for (std::size_t h = 0; h < sa.size(); ++h)
+        EXPECT_GE(sb[h], std::min(sa[h], on.target)) << "hex " << h;
+}

@@ -67,6 +67,12 @@ struct WorstHexOptions {
     double meanBelow = 0.9;
     double meanFirstStep = 1.0 / 16.0;
     int meanMovesPerVisit = 4;
+    // At the very end, surface nodes farther than returnTolerance local edge
+    // lengths from their surface (released to untangle) move back towards
+    // it as far as the floors of the mean rounds allow, in up to returnPasses
+    // passes (0: off).
+    int returnPasses = 3;
+    double returnTolerance = 1e-4;
 };
 
 struct WorstHexResult {
@@ -81,6 +87,9 @@ struct WorstHexResult {
     double meanGain = 0;                   // mean scaled Jacobian after the mean rounds minus before
     double meanSeconds = 0;                // time in the mean rounds
     int rounds = 0;
+    std::size_t surfaceNodesOffBefore = 0;  // movable surface nodes off their surface before the return
+    std::size_t surfaceNodesOffAfter = 0;   // ... and after it
+    double returnSeconds = 0;               // time in the return
 };
 
 // Surface nodes move only with a projector, Curve nodes only with one that
