@@ -21,6 +21,10 @@
 // optimiser's inverse mean ratio is not the scaled Jacobian, and the sheet
 // hexes keep room to rise).
 //
+// Last of all, surface nodes that are still off their surface (released to
+// untangle, or extraction corners held back to keep a hex valid) move back
+// towards it as far as the same floors allow.
+//
 // Each round colours the nodes involved so that nodes of one colour share no
 // hex, and moves each colour's nodes in parallel, colours in order: the
 // result does not depend on the thread count.
@@ -68,7 +72,8 @@ struct WorstHexOptions {
     double meanFirstStep = 1.0 / 16.0;
     int meanMovesPerVisit = 4;
     // At the very end, surface nodes farther than returnTolerance local edge
-    // lengths from their surface (released to untangle) move back towards
+    // lengths from their surface (released to untangle, or held back by
+    // extraction and never projected by the optimiser) move back towards
     // it as far as the floors of the mean rounds allow, in up to returnPasses
     // passes (0: off).
     int returnPasses = 3;
