@@ -20,6 +20,9 @@ namespace {
 
 using namespace vec;
 
+// A projector answers a non-finite point where it cannot project.
+bool finite(const Vec3& p) { return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]); }
+
 // The hexes around node v with v at p, summarised for comparing positions.
 struct Around {
     int inverted = 0;  // scaled Jacobian <= 0 (a corner or the centre)
@@ -334,6 +337,23 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             for (int c = -1; c <= 1; c += 2)
                 dirs3.push_back((1.0 / std::sqrt(3.0)) * Vec3{double(a), double(b), double(c)});
 
+    // The least each hex around a node may end with in the mean rounds and
+    // the return step: its value now, or the target if it is above that; a
+    // valid hex stays valid even with a target of 0.
+    auto floorsOf = [&](const NodeHexes& nh) {
+        std::vector<double> floors(nh.size());
+        for (std::size_t k = 0; k < nh.size(); ++k) {
+            const double s0 = sj[static_cast<std::size_t>(nh.hex(k))];
+            floors[k] = s0 > 0 ? std::max(std::min(s0, opt.target), std::numeric_limits<double>::min()) : s0;
+        }
+        return floors;
+    };
+    // After node v moved: its hexes' entries of sj.
+    auto refreshAround = [&](std::size_t v) {
+        for (const Index* h = topo.nodeHexes.begin(v); h != topo.nodeHexes.end(v); ++h)
+            sj[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh, *h));
+    };
+
     // One node's compass search; true if it moved.
     // With `release`, a surface node moves in 3-D, off its surface, but stays
     // within releaseDistance local edge lengths of it. With `mean` (the mean
@@ -367,9 +387,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         const double L = meanEdgeLengthAt(mesh, topo, v);
         if (!(L > 0)) return false;
         const NodeHexes nh(mesh, topo, v);
-        std::vector<double> floors;
-        if (mean)
-            for (std::size_t k = 0; k < nh.size(); ++k) floors.push_back(std::min(sj[static_cast<std::size_t>(nh.hex(k))], opt.target));
+        const std::vector<double> floors = mean ? floorsOf(nh) : std::vector<double>{};
         auto evaluate = [&](const Vec3& p) {
             return around(nh, p, opt.target, mean ? floors.data() : nullptr);
         };
@@ -389,7 +407,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 if (onSurface) p = projector->project(mesh.nodeClass[sv].id, p);
                 // a curve node: the 3-D trial point onto its curve (both ways along it)
                 if (curve) p = projector->projectToCurve(mesh.nodeClass[sv].id, p);
-                if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
+                if (!finite(p)) continue;
                 if (surface && release &&
                     !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))
                     continue;
@@ -410,8 +428,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         if (!moves) return false;
         everMoved[sv] = 1;
         if (surface && release) released[sv] = 1;
-        for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
-            sj[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh, *h));
+        refreshAround(sv);
         return true;
     };
 
@@ -516,7 +533,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 // stay as far off, but not go farther; one whose projection
                 // fails already (more than a few voxels off) stays put.
                 const Vec3 q = projector->project(mesh.nodeClass[sv].id, start[i]);
-                const bool ok = std::isfinite(q[0]) && std::isfinite(q[1]) && std::isfinite(q[2]);
+                const bool ok = finite(q);
                 bound[i] = ok ? std::max(opt.releaseDistance * l, norm(q - start[i])) : -1;
             }
         }
@@ -535,7 +552,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         // projection), or to where it was if the projection fails.
         auto constrain = [&](std::size_t i, Vec3& p, const Vec3& fallback) {
             const Vec3 q = projector->project(mesh.nodeClass[static_cast<std::size_t>(free[i])].id, p);
-            if (!std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2])) {
+            if (!finite(q)) {
                 p = fallback;
                 return;
             }
@@ -611,7 +628,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             const auto sv = static_cast<std::size_t>(v);
             const Vec3 x = mesh.nodes[sv];
             const Vec3 q = projector->project(mesh.nodeClass[sv].id, x);
-            if (!std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2])) continue;
+            if (!finite(q)) continue;
             const double floor = 0.5 * std::min(minScaledJacobianAround(mesh, topo, v, x), opt.target);
             double t = 1;
             for (int k = 0; k <= 6; ++k, t *= 0.5) {
@@ -733,7 +750,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::vector<double> off(N, 0.0);
         auto distanceOff = [&](std::size_t v) {
             const Vec3 q = projector->project(mesh.nodeClass[v].id, mesh.nodes[v]);
-            return std::isfinite(q[0]) && std::isfinite(q[1]) && std::isfinite(q[2]) ? norm(q - mesh.nodes[v]) : 0.0;
+            return finite(q) ? norm(q - mesh.nodes[v]) : 0.0;
         };
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 1024), [&](const auto& r) {
             for (std::size_t v = r.begin(); v != r.end(); ++v)
@@ -753,15 +770,9 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 const auto sv = static_cast<std::size_t>(v);
                 const Vec3 x = mesh.nodes[sv];
                 const Vec3 q = projector->project(mesh.nodeClass[sv].id, x);
-                if (!std::isfinite(q[0]) || !std::isfinite(q[1]) || !std::isfinite(q[2])) continue;
+                if (!finite(q)) continue;
                 const NodeHexes nh(mesh, topo, v);
-                std::vector<double> floors;
-                for (std::size_t k = 0; k < nh.size(); ++k) {
-                    const double s0 = sj[static_cast<std::size_t>(nh.hex(k))];
-                    // (a valid hex stays valid even with a target of 0)
-                    floors.push_back(s0 > 0 ? std::max(std::min(s0, opt.target), std::numeric_limits<double>::min())
-                                            : s0);
-                }
+                const std::vector<double> floors = floorsOf(nh);
                 double t = 1;
                 for (int k = 0; k <= 6; ++k, t *= 0.5) {
                     const Vec3 p = k == 0 ? q : x + t * (q - x);
@@ -769,10 +780,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                         mesh.nodes[sv] = p;
                         everMoved[sv] = 1;
                         closer = true;
-                        for (std::size_t j = 0; j < nh.size(); ++j) {
-                            const Index h = nh.hex(j);
-                            sj[static_cast<std::size_t>(h)] = usableScaledJacobian(hexCoords(mesh, h));
-                        }
+                        refreshAround(sv);
                         break;
                     }
                 }

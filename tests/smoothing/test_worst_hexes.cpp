@@ -30,6 +30,15 @@ std::size_t invertedHexes(const HexMesh& m) {
     return n;
 }
 
+// A ball of radius 3 from a 6^3 block, pillowed and optimised onto its
+// sphere: its sheet hexes are well short of 1.
+HexMesh optimisedPillowedBall(const test::SphereProjector& sphere) {
+    HexMesh m = test::ballFromBlock(6, sphere.radius);
+    pillowAllMaterials(m);
+    smoothing::optimizeMesh(m, &sphere);
+    return m;
+}
+
 }  // namespace
 
 TEST(WorstHexes, AnInterfaceNodeSlidesAlongTheInterfaceBetweenTwoMaterials) {
@@ -183,10 +192,8 @@ TEST(WorstHexes, MeanRoundsRaiseTheMeanAndKeepEveryHexAboveItsFloor) {
     // of its value before them and the target, with surface nodes still on
     // the sphere.
     const double radius = 3.0;
-    HexMesh start = test::ballFromBlock(6, radius);
-    pillowAllMaterials(start);
     const test::SphereProjector sphere({0, 0, 0}, radius);
-    smoothing::optimizeMesh(start, &sphere);
+    HexMesh start = optimisedPillowedBall(sphere);
     for (const double target : {0.3, 0.8}) {
         HexMesh a = start, b = start;
         WorstHexOptions off, on;
@@ -224,10 +231,8 @@ TEST(WorstHexes, SurfaceNodesLeftOffTheSurfaceGoBackWhereTheHexesAllowIt) {
     // them) while no hex ends below the smaller of its value without the
     // step and the target; with the step off they stay where they were.
     const double radius = 3.0;
-    HexMesh start = test::ballFromBlock(6, radius);
-    pillowAllMaterials(start);
     const test::SphereProjector sphere({0, 0, 0}, radius);
-    smoothing::optimizeMesh(start, &sphere);
+    HexMesh start = optimisedPillowedBall(sphere);
     std::vector<std::size_t> pushed;
     for (std::size_t v = 0; v < start.nodeCount(); ++v)
         if (start.nodeClass[v].kind == NodeKind::Surface && v % 9 == 0) {
