@@ -65,12 +65,7 @@ public:
         for (std::size_t i = 0; i < selection_->materials.size(); ++i) slot_[selection_->materials[i].id] = i;
     }
     std::int32_t materialAt(const Vec3& x) const override {
-        if (volume_->kind == imaging::VolumeKind::Labels) {
-            const openvdb::Coord ijk = volume_->labels->transform().worldToIndexCellCentered(openvdb::Vec3d(x[0], x[1], x[2]));
-            openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
-            const std::int32_t label = acc.getValue(ijk);
-            return slot_.count(label) ? label : 0;
-        }
+        if (volume_->kind == imaging::VolumeKind::Labels) return labelAt(x);
         const auto& m = selection_->materials.front();
         return m.field.value(x) < 0 ? m.id : 0;
     }
@@ -135,6 +130,44 @@ public:
     }
 
 private:
+    // The label whose trilinear indicator weight at x is largest (unselected
+    // labels count as background), the nearest voxel's label among equals.
+    // At a voxel centre that is the voxel's own label; between voxels it
+    // agrees with the fields (0.5 minus the indicator), so every grid edge
+    // between two materials has the surface between them on it (or at an
+    // end). The nearest voxel alone can disagree: at a corner shared by eight
+    // voxels it picks one of them even where most of the eight are another
+    // label, and the edges from there had no crossing.
+    std::int32_t labelAt(const Vec3& x) const {
+        const openvdb::math::Transform& xf = volume_->labels->transform();
+        const openvdb::Vec3d u = xf.worldToIndex(openvdb::Vec3d(x[0], x[1], x[2]));
+        const openvdb::Coord c0(static_cast<int>(std::floor(u[0])), static_cast<int>(std::floor(u[1])),
+                                static_cast<int>(std::floor(u[2])));
+        const openvdb::Vec3d t = u - c0.asVec3d();
+        openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
+        auto selected = [&](std::int32_t label) { return slot_.count(label) ? label : 0; };
+        std::array<std::int32_t, 8> label{};
+        std::array<double, 8> weight{};
+        int n = 0;
+        for (int c = 0; c < 8; ++c) {
+            const int o[3] = {c & 1, c >> 1 & 1, c >> 2 & 1};
+            const double w = (o[0] ? t[0] : 1.0 - t[0]) * (o[1] ? t[1] : 1.0 - t[1]) * (o[2] ? t[2] : 1.0 - t[2]);
+            const std::int32_t l = selected(acc.getValue(c0.offsetBy(o[0], o[1], o[2])));
+            int s = 0;
+            while (s < n && label[s] != l) ++s;
+            if (s == n) {
+                label[n] = l;
+                weight[n++] = 0;
+            }
+            weight[s] += w;
+        }
+        const std::int32_t nearest = selected(acc.getValue(xf.worldToIndexCellCentered(openvdb::Vec3d(x[0], x[1], x[2]))));
+        int best = 0;
+        for (int s = 1; s < n; ++s)
+            if (weight[s] > weight[best] || (weight[s] == weight[best] && label[s] == nearest)) best = s;
+        return label[best];
+    }
+
     std::shared_ptr<const imaging::Volume> volume_;
     std::shared_ptr<const imaging::Selection> selection_;
     std::map<std::int32_t, std::size_t> slot_;
@@ -169,6 +202,24 @@ public:
         if (a <= 0 && b > 0) return nearby(domain_.field(b), x);
         if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
         return projectDifference(a, b, x);
+    }
+
+    // Whether y lies on surface `surfaceId` of the scan's own fields (not the
+    // repaired ones): |F(y)| / |grad F(y)|, the first-order distance to the
+    // zero set of F, within `tolerance`. False where F is flat and not zero:
+    // a projection that starts there cannot move, so it answers where it
+    // started, which is not on the surface.
+    bool onSurface(std::int32_t surfaceId, const Vec3& y, double tolerance) const {
+        const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
+        const std::int32_t a = s.inside, b = s.outside;
+        if (a <= 0 && b <= 0) return true;
+        Vec3 ga{0, 0, 0}, gb{0, 0, 0};
+        double f = 0;
+        if (a > 0) f += domain_.field(a).valueAndGradient(y, ga);
+        if (b > 0) f -= domain_.field(b).valueAndGradient(y, gb);
+        const double g = std::sqrt((ga[0] - gb[0]) * (ga[0] - gb[0]) + (ga[1] - gb[1]) * (ga[1] - gb[1]) +
+                                   (ga[2] - gb[2]) * (ga[2] - gb[2]));
+        return std::isfinite(f) && std::abs(f) <= tolerance * g;
     }
 
     // Curves where three materials meet (HexMesh::curves): where all three
@@ -831,17 +882,22 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
         if (mesh.nodeClass[v].kind == NodeKind::Surface) nodes.push_back(static_cast<Index>(v));
     std::vector<double> dist(nodes.size(), 0.0);
+    const double voxel = p.selection->materials.front().field.voxelSize();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 512), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Vec3& x = mesh.nodes[nodes[i]];
-            const Vec3 y = proj.project(mesh.nodeClass[nodes[i]].id, x);
+            const std::int32_t surface = mesh.nodeClass[nodes[i]].id;
+            const Vec3 y = proj.project(surface, x);
+            if (!proj.onSurface(surface, y, 1e-3 * voxel)) {
+                dist[i] = std::numeric_limits<double>::quiet_NaN();
+                continue;
+            }
             dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
         }
     });
-    // A projection that does not converge within 3 voxels answers NaN: such a
-    // node is counted apart (it is at least that far off, or where the field
-    // is flat), not folded into the mean.
-    const double voxel = p.selection->materials.front().field.voxelSize();
+    // A projection that does not converge within 3 voxels answers NaN, and one
+    // that ends off the surface (it started where the field is flat) is
+    // NaN here: such a node is counted apart, not folded into the mean.
     double sum = 0, mx = 0;
     std::size_t measured = 0, far = 0, beyond = 0;
     for (double d : dist) {

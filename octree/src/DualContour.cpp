@@ -95,6 +95,15 @@ void crossing(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& p, 
     double t = 0.5;
     if ((f0 < 0 && f1 > 0) || (f0 > 0 && f1 < 0))
         t = rootOnSegment([&](const Vec3& x) { return edgeFunction(dom, a, b, x, nullptr); }, p, q, f0, f1);
+    // A grid point exactly on the surface (a label map's grid point half-way
+    // between two voxels of different labels, as with --size 1.5 voxels, or an
+    // integer iso value met by an integer scan) is where the surface crosses.
+    // The midpoint would put the vertex up to half a cell off the surface, often
+    // where the field is flat and nothing can project it back.
+    else if (f1 == 0 && f0 != 0)
+        t = 1.0;
+    else if (f0 == 0 && f1 != 0)
+        t = 0.0;
     point = {p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
     Vec3 g;
     edgeFunction(dom, a, b, point, &g);

@@ -734,3 +734,83 @@ TEST(LabelCurves, CurveNodesMoveAlongTheCurveWhereThreeMaterialsMeet) {
     // released to untangle (validity before fidelity) may stay off; few
     EXPECT_GE(onCurve, moved * 95 / 100);
 }
+
+// A label map whose interface runs through grid points. The two_materials
+// phantom splits its ball at x = 31.5 (half-way between voxel columns 31 and
+// 32; samples/make_phantoms.py, unit spacing, origin 0), and a 1.5-voxel grid
+// has points on that plane, where the two labels' fields are both exactly 0.5.
+// The grid edges ending there used to count as having no crossing, so the
+// interface went to the cell midpoint x = 30.75, where label 1's field is
+// flat and nothing could project it back: each half of the ball was 5% off
+// its volume. The interface must lie on the plane and each label keep its
+// volume; and a node moved back into that flat place must count as off the
+// surface in the report (the projection cannot move it, and its own position
+// used to be taken as the answer: distance 0).
+TEST(Labels, InterfaceThroughGridPointsStaysOnIt) {
+    cli::MeshSettings s = labels();
+    s.size = 1.5;
+    const Extracted r = extractOnly(phantoms() + "/two_materials.nii.gz", s);
+    ASSERT_TRUE(topologicallyValid(r.mesh));
+    std::int32_t interface = -1;
+    for (std::size_t k = 0; k < r.mesh.surfaces.size(); ++k)
+        if (r.mesh.surfaces[k].inside == 1 && r.mesh.surfaces[k].outside == 2) interface = static_cast<std::int32_t>(k);
+    ASSERT_GE(interface, 0);
+    std::size_t onInterface = 0;
+    double farthest = 0;
+    Index someInterfaceNode = -1;
+    for (std::size_t v = 0; v < r.mesh.nodeCount(); ++v) {
+        const NodeClass c = r.mesh.nodeClass[v];
+        if (c.kind != NodeKind::Surface || c.id != interface) continue;
+        ++onInterface;
+        farthest = std::max(farthest, std::abs(r.mesh.nodes[v][0] - 31.5));
+        someInterfaceNode = static_cast<Index>(v);
+    }
+    std::cout << "[figures] two_materials at 1.5 voxels: " << onInterface
+              << " nodes on the 1|2 interface, farthest from x = 31.5: " << farthest << " voxel\n";
+    EXPECT_GT(onInterface, 100u);
+    EXPECT_LE(farthest, 0.1);
+
+    std::map<std::int32_t, double> meshVolume;
+    for (std::size_t h = 0; h < r.mesh.hexCount(); ++h)
+        meshVolume[r.mesh.material[h]] += hexVolume(hexCoords(r.mesh, static_cast<Index>(h)));
+    for (const auto& m : r.p.selection->materials) {
+        const double iso = cli::isosurfaceVolume(m.field.grid());
+        std::cout << "[figures] two_materials label " << m.id << ": mesh " << meshVolume[m.id] << ", 0.5-isosurface "
+                  << iso << " (" << 100 * (meshVolume[m.id] - iso) / iso << "%)\n";
+        EXPECT_LT(std::abs(meshVolume[m.id] - iso) / iso, 0.02) << "label " << m.id;
+    }
+
+    // Every grid point takes the label whose field is lowest there. The
+    // nearest voxel alone is not enough: at a point shared by eight voxels it
+    // is one of them, whatever the other seven are, and grid edges from such a
+    // point had no crossing on them (the vertices stayed where the fields are
+    // flat, about a voxel off the ball: 47 surface nodes after optimisation).
+    const octree::Labels sampled = octree::sampleLabels(*r.p.domain, r.p.labels.grid);
+    const auto& d = sampled.grid.dims;
+    std::size_t disagree = 0, labelled = 0;
+    for (int k = 0; k < d[2]; ++k)
+        for (int j = 0; j < d[1]; ++j)
+            for (int i = 0; i < d[0]; ++i) {
+                const std::int32_t a = sampled.material[sampled.grid.index(i, j, k)];
+                if (a <= 0) continue;
+                ++labelled;
+                const Vec3 x = sampled.grid.point(i, j, k);
+                const double fa = r.p.domain->value(a, x);
+                for (const auto& m : r.p.selection->materials)
+                    if (m.id != a && r.p.domain->value(m.id, x) < fa) {
+                        ++disagree;
+                        break;
+                    }
+            }
+    std::cout << "[figures] two_materials grid points with a label whose field is not the lowest: " << disagree
+              << " of " << labelled << "\n";
+    EXPECT_GT(labelled, 10000u);
+    EXPECT_EQ(disagree, 0u);
+
+    const nlohmann::json before = cli::fidelity(r.mesh, r.p);
+    HexMesh moved = r.mesh;
+    moved.nodes[static_cast<std::size_t>(someInterfaceNode)][0] = 30.75;
+    const nlohmann::json after = cli::fidelity(moved, r.p);
+    EXPECT_EQ(after["boundary_nodes_not_projected"].get<std::size_t>(),
+              before["boundary_nodes_not_projected"].get<std::size_t>() + 1);
+}
