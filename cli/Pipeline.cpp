@@ -334,7 +334,9 @@ private:
         }
         const double moved = std::sqrt((best[0] - x0[0]) * (best[0] - x0[0]) + (best[1] - x0[1]) * (best[1] - x0[1]) +
                                        (best[2] - x0[2]) * (best[2] - x0[2]));
-        if (moved > 3.0 * voxel) {
+        Vec3 g;
+        const double f = F(best, g);
+        if (moved > 3.0 * voxel || !(std::abs(f) <= 1e-3 * voxel * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]))) {
             const double nan = std::numeric_limits<double>::quiet_NaN();
             return {nan, nan, nan};
         }
