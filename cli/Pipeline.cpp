@@ -80,11 +80,7 @@ public:
     // labelled region's volume).
     double unionValue(const Vec3& x, Vec3* gradient) const override {
         if (volume_->kind != imaging::VolumeKind::Labels) return value(selection_->materials.front().id, x, gradient);
-        const openvdb::math::Transform& xf = volume_->labels->transform();
-        const openvdb::Vec3d u = xf.worldToIndex(openvdb::Vec3d(x[0], x[1], x[2]));
-        const openvdb::Coord c0(static_cast<int>(std::floor(u[0])), static_cast<int>(std::floor(u[1])),
-                                static_cast<int>(std::floor(u[2])));
-        const openvdb::Vec3d t = u - c0.asVec3d();
+        const auto [c0, t] = voxelCell(x);
         openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
         double in = 0;
         openvdb::Vec3d d(0, 0, 0);  // derivative of `in` in index space
@@ -102,7 +98,7 @@ public:
             d[2] += w[0] * w[1] * dw[2];
         }
         if (gradient) {
-            const openvdb::Vec3d gw = xf.baseMap()->applyIJT(-d);
+            const openvdb::Vec3d gw = volume_->labels->transform().baseMap()->applyIJT(-d);
             *gradient = {gw[0], gw[1], gw[2]};
         }
         return 0.5 - in;
@@ -130,6 +126,20 @@ public:
     }
 
 private:
+    // The voxel cell of the label grid that holds x: the index of its lower
+    // corner voxel and x's position in it, each coordinate in [0, 1) (the
+    // trilinear weights of the 8 voxels around x).
+    struct VoxelCell {
+        openvdb::Coord lower;
+        openvdb::Vec3d t;
+    };
+    VoxelCell voxelCell(const Vec3& x) const {
+        const openvdb::Vec3d u = volume_->labels->transform().worldToIndex(openvdb::Vec3d(x[0], x[1], x[2]));
+        const openvdb::Coord c0(static_cast<int>(std::floor(u[0])), static_cast<int>(std::floor(u[1])),
+                                static_cast<int>(std::floor(u[2])));
+        return {c0, u - c0.asVec3d()};
+    }
+
     // The label whose trilinear indicator weight at x is largest (unselected
     // labels count as background), the nearest voxel's label among equals.
     // At a voxel centre that is the voxel's own label; between voxels it
@@ -139,11 +149,7 @@ private:
     // voxels it picks one of them even where most of the eight are another
     // label, and the edges from there had no crossing.
     std::int32_t labelAt(const Vec3& x) const {
-        const openvdb::math::Transform& xf = volume_->labels->transform();
-        const openvdb::Vec3d u = xf.worldToIndex(openvdb::Vec3d(x[0], x[1], x[2]));
-        const openvdb::Coord c0(static_cast<int>(std::floor(u[0])), static_cast<int>(std::floor(u[1])),
-                                static_cast<int>(std::floor(u[2])));
-        const openvdb::Vec3d t = u - c0.asVec3d();
+        const auto [c0, t] = voxelCell(x);
         openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
         auto selected = [&](std::int32_t label) { return slot_.count(label) ? label : 0; };
         std::array<std::int32_t, 8> label{};
@@ -161,7 +167,8 @@ private:
             }
             weight[s] += w;
         }
-        const std::int32_t nearest = selected(acc.getValue(xf.worldToIndexCellCentered(openvdb::Vec3d(x[0], x[1], x[2]))));
+        const std::int32_t nearest = selected(
+            acc.getValue(volume_->labels->transform().worldToIndexCellCentered(openvdb::Vec3d(x[0], x[1], x[2]))));
         int best = 0;
         for (int s = 1; s < n; ++s)
             if (weight[s] > weight[best] || (weight[s] == weight[best] && label[s] == nearest)) best = s;
@@ -202,24 +209,6 @@ public:
         if (a <= 0 && b > 0) return nearby(domain_.field(b), x);
         if (a <= 0 && b <= 0) return x;  // the box around a meshed exterior: stays put
         return projectDifference(a, b, x);
-    }
-
-    // Whether y lies on surface `surfaceId` of the scan's own fields (not the
-    // repaired ones): |F(y)| / |grad F(y)|, the first-order distance to the
-    // zero set of F, within `tolerance`. False where F is flat and not zero:
-    // a projection that starts there cannot move, so it answers where it
-    // started, which is not on the surface.
-    bool onSurface(std::int32_t surfaceId, const Vec3& y, double tolerance) const {
-        const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
-        const std::int32_t a = s.inside, b = s.outside;
-        if (a <= 0 && b <= 0) return true;
-        Vec3 ga{0, 0, 0}, gb{0, 0, 0};
-        double f = 0;
-        if (a > 0) f += domain_.field(a).valueAndGradient(y, ga);
-        if (b > 0) f -= domain_.field(b).valueAndGradient(y, gb);
-        const double g = std::sqrt((ga[0] - gb[0]) * (ga[0] - gb[0]) + (ga[1] - gb[1]) * (ga[1] - gb[1]) +
-                                   (ga[2] - gb[2]) * (ga[2] - gb[2]));
-        return std::isfinite(f) && std::abs(f) <= tolerance * g;
     }
 
     // Curves where three materials meet (HexMesh::curves): where all three
@@ -316,15 +305,16 @@ private:
     static Vec3 newtonOnto(const Fn& F, const Vec3& x0, double voxel) {
         const double maxStep = 0.5 * voxel;
         Vec3 x = x0, best = x0;
-        double bestAbs = std::numeric_limits<double>::infinity();
+        double bestAbs = std::numeric_limits<double>::infinity(), bestGrad = 0;
         for (int it = 0; it < 30; ++it) {
             Vec3 g;
             const double f = F(x, g);
+            const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
             if (std::abs(f) < bestAbs) {
                 bestAbs = std::abs(f);
+                bestGrad = std::sqrt(g2);
                 best = x;
             }
-            const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
             if (!(g2 > 0)) break;
             double step = f / std::sqrt(g2);
             if (std::abs(step) < 1e-6 * voxel) break;
@@ -334,9 +324,9 @@ private:
         }
         const double moved = std::sqrt((best[0] - x0[0]) * (best[0] - x0[0]) + (best[1] - x0[1]) * (best[1] - x0[1]) +
                                        (best[2] - x0[2]) * (best[2] - x0[2]));
-        Vec3 g;
-        const double f = F(best, g);
-        if (moved > 3.0 * voxel || !(std::abs(f) <= 1e-3 * voxel * std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]))) {
+        // Off the zero set (first-order distance |F|/|grad F| above 1e-3
+        // voxel): Newton stopped where F is flat, or ran out of steps.
+        if (moved > 3.0 * voxel || !(bestAbs <= 1e-3 * voxel * bestGrad)) {
             const double nan = std::numeric_limits<double>::quiet_NaN();
             return {nan, nan, nan};
         }
@@ -884,22 +874,17 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
         if (mesh.nodeClass[v].kind == NodeKind::Surface) nodes.push_back(static_cast<Index>(v));
     std::vector<double> dist(nodes.size(), 0.0);
-    const double voxel = p.selection->materials.front().field.voxelSize();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 512), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             const Vec3& x = mesh.nodes[nodes[i]];
-            const std::int32_t surface = mesh.nodeClass[nodes[i]].id;
-            const Vec3 y = proj.project(surface, x);
-            if (!proj.onSurface(surface, y, 1e-3 * voxel)) {
-                dist[i] = std::numeric_limits<double>::quiet_NaN();
-                continue;
-            }
+            const Vec3 y = proj.project(mesh.nodeClass[nodes[i]].id, x);
             dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
         }
     });
-    // A projection that does not converge within 3 voxels answers NaN, and one
-    // that ends off the surface (it started where the field is flat) is
-    // NaN here: such a node is counted apart, not folded into the mean.
+    // A projection that does not reach the surface within 3 voxels (or stops
+    // where the field is flat) answers NaN: such a node is counted apart, not
+    // folded into the mean.
+    const double voxel = p.selection->materials.front().field.voxelSize();
     double sum = 0, mx = 0;
     std::size_t measured = 0, far = 0, beyond = 0;
     for (double d : dist) {
