@@ -762,6 +762,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["nodes_moved"] = r.nodesMoved;
     j["node_updates"] = r.nodeUpdates;
     j["surface_nodes_off_surface"] = r.surfaceNodesReleased;
+    j["curve_nodes_demoted"] = r.curveNodesDemoted;
     j["inverted_before"] = r.invertedBefore;
     j["inverted_after"] = r.invertedAfter;
     j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;

@@ -114,6 +114,7 @@ public:
 
 private:
     void setUp();
+    void thinCurveBands();
     void untanglePhase();
     // One untangling phase, with the valid-corner guard or without it; a phase
     // without it that ends with more than `before` inverted hexes is undone
@@ -249,6 +250,7 @@ void Smoother::setUp() {
     const std::size_t N = mesh_.nodeCount();
     if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_);
     else requireTopologyOf(mesh_, topo_, "smoothing");
+    if (projector_ && projector_->hasCurves() && !opt_.fixBoundary) thinCurveBands();
 
     mode_.assign(N, Mode::Frozen);
     bool anySurface = false;
@@ -573,6 +575,90 @@ void Smoother::returnToSurface() {
                 if (k == 0) released_[v] = 0;
                 break;
             }
+    }
+}
+
+// Curve bands. Extraction marks every cell where three materials meet, and
+// where a junction runs diagonally to the grid those cells form a band two
+// wide instead of a chain: a surface quad then has three or four nodes of one
+// curve. Once they are all on the curve (a line) that quad is flat, with an
+// angle near 180 degrees or no area at all, and the hexes on it cannot be
+// untangled (JHU labels at 2.5-5 mm). Before smoothing, in each such quad the
+// node farthest from the curve is made a surface node until at most two of
+// the curve's nodes are left (on a tie, one between two others of the curve:
+// the corner where the chain turns inside the quad). It goes on the nearest
+// of the surfaces its quads belong to.
+void Smoother::thinCurveBands() {
+    const std::size_t N = mesh_.nodeCount();
+    std::vector<std::int32_t> quadSurface(topo_.quads.size(), -1);
+    for (const SurfacePatch& p : surfacePatches(mesh_, topo_)) {
+        std::int32_t id = -1;
+        for (std::size_t s = 0; s < mesh_.surfaces.size(); ++s)
+            if (mesh_.surfaces[s].inside == p.tag.inside && mesh_.surfaces[s].outside == p.tag.outside)
+                id = static_cast<std::int32_t>(s);
+        for (Index q : p.quads) quadSurface[static_cast<std::size_t>(q)] = id;
+    }
+    auto curveOf = [&](Index v) {
+        const NodeClass& c = mesh_.nodeClass[static_cast<std::size_t>(v)];
+        return c.kind == NodeKind::Curve ? c.id : -1;
+    };
+    auto distance = [](const Vec3& x, const Vec3& y) {
+        const double e = std::hypot(y[0] - x[0], y[1] - x[1], y[2] - x[2]);
+        return std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
+    };
+    std::vector<double> offCurve(N, -1.0);  // distance to its curve, computed when first needed
+    std::vector<std::int32_t> surfaces;
+    for (std::size_t q = 0; q < topo_.quads.size(); ++q) {
+        if (quadSurface[q] < 0) continue;
+        const auto& n = topo_.quads[q].nodes;
+        for (;;) {
+            int pick = -1, pickBetween = -1;
+            double pickOff = -1;  // a failed projection counts as infinitely far
+            for (int i = 0; i < 4; ++i) {
+                const std::int32_t c = curveOf(n[i]);
+                if (c < 0) continue;
+                int same = 0, between = 0;
+                for (int j = 0; j < 4; ++j)
+                    if (curveOf(n[j]) == c) {
+                        ++same;
+                        between += j == (i + 1) % 4 || j == (i + 3) % 4;
+                    }
+                if (same < 3) continue;
+                const auto sv = static_cast<std::size_t>(n[i]);
+                if (offCurve[sv] < 0) offCurve[sv] = distance(mesh_.nodes[sv], projector_->projectToCurve(c, mesh_.nodes[sv]));
+                if (offCurve[sv] > pickOff || (offCurve[sv] == pickOff && between > pickBetween)) {
+                    pick = i;
+                    pickBetween = between;
+                    pickOff = offCurve[sv];
+                }
+            }
+            if (pick < 0) break;
+            const Index v = n[pick];
+            const Vec3 x = mesh_.nodes[static_cast<std::size_t>(v)];
+            surfaces.clear();  // of the quads around it
+            for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
+                for (Index f : topo_.hexQuads[static_cast<std::size_t>(*h)]) {
+                    const std::int32_t s = quadSurface[static_cast<std::size_t>(f)];
+                    const auto& fn = topo_.quads[static_cast<std::size_t>(f)].nodes;
+                    if (s >= 0 && std::find(fn.begin(), fn.end(), v) != fn.end() &&
+                        std::find(surfaces.begin(), surfaces.end(), s) == surfaces.end())
+                        surfaces.push_back(s);
+                }
+            std::sort(surfaces.begin(), surfaces.end());
+            std::int32_t best = -1;
+            double bestOff = std::numeric_limits<double>::infinity();
+            for (const std::int32_t s : surfaces) {
+                const double e = distance(x, projector_->project(s, x));
+                if (e < bestOff) {
+                    bestOff = e;
+                    best = s;
+                }
+            }
+            // No surface to stay on (every projection failed): keep it where it is.
+            mesh_.nodeClass[static_cast<std::size_t>(v)] =
+                best >= 0 ? NodeClass{NodeKind::Surface, best} : NodeClass{NodeKind::Fixed, -1};
+            ++result_.curveNodesDemoted;
+        }
     }
 }
 

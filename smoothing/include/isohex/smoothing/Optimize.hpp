@@ -136,6 +136,7 @@ struct SmoothingResult {
     std::size_t invertedAfter = 0;
     std::vector<TangledHex> untangleFailures;  // the hexes still inverted at the end
     std::size_t movableNodes = 0;
+    std::size_t curveNodesDemoted = 0;    // curve nodes in a quad with two more of their curve, made surface nodes
     std::size_t surfaceNodesReleased = 0;  // surface nodes the last-resort untangling moved off their surface
     int colours = 0;
     bool converged = false;                // stopped on the tolerance, not on maxSweeps
