@@ -908,6 +908,36 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     j["boundary_distance_max"] = mx;
     j["boundary_distance_mean_voxels"] = mean / voxel;
     j["boundary_distance_max_voxels"] = mx / voxel;
+    // Curve nodes (where three materials meet, or two and the outside): the
+    // distance to their curve, the crossing of two of those surfaces.
+    if (!mesh.curves.empty()) {
+        std::vector<Index> onCurve;
+        for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+            if (mesh.nodeClass[v].kind == NodeKind::Curve && mesh.nodeClass[v].id >= 0)
+                onCurve.push_back(static_cast<Index>(v));
+        std::vector<double> cd(onCurve.size(), 0.0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, onCurve.size(), 256), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const Vec3& x = mesh.nodes[onCurve[i]];
+                const Vec3 y = proj.projectToCurve(mesh.nodeClass[onCurve[i]].id, x);
+                cd[i] = std::hypot(x[0] - y[0], x[1] - y[1], x[2] - y[2]);
+            }
+        });
+        std::size_t cFar = 0, cBeyond = 0;
+        double cMax = 0;
+        for (const double d : cd) {
+            if (!std::isfinite(d)) {
+                ++cFar;
+                continue;
+            }
+            cBeyond += d > 0.1 * voxel;
+            cMax = std::max(cMax, d);
+        }
+        j["curve_nodes"] = onCurve.size();
+        j["curve_nodes_not_projected"] = cFar;
+        j["curve_nodes_beyond_0_1_voxel"] = cBeyond;
+        j["curve_distance_max_voxels"] = cMax / voxel;
+    }
     j["units"] = "world units of the scan (mm for medical images)";
     return j;
 }

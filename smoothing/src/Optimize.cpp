@@ -137,6 +137,7 @@ private:
     Visit untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const;
     // A curve node: towards the mean of its curve neighbours, then onto the curve.
     Visit curveStep(Index v, std::vector<CornerTerm>& buf) const;
+    Visit curveSlide(Index v, std::vector<CornerTerm>& buf) const;  // curveStep without the final snap
     // Area-weighted centroid and unit normal of the node's surface quads; false if it has none.
     bool surfaceFrame(std::size_t v, Vector3& centroid, Vector3& normal) const;
     static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
@@ -663,6 +664,27 @@ void Smoother::thinCurveBands() {
 }
 
 Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const {
+    Visit r = curveSlide(v, buf);
+    if (r.move.steps > 0 || !std::isfinite(r.move.before)) return r;
+    // At rest but off the curve (a chain that started beside it, evenly
+    // spaced, has nothing to slide towards): onto the curve, as long as the
+    // hexes stay valid; the curve comes before a slightly better mean ratio.
+    const auto sv = static_cast<std::size_t>(v);
+    const Vec3& xv = mesh_.nodes[sv];
+    const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, xv);
+    const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
+    if (!d.allFinite() || !(d.norm() > opt_.moveTolerance * r.length)) return r;
+    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+    const double f = NodeObjective<InverseMeanRatio>(InverseMeanRatio{}, buf.data(), n).value(d);
+    if (!std::isfinite(f)) return r;
+    r.move.displacement = d;
+    r.move.after = f;
+    r.move.steps = 1;
+    r.position = y;
+    return r;
+}
+
+Smoother::Visit Smoother::curveSlide(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
     const auto sv = static_cast<std::size_t>(v);
     const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());

@@ -71,6 +71,29 @@ class SmoothingOnRealInputs(unittest.TestCase):
                 # lost 5.5% of its volume to label 2
                 for m in rep["fidelity"]["materials"]:
                     self.assertLess(abs(m["volume_change_percent"]), 1.0, f"{name} material {m['material']}")
+                self.check_curve_nodes(os.path.join(self.dir, f"{name}.vtu"), rep)
+
+    def check_curve_nodes(self, path, rep):
+        """two_materials' only curve is where labels 1, 2 and 3 meet: the
+        circle where the 1|2 plane x = 31.5 cuts the ball. Its nodes form a
+        chain (no boundary or interface quad holds three of them; extraction
+        marks a band two cells wide where the circle runs diagonally to the
+        grid) and lie on that plane within 0.1 voxel."""
+        grid = read_vtu(path)
+        pts = ns.vtk_to_numpy(grid.GetPoints().GetData())
+        kind = ns.vtk_to_numpy(grid.GetPointData().GetArray("node_class"))
+        hexes = ns.vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 8)
+        curve = kind == 2
+        self.assertGreater(int(curve.sum()), 40)
+        off = np.abs(pts[curve, 0] - 31.5)
+        self.assertLessEqual(float(off.max()), 0.1, f"{(off > 0.1).sum()} curve nodes off the x = 31.5 plane")
+        self.assertEqual(rep["fidelity"]["curve_nodes"], int(curve.sum()))
+        self.assertEqual(rep["fidelity"]["curve_nodes_beyond_0_1_voxel"], 0)
+        self.assertEqual(rep["fidelity"]["curve_nodes_not_projected"], 0)
+        faces = [(0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+        quads = np.concatenate([hexes[:, list(f)] for f in faces])
+        on = curve[quads].sum(axis=1)
+        self.assertEqual(int((on >= 3).sum()), 0, "quads with three or more curve nodes")
 
     def test_scans_with_the_sheet_beat_the_scans_without(self):
         cases = [("skull", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), ["--iso", "2.9"]),
