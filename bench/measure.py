@@ -11,9 +11,14 @@ Nothing here uses isohex's own quality or fidelity code:
   to its largest connected piece (for --keep-largest inputs).
 * boundary_distance(grid, surface): distance of the mesh's boundary nodes to a
   closed surface (vtkImplicitPolyDataDistance).
+* four_hex_nodes(grid): interior nodes in only four hexes (with four edges: a
+  tetrahedral star, what pillowing makes of a boundary node that was the
+  corner of a single hex) and the scaled Jacobian of the hexes at them
+  against the rest.
 
 Command line (for a quick look at one file):
   measure.py quality MESH.vtu|MESH.vtk
+  measure.py four-hex-nodes MESH.vtu|MESH.vtk
 """
 import json
 import sys
@@ -325,9 +330,47 @@ def write_stl(poly, path):
     w.Write()
 
 
+def four_hex_nodes(path_or_grid):
+    """Interior nodes (on no boundary face) that only four hexes share, and the
+    VTK scaled Jacobian of the hexes at such a node against the other hexes.
+    A corner of four hexes has four edges; the hexes can all be valid only with
+    the node inside the tetrahedron of its four neighbours, and with its four
+    edges in the regular tetrahedral directions each of its corners has a
+    scaled Jacobian of 4 / (3 sqrt 3) = 0.77."""
+    g = read_hex_grid(path_or_grid) if isinstance(path_or_grid, str) else path_or_grid
+    sj = _measure(g, lambda q: q.SetHexQualityMeasureToScaledJacobian())
+    hexes = ns.vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(-1, 8).astype(np.int64)
+    n = int(g.GetNumberOfPoints())
+    in_hexes = np.bincount(hexes.ravel(), minlength=n)
+    faces = np.sort(np.concatenate([hexes[:, list(f)] for f in
+                                    ((0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))]),
+                    axis=1)
+    key = ((faces[:, 0] * n + faces[:, 1]) * n + faces[:, 2]) * n + faces[:, 3] if n < 45000 else None
+    if key is not None:
+        _, inv, count = np.unique(key, return_inverse=True, return_counts=True)
+        once = count[inv] == 1
+    else:
+        _, inv, count = np.unique(faces, axis=0, return_inverse=True, return_counts=True)
+        once = count[inv.ravel()] == 1
+    on_boundary = np.zeros(n, bool)
+    on_boundary[faces[once].ravel()] = True
+    star = (in_hexes == 4) & ~on_boundary
+    at = star[hexes].any(axis=1)
+    return {
+        "hexes": int(len(hexes)),
+        "four_hex_nodes": int(star.sum()),
+        "hexes_at_them": int(at.sum()),
+        "sj_mean_at_them": float(sj[at].mean()) if at.any() else None,
+        "sj_mean_elsewhere": float(sj[~at].mean()) if (~at).any() else None,
+        "sj_mean": float(sj.mean()) if sj.size else None,
+    }
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "quality":
         print(json.dumps(quality(sys.argv[2]), indent=2))
+    elif len(sys.argv) == 3 and sys.argv[1] == "four-hex-nodes":
+        print(json.dumps(four_hex_nodes(sys.argv[2]), indent=2))
     else:
         print(__doc__)
         sys.exit(2)
