@@ -774,11 +774,41 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
         if (j["untangle_failures"].size() >= 20) break;
     }
-    if (!r.untangleFailures.empty())
-        sink.note("warning", std::to_string(r.untangleFailures.size()) + " hex(es) could not be untangled; first at (" +
-                                 std::to_string(r.untangleFailures[0].centroid[0]) + ", " +
-                                 std::to_string(r.untangleFailures[0].centroid[1]) + ", " +
-                                 std::to_string(r.untangleFailures[0].centroid[2]) + ")");
+    // The warning counts what is still inverted after the worst-hex pass too
+    // (which may fix some, and may trade one for another), at the first.
+    if (!r.untangleFailures.empty()) {
+        const std::size_t H = mesh.hexCount();
+        struct Left {
+            std::size_t count = 0;
+            std::size_t first = std::numeric_limits<std::size_t>::max();
+        };
+        const Left left = tbb::parallel_reduce(
+            tbb::blocked_range<std::size_t>(0, H, 1 << 14), Left{},
+            [&](const tbb::blocked_range<std::size_t>& range, Left l) {
+                for (std::size_t h = range.begin(); h != range.end(); ++h)
+                    if (!(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0)) {
+                        ++l.count;
+                        l.first = std::min(l.first, h);
+                    }
+                return l;
+            },
+            [](Left a, const Left& b) {
+                a.count += b.count;
+                a.first = std::min(a.first, b.first);
+                return a;
+            });
+        if (left.count > 0) {
+            Vec3 c{0, 0, 0};
+            for (const Vec3& x : hexCoords(mesh, static_cast<Index>(left.first)))
+                for (int i = 0; i < 3; ++i) c[i] += x[i] / 8.0;
+            std::string msg = std::to_string(left.count) + " hex(es) stay inverted after optimisation";
+            if (left.count != r.untangleFailures.size())
+                msg += " (" + std::to_string(r.untangleFailures.size()) + " after untangling)";
+            msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) +
+                   "); another --size may avoid them";
+            sink.note("warning", msg);
+        }
+    }
     st.finish();
     return j;
 }
