@@ -899,74 +899,65 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
         j["volume_voxels"] = voxTotal;
         j["volume_change_vs_voxels_percent"] = 100.0 * (meshTotal - voxTotal) / voxTotal;
     }
-    // Distance of surface nodes to their surface (projection distance).
+    // Distance of surface nodes to their surface and of curve nodes to their
+    // curve (projection distance). A projection that does not reach its
+    // surface or curve within 3 voxels (or stops where the field is flat)
+    // answers NaN: such a node is counted apart, not folded into the mean.
     FieldProjector proj(*domain, mesh);
-    std::vector<Index> nodes;
-    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
-        if (mesh.nodeClass[v].kind == NodeKind::Surface) nodes.push_back(static_cast<Index>(v));
-    std::vector<double> dist(nodes.size(), 0.0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 512), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const Vec3& x = mesh.nodes[nodes[i]];
-            const Vec3 y = proj.project(mesh.nodeClass[nodes[i]].id, x);
-            dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
-        }
-    });
-    // A projection that does not reach the surface within 3 voxels (or stops
-    // where the field is flat) answers NaN: such a node is counted apart, not
-    // folded into the mean.
     const double voxel = p.selection->materials.front().field.voxelSize();
-    double sum = 0, mx = 0;
-    std::size_t measured = 0, far = 0, beyond = 0;
-    for (double d : dist) {
-        if (!std::isfinite(d)) {
-            ++far;
-            continue;
-        }
-        if (d > 0.1 * voxel) ++beyond;
-        sum += d;
-        mx = std::max(mx, d);
-        ++measured;
-    }
-    const double mean = measured ? sum / static_cast<double>(measured) : 0.0;
-    j["boundary_nodes"] = nodes.size();
-    j["boundary_nodes_not_projected"] = far;
-    // Issue 6's fidelity bound: nodes farther than 0.1 voxel from their surface
-    // (the not-projected ones are farther still and counted apart above).
-    j["boundary_nodes_beyond_0_1_voxel"] = beyond;
-    j["boundary_distance_mean"] = mean;
-    j["boundary_distance_max"] = mx;
-    j["boundary_distance_mean_voxels"] = mean / voxel;
-    j["boundary_distance_max_voxels"] = mx / voxel;
-    // Curve nodes (where three materials meet, or two and the outside): the
-    // distance to their curve, the crossing of two of those surfaces.
-    if (!mesh.curves.empty()) {
-        std::vector<Index> onCurve;
+    struct Distances {
+        std::size_t nodes = 0, notProjected = 0, beyond = 0;
+        double mean = 0, max = 0;
+    };
+    auto measure = [&](NodeKind kind, auto project) {
+        std::vector<Index> nodes;
         for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
-            if (mesh.nodeClass[v].kind == NodeKind::Curve && mesh.nodeClass[v].id >= 0)
-                onCurve.push_back(static_cast<Index>(v));
-        std::vector<double> cd(onCurve.size(), 0.0);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, onCurve.size(), 256), [&](const auto& r) {
+            if (mesh.nodeClass[v].kind == kind && mesh.nodeClass[v].id >= 0) nodes.push_back(static_cast<Index>(v));
+        std::vector<double> dist(nodes.size(), 0.0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 256), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                const Vec3& x = mesh.nodes[onCurve[i]];
-                const Vec3 y = proj.projectToCurve(mesh.nodeClass[onCurve[i]].id, x);
-                cd[i] = std::hypot(x[0] - y[0], x[1] - y[1], x[2] - y[2]);
+                const Vec3& x = mesh.nodes[nodes[i]];
+                const Vec3 y = project(mesh.nodeClass[nodes[i]].id, x);
+                dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                                    (x[2] - y[2]) * (x[2] - y[2]));
             }
         });
-        std::size_t cFar = 0, cBeyond = 0;
-        double cMax = 0;
-        for (const double d : cd) {
+        Distances out;
+        out.nodes = nodes.size();
+        double sum = 0;
+        std::size_t measured = 0;
+        for (const double d : dist) {
             if (!std::isfinite(d)) {
-                ++cFar;
+                ++out.notProjected;
                 continue;
             }
-            cBeyond += d > 0.1 * voxel;
-            cMax = std::max(cMax, d);
+            out.beyond += d > 0.1 * voxel;
+            sum += d;
+            out.max = std::max(out.max, d);
+            ++measured;
         }
-        j["curve_nodes"] = onCurve.size();
-        j["curve_nodes_not_projected"] = cFar;
-        j["curve_nodes_beyond_0_1_voxel"] = cBeyond;
-        j["curve_distance_max_voxels"] = cMax / voxel;
+        out.mean = measured ? sum / static_cast<double>(measured) : 0.0;
+        return out;
+    };
+    const Distances surf =
+        measure(NodeKind::Surface, [&](std::int32_t id, const Vec3& x) { return proj.project(id, x); });
+    j["boundary_nodes"] = surf.nodes;
+    j["boundary_nodes_not_projected"] = surf.notProjected;
+    // Issue 6's fidelity bound: nodes farther than 0.1 voxel from their surface
+    // (the not-projected ones are farther still and counted apart above).
+    j["boundary_nodes_beyond_0_1_voxel"] = surf.beyond;
+    j["boundary_distance_mean"] = surf.mean;
+    j["boundary_distance_max"] = surf.max;
+    j["boundary_distance_mean_voxels"] = surf.mean / voxel;
+    j["boundary_distance_max_voxels"] = surf.max / voxel;
+    // Curve nodes (where three materials meet, or two and the outside).
+    if (!mesh.curves.empty()) {
+        const Distances curve =
+            measure(NodeKind::Curve, [&](std::int32_t id, const Vec3& x) { return proj.projectToCurve(id, x); });
+        j["curve_nodes"] = curve.nodes;
+        j["curve_nodes_not_projected"] = curve.notProjected;
+        j["curve_nodes_beyond_0_1_voxel"] = curve.beyond;
+        j["curve_distance_max_voxels"] = curve.max / voxel;
     }
     j["units"] = "world units of the scan (mm for medical images)";
     return j;

@@ -114,7 +114,7 @@ public:
 
 private:
     void setUp();
-    void thinCurveBands();
+    void thinCurveBands(const std::vector<std::int32_t>& quadSurface);
     void untanglePhase();
     // One untangling phase, with the valid-corner guard or without it; a phase
     // without it that ends with more than `before` inverted hexes is undone
@@ -251,7 +251,20 @@ void Smoother::setUp() {
     const std::size_t N = mesh_.nodeCount();
     if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_);
     else requireTopologyOf(mesh_, topo_, "smoothing");
-    if (projector_ && projector_->hasCurves() && !opt_.fixBoundary) thinCurveBands();
+    // Which of mesh.surfaces each boundary/interface quad belongs to (-1:
+    // none), for thinning curve bands and for surface nodes' quads.
+    std::vector<std::int32_t> quadSurface;
+    if (projector_ && !opt_.fixBoundary) {
+        quadSurface.assign(topo_.quads.size(), -1);
+        for (const SurfacePatch& p : surfacePatches(mesh_, topo_)) {
+            std::int32_t id = -1;
+            for (std::size_t s = 0; s < mesh_.surfaces.size(); ++s)
+                if (mesh_.surfaces[s].inside == p.tag.inside && mesh_.surfaces[s].outside == p.tag.outside)
+                    id = static_cast<std::int32_t>(s);
+            for (Index q : p.quads) quadSurface[static_cast<std::size_t>(q)] = id;
+        }
+        if (projector_->hasCurves()) thinCurveBands(quadSurface);
+    }
 
     mode_.assign(N, Mode::Frozen);
     bool anySurface = false;
@@ -302,15 +315,6 @@ void Smoother::setUp() {
     result_.colours = static_cast<int>(colouring_.classes.size());
 
     if (anySurface) {
-        // Which of mesh.surfaces each boundary/interface quad belongs to.
-        std::vector<std::int32_t> quadSurface(topo_.quads.size(), -1);
-        for (const SurfacePatch& p : surfacePatches(mesh_, topo_)) {
-            std::int32_t id = -1;
-            for (std::size_t s = 0; s < mesh_.surfaces.size(); ++s)
-                if (mesh_.surfaces[s].inside == p.tag.inside && mesh_.surfaces[s].outside == p.tag.outside)
-                    id = static_cast<std::int32_t>(s);
-            for (Index q : p.quads) quadSurface[static_cast<std::size_t>(q)] = id;
-        }
         auto& c = nodeSurfaceQuads_;
         c.offsets.assign(N + 1, 0);
         // Several surfaces may share a material pair (a block's faces and a
@@ -589,16 +593,8 @@ void Smoother::returnToSurface() {
 // the curve's nodes are left (on a tie, one between two others of the curve:
 // the corner where the chain turns inside the quad). It goes on the nearest
 // of the surfaces its quads belong to.
-void Smoother::thinCurveBands() {
+void Smoother::thinCurveBands(const std::vector<std::int32_t>& quadSurface) {
     const std::size_t N = mesh_.nodeCount();
-    std::vector<std::int32_t> quadSurface(topo_.quads.size(), -1);
-    for (const SurfacePatch& p : surfacePatches(mesh_, topo_)) {
-        std::int32_t id = -1;
-        for (std::size_t s = 0; s < mesh_.surfaces.size(); ++s)
-            if (mesh_.surfaces[s].inside == p.tag.inside && mesh_.surfaces[s].outside == p.tag.outside)
-                id = static_cast<std::int32_t>(s);
-        for (Index q : p.quads) quadSurface[static_cast<std::size_t>(q)] = id;
-    }
     auto curveOf = [&](Index v) {
         const NodeClass& c = mesh_.nodeClass[static_cast<std::size_t>(v)];
         return c.kind == NodeKind::Curve ? c.id : -1;
@@ -674,6 +670,7 @@ Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const
     const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, xv);
     const Vector3 d(y[0] - xv[0], y[1] - xv[1], y[2] - xv[2]);
     if (!d.allFinite() || !(d.norm() > opt_.moveTolerance * r.length)) return r;
+    // gathered again: curveSlide's Newton step leaves the terms shifted
     const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
     const double f = NodeObjective<InverseMeanRatio>(InverseMeanRatio{}, buf.data(), n).value(d);
     if (!std::isfinite(f)) return r;
