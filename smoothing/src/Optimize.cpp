@@ -797,60 +797,89 @@ void Smoother::untanglePhase() {
         for (auto& l : lists) std::sort(l.begin(), l.end());
     };
 
+    // An untangling visit is a function of where the nodes of the node's hexes
+    // are (the phase's flags, anchors and start positions stay put), so a
+    // node whose visit moved nothing, and none of whose hexes' nodes moved
+    // since, is `settled` and skipped: the outer rings of a grown region are
+    // mostly such nodes. Bit for bit the result without the skip.
+    std::vector<std::uint8_t> settled(N, 0);
+    auto tryMove = [&](Index v) {
+        const auto sv = static_cast<std::size_t>(v);
+        const bool onSurface = mode_[sv] == Mode::Surface || mode_[sv] == Mode::Curve;
+        const Visit r = onSurface && !releaseSurface_ ? untangleSurfaceStep(v, buffers_->local())
+                                                      : untangleStep(v, buffers_->local());
+        Vec3 to = r.position;
+        if (r.move.steps > 0 && onSurface && releaseSurface_) {
+            // A released node stays within releaseLimit_ edge lengths of
+            // where it was on the surface: the step is shortened (by
+            // halves) until it does. Knupp's measure is convex and the
+            // determinants affine along the step, so a shorter step still
+            // lowers the measure and keeps valid corners valid.
+            const Vec3& a = anchor_[sv];
+            const Vec3& x = mesh_.nodes[sv];
+            const Vector3 d = r.move.displacement;
+            double t = 1;
+            for (int k = 0; k <= 6; ++k, t *= 0.5) {
+                to = displaced(x, t * d);
+                const double dx = to[0] - a[0], dy = to[1] - a[1], dz = to[2] - a[2];
+                if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[sv]) break;
+            }
+            if (t < 1.0 / 64) return false;
+        }
+        if (r.move.steps > 0) {
+            const double cap = opt_.untangleMaxTravel * refLength_[sv];
+            auto far = [&](const Vec3& p) {
+                const double dx = p[0] - start_[sv][0], dy = p[1] - start_[sv][1], dz = p[2] - start_[sv][2];
+                return dx * dx + dy * dy + dz * dz > cap * cap;
+            };
+            if (far(to)) {
+                if (onSurface && !releaseSurface_) return false;
+                const Vec3& x = mesh_.nodes[sv];
+                const Vector3 d(to[0] - x[0], to[1] - x[1], to[2] - x[2]);
+                double t = 0.5;
+                for (int k = 0; k < 6 && far(to = displaced(x, t * d)); ++k) t *= 0.5;
+                if (far(to)) return false;
+            }
+            if (onSurface && releaseSurface_) released_[sv] = 1;
+            moveNode(sv, to);
+            everMoved_[sv] = 1;
+            touched_[sv] = 1;
+            return true;
+        }
+        return false;
+    };
+
     std::size_t best = count;
     int stall = 0, rings = 0, polish = 0;
     buildRegion(rings);
     for (int sweep = 0; sweep < opt_.maxUntangleSweeps && (count > 0 || polish < opt_.untanglePolishSweeps); ++sweep) {
         if (count == 0) ++polish;
+        bool grown = false;
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
-            const bool onSurface = mode_[sv] == Mode::Surface || mode_[sv] == Mode::Curve;
-            const Visit r = onSurface && !releaseSurface_ ? untangleSurfaceStep(v, buffers_->local())
-                                                          : untangleStep(v, buffers_->local());
-            Vec3 to = r.position;
-            if (r.move.steps > 0 && onSurface && releaseSurface_) {
-                // A released node stays within releaseLimit_ edge lengths of
-                // where it was on the surface: the step is shortened (by
-                // halves) until it does. Knupp's measure is convex and the
-                // determinants affine along the step, so a shorter step still
-                // lowers the measure and keeps valid corners valid.
-                const Vec3& a = anchor_[sv];
-                const Vec3& x = mesh_.nodes[sv];
-                const Vector3 d = r.move.displacement;
-                double t = 1;
-                for (int k = 0; k <= 6; ++k, t *= 0.5) {
-                    to = displaced(x, t * d);
-                    const double dx = to[0] - a[0], dy = to[1] - a[1], dz = to[2] - a[2];
-                    if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[sv]) break;
-                }
-                if (t < 1.0 / 64) return;
-            }
-            if (r.move.steps > 0) {
-                const double cap = opt_.untangleMaxTravel * refLength_[sv];
-                auto far = [&](const Vec3& p) {
-                    const double dx = p[0] - start_[sv][0], dy = p[1] - start_[sv][1], dz = p[2] - start_[sv][2];
-                    return dx * dx + dy * dy + dz * dz > cap * cap;
-                };
-                if (far(to)) {
-                    if (onSurface && !releaseSurface_) return;
-                    const Vec3& x = mesh_.nodes[sv];
-                    const Vector3 d(to[0] - x[0], to[1] - x[1], to[2] - x[2]);
-                    double t = 0.5;
-                    for (int k = 0; k < 6 && far(to = displaced(x, t * d)); ++k) t *= 0.5;
-                    if (far(to)) return;
-                }
-                if (onSurface && releaseSurface_) released_[sv] = 1;
-                moveNode(sv, to);
-                everMoved_[sv] = 1;
-                touched_[sv] = 1;
+            if (settled[sv]) return;
+            if (tryMove(v)) {
+                // Nodes sharing a hex with v may move now (two nodes of one
+                // colour class can share such a node: atomic stores).
+                for (const Index* h = topo_.nodeHexes.begin(sv); h != topo_.nodeHexes.end(sv); ++h)
+                    for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)])
+                        std::atomic_ref<std::uint8_t>(settled[static_cast<std::size_t>(u)])
+                            .store(0, std::memory_order_relaxed);
+            } else {
+                settled[sv] = 1;
             }
         });
         ++result_.untangleSweeps;
         // Only hexes touching the region can have changed.
+        std::atomic<bool> flipped{false};
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, regionHexes.size(), 1024), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                const Index h = regionHexes[i];
-                inverted[static_cast<std::size_t>(h)] = !(minJacobianDeterminant(hexCoords(mesh_, h)) > 0);
+                const auto h = static_cast<std::size_t>(regionHexes[i]);
+                const std::uint8_t now = !(minJacobianDeterminant(hexCoords(mesh_, regionHexes[i])) > 0);
+                if (now != inverted[h]) {
+                    inverted[h] = now;
+                    flipped.store(true, std::memory_order_relaxed);
+                }
             }
         });
         count = static_cast<std::size_t>(std::count(inverted.begin(), inverted.end(), std::uint8_t{1}));
@@ -864,8 +893,10 @@ void Smoother::untanglePhase() {
             if (rings >= opt_.maxUntangleGrowth) break;
             ++rings;
             stall = 0;
+            grown = true;
         }
-        buildRegion(rings);
+        // The region depends on the inverted hexes and the rings only.
+        if (flipped.load() || grown) buildRegion(rings);
     }
     report("untangle", 1.0);
     result_.untangleSeconds += secondsSince(t0);
@@ -914,7 +945,12 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         active.swap(next);
         double improvement = 0;
         for (double g : gain) improvement += g;
-        const double before = total;
+        // The running total subtracts the nodes' gains, which count centre
+        // frames and corners of hexes that were inverted at the start (not
+        // in start.sum), so it drifts low and went negative on ch2bet at
+        // 1.25 mm after 12 sweeps, which turned the tolerance off. A corner's
+        // inverse mean ratio is at least 1, so the sum is at least `corners`.
+        const double before = std::max(total, corners);
         total -= improvement;
         ++result_.sweeps;
         result_.nodeUpdates += updates.load();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <limits>
 
 #include <tbb/blocked_range.h>
@@ -323,6 +324,16 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         return c.kind == NodeKind::Surface && projector != nullptr;
     };
     std::vector<std::uint8_t> everMoved(N, 0), released(N, 0);
+    // A compass visit is a function of where the nodes of the node's hexes
+    // are (and of fixed data: its normal, the target, the projector), so a
+    // node whose last visit in the same kind of round moved nothing, and none
+    // of whose hexes' nodes moved since, would move nothing again: `settled`
+    // marks such nodes and the rounds skip them. Rounds still pick and colour
+    // their nodes as before, so the result is the one without the skip, bit
+    // for bit. Cleared when the kind of round changes and after the joint
+    // release, which moves nodes outside the rounds.
+    std::vector<std::uint8_t> settled(N, 0);
+    int settledKind = -1;
     // Directions of the compass search: the 6 axes and 8 cube diagonals in
     // 3-D; 8 directions 45 degrees apart in a tangent plane.
     std::vector<Vec3> dirs3;
@@ -425,10 +436,18 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 step *= 0.5;
             }
         }
-        if (!moves) return false;
+        if (!moves) {
+            settled[sv] = 1;
+            return false;
+        }
         everMoved[sv] = 1;
         if (surface && release) released[sv] = 1;
         refreshAround(sv);
+        // Nodes sharing a hex with this one may move now. Two nodes of one
+        // colour class can share a hex-neighbour, hence the atomic stores.
+        for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
+            for (Index u : mesh.hexes[static_cast<std::size_t>(*h)])
+                std::atomic_ref<std::uint8_t>(settled[static_cast<std::size_t>(u)]).store(0, std::memory_order_relaxed);
         return true;
     };
 
@@ -448,6 +467,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
         if (nodes.empty()) return false;
+        if (const int kind = 2 * release + mean; kind != settledKind) {
+            std::fill(settled.begin(), settled.end(), std::uint8_t{0});
+            settledKind = kind;
+        }
         // Nodes sharing no hex move at once: one colour class per parallel
         // loop, classes in order, so the result is the same for any number
         // of threads.
@@ -458,7 +481,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         for (const std::vector<Index>& cls : colouring.classes)
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cls.size(), 16), [&](const auto& range) {
                 for (std::size_t i = range.begin(); i != range.end(); ++i)
-                    if (visit(cls[i], normal, release, mean)) anyMove = true;
+                    if (!settled[static_cast<std::size_t>(cls[i])] && visit(cls[i], normal, release, mean))
+                        anyMove = true;
             });
         ++res.rounds;
         return anyMove.load();
@@ -716,6 +740,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         res.jointRegionsImproved = improvedCount.load();
         res.jointRegionsTried = triedCount.load();
         res.jointSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        settledKind = -1;
         const bool improved = res.jointRegionsImproved > 0;
         // The joint move evens out the worst frames of the region; the
         // compass rounds then lift the hexes around it towards the target.
