@@ -858,16 +858,8 @@ void Smoother::untanglePhase() {
         sweepColours(lists, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
             if (settled[sv]) return;
-            if (tryMove(v)) {
-                // Nodes sharing a hex with v may move now (two nodes of one
-                // colour class can share such a node: atomic stores).
-                for (const Index* h = topo_.nodeHexes.begin(sv); h != topo_.nodeHexes.end(sv); ++h)
-                    for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)])
-                        std::atomic_ref<std::uint8_t>(settled[static_cast<std::size_t>(u)])
-                            .store(0, std::memory_order_relaxed);
-            } else {
-                settled[sv] = 1;
-            }
+            if (tryMove(v)) clearAround(mesh_, topo_.nodeHexes, v, settled);  // nodes sharing a hex may move now
+            else settled[sv] = 1;
         });
         ++result_.untangleSweeps;
         // Only hexes touching the region can have changed.

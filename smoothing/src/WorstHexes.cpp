@@ -4,7 +4,6 @@
 #include <cmath>
 #include <atomic>
 #include <chrono>
-#include <cstdint>
 #include <limits>
 
 #include <tbb/blocked_range.h>
@@ -443,11 +442,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         everMoved[sv] = 1;
         if (surface && release) released[sv] = 1;
         refreshAround(sv);
-        // Nodes sharing a hex with this one may move now. Two nodes of one
-        // colour class can share a hex-neighbour, hence the atomic stores.
-        for (const Index* h = topo.nodeHexes.begin(sv); h != topo.nodeHexes.end(sv); ++h)
-            for (Index u : mesh.hexes[static_cast<std::size_t>(*h)])
-                std::atomic_ref<std::uint8_t>(settled[static_cast<std::size_t>(u)]).store(0, std::memory_order_relaxed);
+        clearAround(mesh, topo.nodeHexes, v, settled);  // nodes sharing a hex with it may move now
         return true;
     };
 
