@@ -184,8 +184,17 @@ struct FrameState {
 };
 using HexFrames = std::array<FrameState, 9>;
 
-// Scaled Jacobian of each of the 9 frames of a hex (-2 for a collapsed frame).
-void frameValues(const HexCoords& x, HexFrames& out) {
+// What the soft minimum is taken of, per frame: the scaled Jacobian (scale
+// 0), or the determinant times `scale` (the frame's columns as in the
+// corners; the centre frame's, sums of four edges, count a quarter each).
+// The scaled Jacobian does not see size, so a region whose worst frames have
+// been evened out at zero (a node on the plane of its neighbours, the
+// corner hex of a sheet pressed flat against the surface) gives the ascent
+// no direction that opens them; the determinant grows with the frame, so its
+// soft minimum pushes the flat frames open first.
+// Scaled Jacobian of each of the 9 frames of a hex (-2 for a collapsed
+// frame), or with scale > 0 its scaled determinant.
+void frameValues(const HexCoords& x, HexFrames& out, double scale = 0) {
     const FrameTable& t = frameTable();
     for (std::size_t f = 0; f < 9; ++f) {
         FrameState& st = out[f];
@@ -197,6 +206,12 @@ void frameValues(const HexCoords& x, HexFrames& out) {
         }
         st.la = norm(st.col[0]), st.lb = norm(st.col[1]), st.lc = norm(st.col[2]);
         st.len = st.la * st.lb * st.lc;
+        if (scale > 0) {
+            st.collapsed = false;
+            st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
+            st.s = dot(st.col[0], st.cross[0]) * (f == 0 ? scale / 64 : scale);
+            continue;
+        }
         st.collapsed = !(st.len > 1e-300);
         if (st.collapsed) {  // as bad as it gets, no direction
             st.s = -2;
@@ -207,15 +222,22 @@ void frameValues(const HexCoords& x, HexFrames& out) {
     }
 }
 
-// Adds weight[f] * d s_f / d x_n to grad[n] for the hex's 8 nodes.
-void frameGradients(const HexFrames& frames, const double* weight, std::array<Vec3, 8>& grad) {
+// Adds weight[f] * d s_f / d x_n to grad[n] for the hex's 8 nodes (s_f as
+// frameValues computed it with the same scale).
+void frameGradients(const HexFrames& frames, const double* weight, std::array<Vec3, 8>& grad, double scale = 0) {
     const FrameTable& t = frameTable();
     for (std::size_t f = 0; f < 9; ++f) {
         const FrameState& st = frames[f];
         if (st.collapsed || weight[f] == 0) continue;
-        const std::array<Vec3, 3> g = {(1.0 / st.len) * st.cross[0] - (st.s / (st.la * st.la)) * st.col[0],
-                                       (1.0 / st.len) * st.cross[1] - (st.s / (st.lb * st.lb)) * st.col[1],
-                                       (1.0 / st.len) * st.cross[2] - (st.s / (st.lc * st.lc)) * st.col[2]};
+        std::array<Vec3, 3> g;
+        if (scale > 0) {
+            const double k = f == 0 ? scale / 64 : scale;  // d det / d column j = cross[j]
+            g = {k * st.cross[0], k * st.cross[1], k * st.cross[2]};
+        } else {
+            g = {(1.0 / st.len) * st.cross[0] - (st.s / (st.la * st.la)) * st.col[0],
+                 (1.0 / st.len) * st.cross[1] - (st.s / (st.lb * st.lb)) * st.col[1],
+                 (1.0 / st.len) * st.cross[2] - (st.s / (st.lc * st.lc)) * st.col[2]};
+        }
         for (std::size_t j = 0; j < 3; ++j)
             for (std::size_t n = 0; n < 8; ++n)
                 if (t.c[f][j][n] != 0) grad[n] = grad[n] + (weight[f] * t.c[f][j][n]) * g[j];
@@ -490,7 +512,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     struct Region {
         std::vector<Index> free, hexes;
     };
-    auto regionOf = [&](Index h0) {
+    auto regionOf = [&](Index h0, int rings) {
         Region r;
         std::vector<Index>& free = r.free;
         std::vector<Index> layer;
@@ -503,7 +525,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             mark(u);
             layer.push_back(u);
         }
-        for (int ring = 0; ring < opt.jointRings; ++ring) {
+        for (int ring = 0; ring < rings; ++ring) {
             std::vector<Index> next;
             for (Index v : layer)
                 for (const Index* h = topo.nodeHexes.begin(static_cast<std::size_t>(v));
@@ -531,7 +553,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     // inverted hexes, or a larger smallest scaled Jacobian). It reads and
     // writes only the region's free nodes, the nodes of its hexes and their
     // entries of sj, everMoved and released.
-    auto jointRelease = [&](const Region& region, int iterations) {
+    auto jointRelease = [&](const Region& region, int iterations, bool byVolume) {
         const std::vector<Index>& free = region.free;
         const std::vector<Index>& hexes = region.hexes;
         if (free.empty()) return false;
@@ -583,6 +605,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::vector<double> w(9 * hexes.size());
         std::vector<HexFrames> frames(hexes.size());
         double lr = opt.jointStep * L;
+        const double scale = byVolume ? 1.0 / (L * L * L) : 0.0;
         for (const double tau : {0.05, 0.02, 0.01, 0.005}) {
             for (int it = 0; it < iterations; ++it) {
                 // Soft-min weights over all frames of the region's hexes: the
@@ -590,7 +613,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 // the frames' gradients, weights exp(-s/tau) normalised.
                 double lowest = std::numeric_limits<double>::infinity();
                 for (std::size_t k = 0; k < hexes.size(); ++k) {
-                    frameValues(hexCoords(mesh, hexes[k]), frames[k]);
+                    frameValues(hexCoords(mesh, hexes[k]), frames[k], scale);
                     for (const FrameState& st : frames[k]) lowest = std::min(lowest, st.s);
                 }
                 double total = 0;
@@ -605,7 +628,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                     for (std::size_t f = 0; f < 9; ++f) w[9 * k + f] /= total;
                     std::array<Vec3, 8> g{};
                     g.fill(Vec3{0, 0, 0});
-                    frameGradients(frames[k], &w[9 * k], g);
+                    frameGradients(frames[k], &w[9 * k], g, scale);
                     const Hex& hx = mesh.hexes[static_cast<std::size_t>(hexes[k])];
                     for (std::size_t n = 0; n < 8; ++n) {
                         const std::ptrdiff_t i = local(hx[n]);
@@ -687,10 +710,20 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     if (projector != nullptr && opt.releaseDistance > 0 && opt.jointRings > 0) {
         const auto t0 = std::chrono::steady_clock::now();
         std::atomic<std::size_t> improvedCount{0}, triedCount{0};
+        // A joint move is kept when its region gets better, which can leave
+        // a neighbour inverted in place of the hex it was for (the region has
+        // as many inverted hexes, with a higher minimum): such hexes get
+        // their own turn in a further pass.
+        std::vector<std::uint8_t> attempted(sj.size(), 0);
+        std::vector<std::uint8_t> claimed(sj.size(), 0);
+        for (int pass = 0; pass < opt.jointPasses; ++pass) {
         std::vector<std::pair<Index, Region>> pending;
         for (std::size_t h = 0; h < sj.size(); ++h)
-            if (!(sj[h] > 0)) pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h)));
-        std::vector<std::uint8_t> claimed(sj.size(), 0);
+            if (!(sj[h] > 0) && !attempted[h]) {
+                attempted[h] = 1;
+                pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h), opt.jointRings));
+            }
+        if (pending.empty()) break;
         while (!pending.empty()) {
             std::vector<std::size_t> batch;
             std::vector<std::pair<Index, Region>> later;
@@ -714,14 +747,33 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                     const auto sh = static_cast<std::size_t>(h0);
                     if (!(sj[sh] > 0)) {
                         triedCount.fetch_add(1);
-                        if (jointRelease(region, opt.jointIterations)) improvedCount.fetch_add(1);
+                        if (jointRelease(region, opt.jointIterations, false)) improvedCount.fetch_add(1);
                     }
                     // Still inverted: once more from there with longer stages
                     // (the corner of a plate one cell thick on ch2bet at 1 mm
                     // needed it).
                     if (!(sj[sh] > 0) && opt.jointRetryIterations > 0) {
                         triedCount.fetch_add(1);
-                        if (jointRelease(region, opt.jointRetryIterations)) improvedCount.fetch_add(1);
+                        if (jointRelease(region, opt.jointRetryIterations, false)) improvedCount.fetch_add(1);
+                    }
+                    // Still inverted: the frames around it are pressed flat,
+                    // where the scaled Jacobian's ascent has no direction;
+                    // once more on the determinants (see frameValues).
+                    if (!(sj[sh] > 0) && opt.jointVolumeIterations > 0) {
+                        triedCount.fetch_add(1);
+                        if (jointRelease(region, opt.jointVolumeIterations, true)) improvedCount.fetch_add(1);
+                    }
+                    // Still inverted: the same on one ring only, where fewer
+                    // frames compete for the soft minimum (a knife-edge gyrus
+                    // of ch2bet at 2.5 mm needed it). Its region is part of
+                    // the wider one, so the batch stays independent.
+                    if (!(sj[sh] > 0) && opt.jointRings > 1) {
+                        const Region narrow = regionOf(h0, 1);
+                        for (const bool byVolume : {false, true}) {
+                            if (sj[sh] > 0) break;
+                            triedCount.fetch_add(1);
+                            if (jointRelease(narrow, byVolume ? opt.jointVolumeIterations : opt.jointRetryIterations, byVolume)) improvedCount.fetch_add(1);
+                        }
                     }
                 }
             });
@@ -731,6 +783,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 else later.push_back(std::move(pending[i]));
             }
             pending.swap(later);
+        }
         }
         res.jointRegionsImproved = improvedCount.load();
         res.jointRegionsTried = triedCount.load();

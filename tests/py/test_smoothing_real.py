@@ -195,6 +195,31 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertEqual(int((sj <= 0).sum()), 0)
         self.assertLess(rep["fidelity"]["boundary_distance_mean_voxels"], 0.1)
 
+    def test_joint_release_clears_flat_regions_and_the_neighbours_it_leaves_inverted(self):
+        # Three sizes where the joint release used to leave one hex at a
+        # scaled Jacobian of about -1e-5 (session 13): ch2bet at 5 mm (the
+        # corner hex under a convex corner of the sheet pressed flat: only
+        # the ascent on determinants opens it), JHU at 5 mm (a kept joint
+        # move left a neighbour of its hex inverted, which now gets a pass of
+        # its own) and ch2bet at 2.5 mm (a knife-edge gyrus: only the
+        # one-ring region clears it).
+        cases = [("brain_5mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"), ["--size", "5", "--keep-largest"]),
+                 ("jhu_5mm_joint", os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz"),
+                  ["--labels", "--size", "5"]),
+                 ("brain_2.5mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
+                  ["--size", "2.5", "--keep-largest"])]
+        for name, src, opts in cases:
+            out, rep = self.mesh(name, src, *opts)
+            sj = vtk_sj(out)
+            w = rep["optimization"]["worst_hexes"]
+            print(f"{name}: {rep['optimization']['inverted_after']} inverted after untangling, "
+                  f"{w['joint_regions_tried']} joint moves, {w['joint_regions_improved']} kept; "
+                  f"VTK: {int((sj <= 0).sum())} inverted, SJ min {sj.min():.3f}")
+            self.assertGreater(rep["optimization"]["inverted_after"], 0, name)  # the case this test is about
+            self.assertGreaterEqual(w["joint_regions_improved"], 1, name)
+            self.assertEqual(int((sj <= 0).sum()), 0, name)
+            self.assertTrue(rep["validity"]["ok"], f"{name}: {rep['validity']}")
+
     def test_a_higher_worst_hex_target_lifts_the_femurs_worst_hexes(self):
         # --worst-hex-target sets the scaled Jacobian the max-min pass aims
         # at (default 0.3). On the femur's smooth surface a target of 0.6

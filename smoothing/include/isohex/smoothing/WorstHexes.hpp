@@ -60,6 +60,13 @@ struct WorstHexOptions {
     // A hex the joint move leaves inverted gets a second one, from where the
     // first ended, with this many iterations per stage (0: no second move).
     int jointRetryIterations = 2000;
+    // A hex still inverted after both gets a third joint move, on a soft
+    // minimum of the frames' determinants instead of their scaled Jacobians
+    // (iterations per stage; 0: none).
+    int jointVolumeIterations = 400;
+    // Passes of joint moves: a pass takes the inverted hexes no earlier pass
+    // took (a kept move can leave a neighbour of its hex inverted instead).
+    int jointPasses = 3;
     // Last, up to meanRounds rounds over the movable nodes of the hexes below
     // meanBelow: each node moves (compass search along the axes, or in its
     // tangent plane, from meanFirstStep edge lengths, at most
