@@ -500,6 +500,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
     std::optional<double> size = settings.size;
     nlohmann::json surfaceJson;
+    std::optional<imaging::SurfaceTopology> surfaceTopo;  // a triangle surface's own topology
     {
         Stage st(sink, "load");
         if (isSurfaceFile(input)) {
@@ -511,11 +512,14 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
             imaging::LevelSetOptions lso;
             lso.elementSize = *size;
             lso.maxMemoryMB = settings.load.maxMemoryMB;
+            surfaceTopo = imaging::surfaceTopology(surface);
             surfaceJson = {{"triangles", surface.triangles.size()},
                            {"vertices", surface.vertices.size()},
                            {"volume", surface.volume()},
                            {"area", surface.area()},
-                           {"flipped", surface.flipped}};
+                           {"flipped", surface.flipped},
+                           {"components", surfaceTopo->components},
+                           {"euler_characteristic", surfaceTopo->euler}};
             imaging::SurfaceLevelSet ls = imaging::surfaceToLevelSet(std::move(surface), lso);
             auto vol = std::make_shared<imaging::Volume>();
             vol->kind = imaging::VolumeKind::Intensity;
@@ -661,28 +665,43 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     for (const auto& t : topo)
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
-    // Compare with the voxel-resolution topology when the user forced the grid.
-    if ((size || settings.level) && vol.voxelCount() <= 60'000'000) {
+    // Compare with the topology the mesh should have. A triangle surface has
+    // its own (its level set's voxels are half an element, so a voxel-level
+    // reference would coarsen with --size and miss what a large size loses);
+    // a scan is compared with the grid at voxel spacing, when the user forced
+    // the grid.
+    std::vector<octree::RegionTopology> ref;
+    std::string refName;
+    if (surfaceTopo) {
+        octree::RegionTopology t;
+        t.material = 1;
+        t.components = surfaceTopo->components;
+        t.euler = surfaceTopo->euler;
+        ref.push_back(t);
+        refName = "input surface";
+    } else if ((size || settings.level) && vol.voxelCount() <= 60'000'000) {
         // At the voxel spacing the grid is the voxel grid itself: nothing to compare.
         const octree::Grid fineGrid = gridFor(vol, solid, {1, 1, 1}, 2);
         const bool same = fineGrid.dims == g.dims && fineGrid.origin == g.origin && fineGrid.axes == g.axes;
-        std::vector<octree::RegionTopology> ref = topo;
+        ref = topo;
         if (!same) {
             octree::Labels fine = octree::sampleLabels(*domain, fineGrid);
             if (settings.keepLargest) octree::keepLargestComponents(fine);
             octree::repairNonManifold(fine, *domain);
             ref = octree::regionTopology(fine);
         }
-        for (const auto& r : ref) {
-            const auto it = std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == r.material; });
-            if (it == topo.end())
-                p.warnings.push_back("material " + std::to_string(r.material) + " vanishes at this element size");
-            else if (it->components != r.components || it->euler != r.euler)
-                p.warnings.push_back("material " + std::to_string(r.material) + ": the element size changes the topology of its surface (voxel resolution: " +
-                                     std::to_string(r.components) + " component(s), Euler characteristic " + std::to_string(r.euler) +
-                                     "; this mesh: " + std::to_string(it->components) + " component(s), Euler characteristic " +
-                                     std::to_string(it->euler) + ")");
-        }
+        refName = "voxel resolution";
+    }
+    for (const auto& r : ref) {
+        const auto it = std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == r.material; });
+        if (it == topo.end())
+            p.warnings.push_back("material " + std::to_string(r.material) + " vanishes at this element size");
+        else if (it->components != r.components || it->euler != r.euler)
+            p.warnings.push_back("material " + std::to_string(r.material) + ": the element size changes the topology of its surface (" + refName + ": " +
+                                 std::to_string(r.components) + " component(s), Euler characteristic " + std::to_string(r.euler) +
+                                 "; this mesh: " + std::to_string(it->components) + " component(s), Euler characteristic " +
+                                 std::to_string(it->euler) + ")" +
+                                 (surfaceTopo ? "; tunnels, gaps or parts thinner than about an element are closed or dropped, a smaller --size keeps more of them" : ""));
     }
     if (rep.nonManifoldBefore > 0)
         sink.note("info", "repaired " + std::to_string(rep.nonManifoldBefore) + " non-manifold places (" +

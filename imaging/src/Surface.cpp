@@ -17,6 +17,7 @@
 #include <assimp/scene.h>
 #include <openvdb/tools/MeshToVolume.h>
 
+#include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 
 namespace isohex::imaging {
@@ -86,6 +87,31 @@ double TriangleSurface::area() const {
         s += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     }
     return s;
+}
+
+SurfaceTopology surfaceTopology(const TriangleSurface& s) {
+    DisjointSets<std::int32_t> sets(s.vertices.size());
+    std::vector<std::uint8_t> used(s.vertices.size(), 0);
+    std::vector<std::pair<std::int32_t, std::int32_t>> edges;
+    edges.reserve(3 * s.triangles.size());
+    for (const auto& t : s.triangles)
+        for (int k = 0; k < 3; ++k) {
+            const std::int32_t a = t[k], b = t[(k + 1) % 3];
+            used[static_cast<std::size_t>(a)] = 1;
+            sets.unite(a, b);
+            edges.emplace_back(std::min(a, b), std::max(a, b));
+        }
+    std::sort(edges.begin(), edges.end());
+    const auto e = static_cast<long long>(std::unique(edges.begin(), edges.end()) - edges.begin());
+    SurfaceTopology out;
+    long long v = 0;
+    for (std::size_t i = 0; i < used.size(); ++i)
+        if (used[i]) {
+            ++v;
+            if (sets.isRoot(static_cast<std::int32_t>(i))) ++out.components;
+        }
+    out.euler = v - e + static_cast<long long>(s.triangles.size());
+    return out;
 }
 
 void checkClosedManifold(TriangleSurface& s) {

@@ -11,7 +11,7 @@ import numpy as np
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
+from common import ISOHEX, SHARED_DATA, SOURCE, run, workdir  # noqa: E402
 from vtk_tools import read_vtu as read, vtk_sj, vtk_volumes  # noqa: E402
 
 
@@ -122,6 +122,66 @@ class Phantoms(unittest.TestCase):
         self.assertIn("<svg", text)
         for key in "abcd":
             self.assertIn(f"{key}: ", text)
+
+
+def off_topology(path):
+    """Components and Euler characteristic V - E + F of an .off surface, counted
+    here from the file (vertices welded at identical positions)."""
+    with open(path) as f:
+        words = [w for line in f for w in line.split("#")[0].split()]
+    assert words[0] == "OFF"
+    nv, nf = int(words[1]), int(words[2])
+    pts = np.array(words[4:4 + 3 * nv], dtype=float).reshape(nv, 3)
+    _, weld = np.unique(pts, axis=0, return_inverse=True)
+    weld = weld.ravel()
+    tris, i = [], 4 + 3 * nv
+    for _ in range(nf):
+        n = int(words[i])
+        tris.append([weld[int(w)] for w in words[i + 1:i + 1 + n]])
+        i += 1 + n
+    tris = np.array(tris)
+    edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1), axis=0)
+    used = np.unique(tris)
+    parent = {int(v): int(v) for v in used}
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+
+    for a, b in edges:
+        ra, rb = find(int(a)), find(int(b))
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    components = len({find(int(v)) for v in used})
+    return components, len(used) - len(edges) + len(tris)
+
+
+class SurfaceTopology(unittest.TestCase):
+    """A triangle surface's own topology is what its mesh is held to: a --size
+    too coarse for the knot's tube must say so, whatever the level set's voxels."""
+
+    def test_a_size_too_coarse_for_the_knot_warns_and_the_default_does_not(self):
+        d = workdir("cli_surface_topology")
+        src = os.path.join(SHARED_DATA, "knot1.off")
+        comps, euler = off_topology(src)
+        self.assertEqual((comps, euler), (1, 0))  # a knotted tube: one torus
+        for name, extra, warns in [("default", [], False), ("coarse", ["--size", "0.3"], True)]:
+            out = os.path.join(d, f"knot_{name}.vtu")
+            p = run(["mesh", src, *extra, "--no-optimize", "-o", out, "--report", out + ".json", "--force", "-q"])
+            with open(out + ".json") as f:
+                rep = json.load(f)
+            self.assertEqual(rep["input"]["surface"]["components"], comps)
+            self.assertEqual(rep["input"]["surface"]["euler_characteristic"], euler)
+            topo = rep["grid"]["topology"][0]
+            changed = (topo["components"], topo["euler"]) != (comps, euler)
+            self.assertEqual(changed, warns, f"{name}: mesh {topo}")
+            named = [w for w in rep["warnings"] if "changes the topology" in w]
+            self.assertEqual(len(named), 1 if warns else 0, rep["warnings"])
+            if warns:
+                self.assertIn("input surface: 1 component(s), Euler characteristic 0", named[0])
+                self.assertIn("changes the topology", p.stderr)
 
 
 class FailurePaths(unittest.TestCase):

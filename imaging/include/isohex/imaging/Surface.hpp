@@ -32,6 +32,15 @@ TriangleSurface loadSurface(const std::filesystem::path& path);
 // The same checks on a surface built in memory.
 void checkClosedManifold(TriangleSurface& surface);
 
+// Connected components (triangles joined through shared vertices) and Euler
+// characteristic V - E + F of the triangles (2 - 2g per closed component of
+// genus g): what the mesh's boundary should have, whatever the element size.
+struct SurfaceTopology {
+    std::size_t components = 0;
+    long long euler = 0;
+};
+SurfaceTopology surfaceTopology(const TriangleSurface& surface);
+
 struct LevelSetOptions {
     double elementSize = 1.0;       // the intended hex edge length, world units
     double voxelsPerElement = 2.0;  // voxel size = elementSize / voxelsPerElement
