@@ -717,73 +717,73 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         std::vector<std::uint8_t> attempted(sj.size(), 0);
         std::vector<std::uint8_t> claimed(sj.size(), 0);
         for (int pass = 0; pass < opt.jointPasses; ++pass) {
-        std::vector<std::pair<Index, Region>> pending;
-        for (std::size_t h = 0; h < sj.size(); ++h)
-            if (!(sj[h] > 0) && !attempted[h]) {
-                attempted[h] = 1;
-                pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h), opt.jointRings));
-            }
-        if (pending.empty()) break;
-        while (!pending.empty()) {
-            std::vector<std::size_t> batch;
-            std::vector<std::pair<Index, Region>> later;
-            std::vector<std::size_t> touched;
-            for (std::size_t i = 0; i < pending.size(); ++i) {
-                const auto& [h0, region] = pending[i];
-                bool clash = claimed[static_cast<std::size_t>(h0)] != 0;
-                for (Index h : region.hexes) clash = clash || claimed[static_cast<std::size_t>(h)] != 0;
-                if (!clash) batch.push_back(i);
-                for (Index h : region.hexes) {
-                    claimed[static_cast<std::size_t>(h)] = 1;
-                    touched.push_back(h);
+            std::vector<std::pair<Index, Region>> pending;
+            for (std::size_t h = 0; h < sj.size(); ++h)
+                if (!(sj[h] > 0) && !attempted[h]) {
+                    attempted[h] = 1;
+                    pending.emplace_back(static_cast<Index>(h), regionOf(static_cast<Index>(h), opt.jointRings));
                 }
-                claimed[static_cast<std::size_t>(h0)] = 1;
-                touched.push_back(h0);
-            }
-            for (Index h : touched) claimed[static_cast<std::size_t>(h)] = 0;
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, batch.size(), 1), [&](const auto& range) {
-                for (std::size_t b = range.begin(); b != range.end(); ++b) {
-                    const auto& [h0, region] = pending[batch[b]];
-                    const auto sh = static_cast<std::size_t>(h0);
-                    if (!(sj[sh] > 0)) {
-                        triedCount.fetch_add(1);
-                        if (jointRelease(region, opt.jointIterations, false)) improvedCount.fetch_add(1);
+            if (pending.empty()) break;
+            while (!pending.empty()) {
+                std::vector<std::size_t> batch;
+                std::vector<std::pair<Index, Region>> later;
+                std::vector<std::size_t> touched;
+                for (std::size_t i = 0; i < pending.size(); ++i) {
+                    const auto& [h0, region] = pending[i];
+                    bool clash = claimed[static_cast<std::size_t>(h0)] != 0;
+                    for (Index h : region.hexes) clash = clash || claimed[static_cast<std::size_t>(h)] != 0;
+                    if (!clash) batch.push_back(i);
+                    for (Index h : region.hexes) {
+                        claimed[static_cast<std::size_t>(h)] = 1;
+                        touched.push_back(h);
                     }
-                    // Still inverted: once more from there with longer stages
-                    // (the corner of a plate one cell thick on ch2bet at 1 mm
-                    // needed it).
-                    if (!(sj[sh] > 0) && opt.jointRetryIterations > 0) {
-                        triedCount.fetch_add(1);
-                        if (jointRelease(region, opt.jointRetryIterations, false)) improvedCount.fetch_add(1);
-                    }
-                    // Still inverted: the frames around it are pressed flat,
-                    // where the scaled Jacobian's ascent has no direction;
-                    // once more on the determinants (see frameValues).
-                    if (!(sj[sh] > 0) && opt.jointVolumeIterations > 0) {
-                        triedCount.fetch_add(1);
-                        if (jointRelease(region, opt.jointVolumeIterations, true)) improvedCount.fetch_add(1);
-                    }
-                    // Still inverted: the same on one ring only, where fewer
-                    // frames compete for the soft minimum (a knife-edge gyrus
-                    // of ch2bet at 2.5 mm needed it). Its region is part of
-                    // the wider one, so the batch stays independent.
-                    if (!(sj[sh] > 0) && opt.jointRings > 1) {
-                        const Region narrow = regionOf(h0, 1);
-                        for (const bool byVolume : {false, true}) {
-                            if (sj[sh] > 0) break;
+                    claimed[static_cast<std::size_t>(h0)] = 1;
+                    touched.push_back(h0);
+                }
+                for (Index h : touched) claimed[static_cast<std::size_t>(h)] = 0;
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, batch.size(), 1), [&](const auto& range) {
+                    for (std::size_t b = range.begin(); b != range.end(); ++b) {
+                        const auto& [h0, region] = pending[batch[b]];
+                        const auto sh = static_cast<std::size_t>(h0);
+                        if (!(sj[sh] > 0)) {
                             triedCount.fetch_add(1);
-                            if (jointRelease(narrow, byVolume ? opt.jointVolumeIterations : opt.jointRetryIterations, byVolume)) improvedCount.fetch_add(1);
+                            if (jointRelease(region, opt.jointIterations, false)) improvedCount.fetch_add(1);
+                        }
+                        // Still inverted: once more from there with longer stages
+                        // (the corner of a plate one cell thick on ch2bet at 1 mm
+                        // needed it).
+                        if (!(sj[sh] > 0) && opt.jointRetryIterations > 0) {
+                            triedCount.fetch_add(1);
+                            if (jointRelease(region, opt.jointRetryIterations, false)) improvedCount.fetch_add(1);
+                        }
+                        // Still inverted: the frames around it are pressed flat,
+                        // where the scaled Jacobian's ascent has no direction;
+                        // once more on the determinants (see frameValues).
+                        if (!(sj[sh] > 0) && opt.jointVolumeIterations > 0) {
+                            triedCount.fetch_add(1);
+                            if (jointRelease(region, opt.jointVolumeIterations, true)) improvedCount.fetch_add(1);
+                        }
+                        // Still inverted: the same on one ring only, where fewer
+                        // frames compete for the soft minimum (a knife-edge gyrus
+                        // of ch2bet at 2.5 mm needed it). Its region is part of
+                        // the wider one, so the batch stays independent.
+                        if (!(sj[sh] > 0) && opt.jointRings > 1) {
+                            const Region narrow = regionOf(h0, 1);
+                            for (const bool byVolume : {false, true}) {
+                                if (sj[sh] > 0) break;
+                                triedCount.fetch_add(1);
+                                if (jointRelease(narrow, byVolume ? opt.jointVolumeIterations : opt.jointRetryIterations, byVolume)) improvedCount.fetch_add(1);
+                            }
                         }
                     }
+                });
+                std::size_t b = 0;
+                for (std::size_t i = 0; i < pending.size(); ++i) {
+                    if (b < batch.size() && batch[b] == i) ++b;
+                    else later.push_back(std::move(pending[i]));
                 }
-            });
-            std::size_t b = 0;
-            for (std::size_t i = 0; i < pending.size(); ++i) {
-                if (b < batch.size() && batch[b] == i) ++b;
-                else later.push_back(std::move(pending[i]));
+                pending.swap(later);
             }
-            pending.swap(later);
-        }
         }
         res.jointRegionsImproved = improvedCount.load();
         res.jointRegionsTried = triedCount.load();
