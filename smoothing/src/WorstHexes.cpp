@@ -191,9 +191,9 @@ using HexFrames = std::array<FrameState, 9>;
 // been evened out at zero (a node on the plane of its neighbours, the
 // corner hex of a sheet pressed flat against the surface) gives the ascent
 // no direction that opens them; the determinant grows with the frame, so its
-// soft minimum pushes the flat frames open first.
-// Scaled Jacobian of each of the 9 frames of a hex (-2 for a collapsed
-// frame), or with scale > 0 its scaled determinant.
+// soft minimum pushes the flat frames open first. Fills `out` with the
+// scaled Jacobian of each of the 9 frames (-2 for a collapsed frame), or with
+// scale > 0 its scaled determinant.
 void frameValues(const HexCoords& x, HexFrames& out, double scale = 0) {
     const FrameTable& t = frameTable();
     for (std::size_t f = 0; f < 9; ++f) {
@@ -204,20 +204,19 @@ void frameValues(const HexCoords& x, HexFrames& out, double scale = 0) {
                 if (t.c[f][j][n] != 0) v = v + t.c[f][j][n] * x[n];
             st.col[j] = v;
         }
-        st.la = norm(st.col[0]), st.lb = norm(st.col[1]), st.lc = norm(st.col[2]);
-        st.len = st.la * st.lb * st.lc;
+        st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
         if (scale > 0) {
             st.collapsed = false;
-            st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
             st.s = dot(st.col[0], st.cross[0]) * (f == 0 ? scale / 64 : scale);
             continue;
         }
+        st.la = norm(st.col[0]), st.lb = norm(st.col[1]), st.lc = norm(st.col[2]);
+        st.len = st.la * st.lb * st.lc;
         st.collapsed = !(st.len > 1e-300);
         if (st.collapsed) {  // as bad as it gets, no direction
             st.s = -2;
             continue;
         }
-        st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
         st.s = dot(st.col[0], st.cross[0]) / st.len;
     }
 }
@@ -745,35 +744,29 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                     for (std::size_t b = range.begin(); b != range.end(); ++b) {
                         const auto& [h0, region] = pending[batch[b]];
                         const auto sh = static_cast<std::size_t>(h0);
-                        if (!(sj[sh] > 0)) {
+                        // One joint move of the region if h0 is still inverted
+                        // and the move is enabled (iterations > 0).
+                        auto attempt = [&](const Region& r, int iterations, bool byVolume) {
+                            if (sj[sh] > 0 || iterations <= 0) return;
                             triedCount.fetch_add(1);
-                            if (jointRelease(region, opt.jointIterations, false)) improvedCount.fetch_add(1);
-                        }
-                        // Still inverted: once more from there with longer stages
-                        // (the corner of a plate one cell thick on ch2bet at 1 mm
-                        // needed it).
-                        if (!(sj[sh] > 0) && opt.jointRetryIterations > 0) {
-                            triedCount.fetch_add(1);
-                            if (jointRelease(region, opt.jointRetryIterations, false)) improvedCount.fetch_add(1);
-                        }
-                        // Still inverted: the frames around it are pressed flat,
-                        // where the scaled Jacobian's ascent has no direction;
-                        // once more on the determinants (see frameValues).
-                        if (!(sj[sh] > 0) && opt.jointVolumeIterations > 0) {
-                            triedCount.fetch_add(1);
-                            if (jointRelease(region, opt.jointVolumeIterations, true)) improvedCount.fetch_add(1);
-                        }
-                        // Still inverted: the same on one ring only, where fewer
-                        // frames compete for the soft minimum (a knife-edge gyrus
-                        // of ch2bet at 2.5 mm needed it). Its region is part of
-                        // the wider one, so the batch stays independent.
+                            if (jointRelease(r, iterations, byVolume)) improvedCount.fetch_add(1);
+                        };
+                        attempt(region, opt.jointIterations, false);
+                        // Once more from there with longer stages (the corner of
+                        // a plate one cell thick on ch2bet at 1 mm needed it).
+                        attempt(region, opt.jointRetryIterations, false);
+                        // On the determinants: where the frames around it are
+                        // pressed flat the scaled Jacobian's ascent has no
+                        // direction (see frameValues).
+                        attempt(region, opt.jointVolumeIterations, true);
+                        // The same on one ring only, where fewer frames compete
+                        // for the soft minimum (a knife-edge gyrus of ch2bet at
+                        // 2.5 mm needed it). Its region is part of the wider
+                        // one, so the batch stays independent.
                         if (!(sj[sh] > 0) && opt.jointRings > 1) {
                             const Region narrow = regionOf(h0, 1);
-                            for (const bool byVolume : {false, true}) {
-                                if (sj[sh] > 0) break;
-                                triedCount.fetch_add(1);
-                                if (jointRelease(narrow, byVolume ? opt.jointVolumeIterations : opt.jointRetryIterations, byVolume)) improvedCount.fetch_add(1);
-                            }
+                            attempt(narrow, opt.jointRetryIterations, false);
+                            attempt(narrow, opt.jointVolumeIterations, true);
                         }
                     }
                 });
