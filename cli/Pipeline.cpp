@@ -969,6 +969,36 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     j["boundary_distance_max"] = surf.max;
     j["boundary_distance_mean_voxels"] = surf.mean / voxel;
     j["boundary_distance_max_voxels"] = surf.max / voxel;
+    // Where the grid level's points were changed (the non-manifold repair,
+    // --keep-largest, --fill-pits), the mesh follows the repaired field, whose
+    // zero set there need not be near the scan's: a cell whose grid point was
+    // flipped may hold no isosurface of the scan at all. The same nodes are
+    // therefore also measured against the surface the mesh was extracted on,
+    // and those in cells with a changed grid point are counted, so a node off
+    // the scan's isosurface because of the repair is told apart from one the
+    // optimiser left off (released to untangle a hex).
+    if (const auto* repaired = static_cast<const octree::RepairedDomain*>(p.repairedDomain.get())) {
+        FieldProjector extracted(*domain, mesh, repaired);
+        const Distances own =
+            measure(NodeKind::Surface, [&](std::int32_t id, const Vec3& x) { return extracted.project(id, x); });
+        std::size_t inCells = 0, beyondInCells = 0;
+        for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
+            if (mesh.nodeClass[v].kind != NodeKind::Surface || mesh.nodeClass[v].id < 0) continue;
+            const Vec3& x = mesh.nodes[v];
+            if (!repaired->nearChange(x)) continue;
+            ++inCells;
+            const Vec3 y = proj.project(mesh.nodeClass[v].id, x);
+            const double d = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
+                                       (x[2] - y[2]) * (x[2] - y[2]));
+            beyondInCells += !(d <= 0.1 * voxel);  // NaN (not projected) counts as beyond
+        }
+        j["boundary_nodes_in_repaired_cells"] = inCells;
+        j["boundary_nodes_beyond_0_1_voxel_or_not_projected_in_repaired_cells"] = beyondInCells;
+        j["extracted_surface"] = {{"boundary_nodes_beyond_0_1_voxel", own.beyond},
+                                  {"boundary_nodes_not_projected", own.notProjected},
+                                  {"boundary_distance_mean_voxels", own.mean / voxel},
+                                  {"boundary_distance_max_voxels", own.max / voxel}};
+    }
     // Curve nodes (where three materials meet, or two and the outside).
     if (!mesh.curves.empty()) {
         const Distances curve =
