@@ -9,11 +9,13 @@
 #include <array>
 #include <cstddef>
 #include <limits>
+#include <type_traits>
 
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/CornerMetrics.hpp"
+#include "isohex/smoothing/ImrKernel.hpp"
 
 namespace isohex::smoothing {
 
@@ -112,6 +114,10 @@ public:
     // metrics of NormDet form are evaluated from the stored n, t and their
     // exact expansions in d, without touching the frames.
     double value(const Vector3& d) const {
+        if constexpr (kBatched) {
+            if (stateValid_ && batched_) return detail::imrValue(batch_, count_, d);
+            if (!stateValid_) return detail::imrFrameValue(terms_, count_, d);
+        }
         double sum = 0;
         for (std::size_t i = 0; i < count_; ++i) {
             double v;
@@ -139,6 +145,14 @@ public:
     // Value, gradient and Hessian at the base position; value +inf (and the
     // derivatives meaningless) if a barrier corner is infeasible.
     double derivatives(Vector3& g, Matrix3& H) {
+        if constexpr (kBatched) {
+            batched_ = count_ <= detail::ImrState::kCapacity;
+            if (batched_) {
+                const double f = detail::imrDerivatives(terms_, count_, batch_, g, H);
+                stateValid_ = f != std::numeric_limits<double>::infinity();
+                return f;
+            }
+        }
         double sum = 0;
         g.setZero();
         H.setZero();
@@ -182,10 +196,19 @@ public:
     }
 
 private:
+    // The inverse mean ratio goes through ImrKernel's four-lane kernels (same
+    // bits as the loops here), which keep n, t and their gradients in batch_
+    // instead of terms_[i].st; nodes with more terms than it holds use the
+    // loops.
+    static constexpr bool kBatched = std::is_same_v<Metric, InverseMeanRatio>;
+    struct NoBatch {};
+
     Metric metric_;
     CornerTerm* terms_;
     std::size_t count_;
-    bool stateValid_ = false;  // terms_[i].st describe the current base position
+    bool stateValid_ = false;  // the NormDet state describes the current base position
+    bool batched_ = false;     // ... and it is in batch_, not in terms_[i].st
+    [[no_unique_address]] std::conditional_t<kBatched, detail::ImrState, NoBatch> batch_;
 };
 
 // Restricts an objective to the plane through the node's base position with
