@@ -25,6 +25,7 @@
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/smoothing/ImrKernel.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
@@ -789,6 +790,8 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     j["converged"] = r.converged;
     j["seconds"] = {{"setup", r.setupSeconds}, {"untangle", r.untangleSeconds},
                     {"mean_ratio", r.meanRatioSeconds}, {"total", r.seconds}};
+    // The mean-ratio kernels' lanes (same numbers either way; only the time differs).
+    j["instruction_set"] = smoothing::detail::imrInstructionSet();
     for (const auto& f : r.untangleFailures) {
         j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
         if (j["untangle_failures"].size() >= 20) break;
