@@ -930,6 +930,8 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
     struct Distances {
         std::size_t nodes = 0, notProjected = 0, beyond = 0;
         double mean = 0, max = 0;
+        std::vector<Index> measured;   // the nodes, in index order
+        std::vector<double> distance;  // of each (NaN: not projected)
     };
     auto measure = [&](NodeKind kind, auto project) {
         std::vector<Index> nodes;
@@ -959,6 +961,8 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
             ++measured;
         }
         out.mean = measured ? sum / static_cast<double>(measured) : 0.0;
+        out.measured = std::move(nodes);
+        out.distance = std::move(dist);
         return out;
     };
     const Distances surf =
@@ -985,15 +989,10 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p) {
         const Distances own =
             measure(NodeKind::Surface, [&](std::int32_t id, const Vec3& x) { return extracted.project(id, x); });
         std::size_t inCells = 0, beyondInCells = 0;
-        for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
-            if (mesh.nodeClass[v].kind != NodeKind::Surface || mesh.nodeClass[v].id < 0) continue;
-            const Vec3& x = mesh.nodes[v];
-            if (!repaired->nearChange(x)) continue;
+        for (std::size_t i = 0; i < surf.measured.size(); ++i) {
+            if (!repaired->nearChange(mesh.nodes[static_cast<std::size_t>(surf.measured[i])])) continue;
             ++inCells;
-            const Vec3 y = proj.project(mesh.nodeClass[v].id, x);
-            const double d = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
-                                       (x[2] - y[2]) * (x[2] - y[2]));
-            beyondInCells += !(d <= 0.1 * voxel);  // NaN (not projected) counts as beyond
+            beyondInCells += !(surf.distance[i] <= 0.1 * voxel);  // NaN (not projected) counts as beyond
         }
         j["boundary_nodes_in_repaired_cells"] = inCells;
         j["boundary_nodes_beyond_0_1_voxel_or_not_projected_in_repaired_cells"] = beyondInCells;

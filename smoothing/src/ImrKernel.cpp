@@ -111,6 +111,17 @@ ISOHEX_LANES void normDetBlock(const CornerTerm* terms, std::size_t count, std::
     std::memcpy(s.w2 + i, &w2, sizeof w2);
 }
 
+// The state of terms i .. i+3 into lanes.
+ISOHEX_LANES void loadState(const ImrState& s, std::size_t i, Lanes& n, Lanes& t, Lanes& w2, Lanes* gn, Lanes* gt) {
+    std::memcpy(&n, s.n + i, sizeof n);
+    std::memcpy(&t, s.t + i, sizeof t);
+    std::memcpy(&w2, s.w2 + i, sizeof w2);
+    for (int c = 0; c < 3; ++c) {
+        std::memcpy(&gn[c], s.gn[c] + i, sizeof n);
+        std::memcpy(&gt[c], s.gt[c] + i, sizeof n);
+    }
+}
+
 ISOHEX_LANES double derivativesBody(const CornerTerm* terms, std::size_t count, ImrState& s, Vector3& g, Matrix3& H) {
     g.setZero();
     H.setZero();
@@ -125,13 +136,7 @@ ISOHEX_LANES double derivativesBody(const CornerTerm* terms, std::size_t count, 
     double gs[3] = {0, 0, 0}, hs[6] = {0, 0, 0, 0, 0, 0};
     for (std::size_t i = 0; i < count; i += kLanes) {
         Lanes n, t, w2, gn[3], gt[3];
-        std::memcpy(&n, s.n + i, sizeof n);
-        std::memcpy(&t, s.t + i, sizeof t);
-        std::memcpy(&w2, s.w2 + i, sizeof w2);
-        for (int c = 0; c < 3; ++c) {
-            std::memcpy(&gn[c], s.gn[c] + i, sizeof n);
-            std::memcpy(&gt[c], s.gt[c] + i, sizeof n);
-        }
+        loadState(s, i, n, t, w2, gn, gt);
         const Lanes y = inverseCubeRoots(t);
         const Lanes sc = y * y * (1.0 / 3.0);
         const Lanes invT = y * y * y;
@@ -163,13 +168,7 @@ ISOHEX_LANES double valueBody(const ImrState& s, std::size_t count, const Vector
     double sum = 0;
     for (std::size_t i = 0; i < count; i += kLanes) {
         Lanes n, t, w2, gn[3], gt[3];
-        std::memcpy(&n, s.n + i, sizeof n);
-        std::memcpy(&t, s.t + i, sizeof t);
-        std::memcpy(&w2, s.w2 + i, sizeof w2);
-        for (int c = 0; c < 3; ++c) {
-            std::memcpy(&gn[c], s.gn[c] + i, sizeof n);
-            std::memcpy(&gt[c], s.gt[c] + i, sizeof n);
-        }
+        loadState(s, i, n, t, w2, gn, gt);
         // (lanes past `count` hold stale numbers and are not read below)
         const Lanes nn = n + (gn[0] * d0 + gn[1] * d1 + gn[2] * d2) + w2 * dd;
         const Lanes tt = t + (gt[0] * d0 + gt[1] * d1 + gt[2] * d2);
