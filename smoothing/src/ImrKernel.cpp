@@ -162,6 +162,18 @@ ISOHEX_LANES double derivativesBody(const CornerTerm* terms, std::size_t count, 
     return sum;
 }
 
+// InverseMeanRatio::fromNormDet of the first `lanes` lanes, added to sum in
+// lane order; false (sum meaningless) at a lane with t <= 0, the barrier.
+ISOHEX_LANES bool addValues(const Lanes& n, const Lanes& t, std::size_t lanes, double& sum) {
+    const Lanes y = inverseCubeRoots(t);
+    const Lanes v = n * (y * y) * (1.0 / 3.0);
+    for (std::size_t k = 0; k < lanes; ++k) {
+        if (!(t[k] > 0)) return false;
+        sum += v[k];
+    }
+    return true;
+}
+
 ISOHEX_LANES double valueBody(const ImrState& s, std::size_t count, const Vector3& d) {
     const double d0 = d[0], d1 = d[1], d2 = d[2];
     const double dd = d0 * d0 + d1 * d1 + d2 * d2;
@@ -172,13 +184,7 @@ ISOHEX_LANES double valueBody(const ImrState& s, std::size_t count, const Vector
         // (lanes past `count` hold stale numbers and are not read below)
         const Lanes nn = n + (gn[0] * d0 + gn[1] * d1 + gn[2] * d2) + w2 * dd;
         const Lanes tt = t + (gt[0] * d0 + gt[1] * d1 + gt[2] * d2);
-        const Lanes y = inverseCubeRoots(tt);
-        const Lanes v = nn * (y * y) * (1.0 / 3.0);
-        const std::size_t lanes = std::min<std::size_t>(kLanes, count - i);
-        for (std::size_t k = 0; k < lanes; ++k) {
-            if (!(tt[k] > 0)) return kInf;
-            sum += v[k];
-        }
+        if (!addValues(nn, tt, std::min<std::size_t>(kLanes, count - i), sum)) return kInf;
     }
     return sum;
 }
@@ -204,13 +210,7 @@ ISOHEX_LANES double frameValueBody(const CornerTerm* terms, std::size_t count, c
         cross(f.e + 3, f.e + 6, X);
         const Lanes t = dot(f.e, X);
         const Lanes n = squaredNorm(f.e);
-        const Lanes y = inverseCubeRoots(t);
-        const Lanes v = n * (y * y) * (1.0 / 3.0);
-        const std::size_t lanes = std::min<std::size_t>(kLanes, count - i);
-        for (std::size_t k = 0; k < lanes; ++k) {
-            if (!(t[k] > 0)) return kInf;
-            sum += v[k];
-        }
+        if (!addValues(n, t, std::min<std::size_t>(kLanes, count - i), sum)) return kInf;
     }
     return sum;
 }
