@@ -1,10 +1,12 @@
 #include "isohex/smoothing/WorstHexes.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <atomic>
 #include <chrono>
 #include <limits>
+#include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -101,18 +103,68 @@ private:
     std::vector<Entry> entries_;
 };
 
+// Adds the k-th hex's value s to a summary (floors: see around).
+void include(Around& a, std::size_t k, double s, double target, const double* floors) {
+    a.inverted += floors ? !(s >= floors[k]) : !(s > 0);
+    a.min = std::min(a.min, s);
+    a.sum += s;
+    if (s < target) a.shortfall += (target - s) * (target - s);
+}
+
 // The node's hexes with the node at p, summarised. With `floors` (the mean
 // rounds: floors[k] is the least the k-th hex may have), `inverted` counts
 // the hexes under their floor instead of those with no positive value.
+
 Around around(const NodeHexes& nh, const Vec3& p, double target, const double* floors = nullptr) {
     Around a;
-    for (std::size_t k = 0; k < nh.size(); ++k) {
-        const double s = nh.value(k, p);
-        a.inverted += floors ? !(s >= floors[k]) : !(s > 0);
-        a.min = std::min(a.min, s);
-        a.sum += s;
-        if (s < target) a.shortfall += (target - s) * (target - s);
+    for (std::size_t k = 0; k < nh.size(); ++k) include(a, k, nh.value(k, p), target, floors);
+    return a;
+}
+
+// As around, for a compass trial that only counts if it beats `bar`: it
+// stops at the first hex that settles the trial's refusal (a hex under its
+// floor in the mean rounds; in the max-min rounds, more hexes inverted than
+// `bar`, or as many with a smaller value than bar's minimum). Counts only grow
+// and the minimum only falls as hexes are added, so the summary of the hexes
+// seen so far is refused by `better` and by the mean rounds' test just as
+// the whole one would be, and the search takes the same path. `first` (in and
+// out, -1 for none): the hex that refused the last trial, tried first, since
+// the next trial of the visit is often refused by the same hex. A trial that
+// is not refused gets the summary `around` gives, the sums taken in the same
+// order.
+Around aroundUnless(const NodeHexes& nh, const Vec3& p, double target, const double* floors, const Around& bar,
+                    int& first) {
+    Around a;
+    auto refused = [&] {
+        if (floors) return a.inverted > 0;
+        return a.inverted > bar.inverted || (a.inverted == bar.inverted && a.min < bar.min);
+    };
+    const std::size_t n = nh.size();
+    std::array<double, 64> stored;
+    std::vector<double> more;
+    double* values = stored.data();
+    if (n > stored.size()) {
+        more.resize(n);
+        values = more.data();
     }
+    if (first >= 0 && static_cast<std::size_t>(first) < n) {
+        const auto k = static_cast<std::size_t>(first);
+        values[k] = nh.value(k, p);
+        include(a, k, values[k], target, floors);
+        if (refused()) return a;
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+        if (static_cast<int>(k) == first) continue;
+        values[k] = nh.value(k, p);
+        include(a, k, values[k], target, floors);
+        if (refused()) {
+            first = static_cast<int>(k);
+            return a;
+        }
+    }
+    if (first < 0) return a;  // taken in order already
+    a = Around{};
+    for (std::size_t k = 0; k < n; ++k) include(a, k, values[k], target, floors);
     return a;
 }
 
@@ -419,8 +471,12 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         if (!(L > 0)) return false;
         const NodeHexes nh(mesh, topo, v);
         const std::vector<double> floors = mean ? floorsOf(nh) : std::vector<double>{};
+        int refusedBy = -1;  // the hex that refused the last trial (aroundUnless)
         auto evaluate = [&](const Vec3& p) {
             return around(nh, p, opt.target, mean ? floors.data() : nullptr);
+        };
+        auto evaluateTrial = [&](const Vec3& p, const Around& bar) {
+            return aroundUnless(nh, p, opt.target, mean ? floors.data() : nullptr, bar, refusedBy);
         };
         auto improves = [&](const Around& trial, const Around& current) {
             if (!mean) return better(trial, current);
@@ -442,7 +498,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 if (surface && release &&
                     !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))
                     continue;
-                const Around f = evaluate(p);
+                const Around f = evaluateTrial(p, bestValue);
                 if (improves(f, bestValue)) {
                     bestValue = f;
                     bestPos = p;
