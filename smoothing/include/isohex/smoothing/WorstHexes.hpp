@@ -15,8 +15,8 @@
 // so the next node can). So no hex around a node turns inverted, and none ends
 // below the worst value that node's hexes had.
 //
-// It ends with mean rounds: the nodes of the hexes below 0.9 move, by the
-// same kind of search, to raise the summed scaled Jacobian of their hexes
+// It ends with mean rounds: the nodes of the hexes below 0.9 move, along the
+// gradient of the summed scaled Jacobian of their hexes, to raise that sum
 // while no hex goes below the smaller of its value and the target (the
 // optimiser's inverse mean ratio is not the scaled Jacobian, and the sheet
 // hexes keep room to rise).
@@ -68,16 +68,19 @@ struct WorstHexOptions {
     // took (a kept move can leave a neighbour of its hex inverted instead).
     int jointPasses = 3;
     // Last, up to meanRounds rounds over the movable nodes of the hexes below
-    // meanBelow: each node moves (compass search along the axes, or in its
-    // tangent plane, from meanFirstStep edge lengths, at most
-    // meanMovesPerVisit moves) to raise the summed scaled Jacobian of its
+    // meanBelow: each node moves to raise the summed scaled Jacobian of its
     // hexes, where no hex may end below its value before the move, nor below
-    // the target if it was above it. Raises the mean; never lowers the
-    // minimum below min(minimum before, target) (0 rounds: off).
-    int meanRounds = 1;
+    // the target if it was above it. A move goes along the gradient of that
+    // sum (of each hex's smallest frame; in the tangent plane on a surface,
+    // then projected), from meanFirstStep edge lengths, halving the step
+    // until the position is better; at most meanMovesPerVisit moves. Curve
+    // nodes use the compass search along their curve. Raises the mean;
+    // never lowers the minimum below min(minimum before, target) (0 rounds:
+    // off).
+    int meanRounds = 2;
     double meanBelow = 0.9;
     double meanFirstStep = 1.0 / 16.0;
-    int meanMovesPerVisit = 4;
+    int meanMovesPerVisit = 8;
     // At the very end, surface nodes farther than returnTolerance local edge
     // lengths from their surface (released to untangle, or held back by
     // extraction and never projected by the optimiser) move back towards
@@ -119,6 +122,11 @@ double usableScaledJacobian(const HexCoords& x);
 
 // Smallest usable scaled Jacobian of the hexes around node v with v at p.
 double minScaledJacobianAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p);
+
+// Gradient, with respect to node v's position at p, of the summed usable
+// scaled Jacobian of v's hexes (each hex's smallest frame: its gradient when
+// v enters that frame, else nothing), as the mean rounds step along it.
+Vec3 summedScaledJacobianGradient(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p);
 
 // Mean length of the hex edges at v.
 double meanEdgeLengthAt(const HexMesh& mesh, const Topology& topo, Index v);
