@@ -773,9 +773,15 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
                                 [&](std::string_view, double f) { sink.progress(f); }, &topo);
     // The optimiser minimises a sum over all corners; the few hexes it leaves
     // poor (surface folds, spurs thinner than an element) get a max-min pass.
-    if (settings.worstHexPass)
+    if (settings.worstHexPass) {
+        // The slack in world units: the tolerance is in voxels of the scan
+        // (its smallest spacing), as the fidelity report measures.
+        const double voxels = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
+        const double slack = voxels * p.selection->materials.front().field.voxelSize();
         j["worst_hexes"] =
-            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, &topo);
+            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, slack, &topo);
+        j["worst_hexes"]["surface_tolerance_voxels"] = voxels;
+    }
     j["fix_boundary"] = settings.fixBoundary;
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;
@@ -836,10 +842,11 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
 }
 
 nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                            const Topology* topo) {
+                            double slack, const Topology* topo) {
     const auto t0 = std::chrono::steady_clock::now();
     smoothing::WorstHexOptions wo;
     wo.target = target;
+    wo.surfaceSlack = slack;
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, projector, wo, topo);
     return {{"target", wo.target},
             {"min_scaled_jacobian_before", w.minBefore},
@@ -856,6 +863,8 @@ nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* pr
             {"mean_seconds", w.meanSeconds},
             {"surface_nodes_off_before_return", w.surfaceNodesOffBefore},
             {"surface_nodes_off_after_return", w.surfaceNodesOffAfter},
+            {"surface_slack", wo.surfaceSlack},
+            {"surface_nodes_within_slack", w.surfaceNodesWithinSlack},
             {"return_seconds", w.returnSeconds},
             {"rounds", w.rounds},
             {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}};

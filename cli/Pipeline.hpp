@@ -23,6 +23,10 @@ struct SurfaceProjector;
 
 namespace isohex::cli {
 
+// The default of --surface-tolerance, in voxels: under the 0.1-voxel bound
+// the fidelity report checks (fidelity.boundary_nodes_beyond_0_1_voxel).
+inline constexpr double kDefaultSurfaceTolerance = 0.09;
+
 struct MeshSettings {
     imaging::LoadOptions load;
     imaging::SelectOptions select;
@@ -39,6 +43,9 @@ struct MeshSettings {
     bool fixBoundary = false;
     bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
     double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
+    // How far (voxels) the max-min pass may leave a surface node off its
+    // isosurface to lift a hex below worstHexTarget; unset: the default below.
+    std::optional<double> surfaceTolerance;
     int randomSheetSeed = 1;
 };
 
@@ -85,8 +92,10 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
 // The max-min pass on the hexes the optimiser left below `target`
 // (smoothing/WorstHexes.hpp), timed; returns its report block. Surface nodes
 // move only with a projector; `topo` (buildTopology(mesh)) saves building it again.
+// `slack`: how far (world units) surface nodes may end off their surface
+// (smoothing::WorstHexOptions::surfaceSlack).
 nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                            const Topology* topo = nullptr);
+                            double slack = 0, const Topology* topo = nullptr);
 
 // Volume enclosed by each selected material's isosurface vs the mesh's, and
 // the distance of boundary and interface nodes to their surfaces.

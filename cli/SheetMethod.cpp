@@ -51,6 +51,9 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
     if (settings.size && !(*settings.size > 0))
         throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
     if (settings.level) throw Error("--level is for scans; with --method sheets give the element size with --size");
+    if (settings.surfaceTolerance)
+        throw Error("--surface-tolerance is in voxels of a scan; --method sheets keeps surface nodes on the triangles "
+                    "until its volume fit, so leave it out");
     auto surface = stage(sink, "load", [&] { return loadTriangleTree(input); });
     const double size = settings.size ? *settings.size : surface->meanEdgeLength();
     const auto box = surface->bounds();

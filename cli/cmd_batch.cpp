@@ -260,6 +260,12 @@ const std::vector<Column>& columns() {
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.meshExterior = toBool(f.scalar()); }},
         {"fix_boundary", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.fixBoundary = toBool(f.scalar()); }},
+        {"surface_tolerance", "voxels 0..1",
+         [](const Field& f, MeshArgs& a, JobFields&) {
+             const double v = toNumber(f.scalar());
+             if (!(v >= 0 && v <= 1)) throw FieldError{"must be between 0 and 1 (voxels)"};
+             a.settings.surfaceTolerance = v;
+         }},
         {"no_optimize", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.optimize = !toBool(f.scalar()); }},
     };

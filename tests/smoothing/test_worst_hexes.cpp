@@ -325,3 +325,50 @@ TEST(WorstHexes, SurfaceNodesLeftOffTheSurfaceGoBackWhereTheHexesAllowIt) {
     for (std::size_t h = 0; h < sa.size(); ++h)
         EXPECT_GE(sb[h], std::min(sa[h], on.target)) << "hex " << h;
 }
+
+TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
+    // A 4 x 4 x 2 block whose top (z = 2) is a boundary surface, every node
+    // fixed but the top's centre node, which sits on the surface z = 2.6: a
+    // bump over four hexes, worse than the target 0.95. Along the plane
+    // nothing helps (the bump is symmetric); only down, off the surface. With
+    // no slack the node stays on it; with slack 0.2 it goes down by at most
+    // 0.2, the hexes rise, and the node is counted within the slack, not as
+    // released.
+    HexMesh start = test::makeBlock(4, 4, 2);
+    start.surfaces = {SurfaceTag{1, -1, "top"}};
+    Index v = kNone;
+    for (std::size_t i = 0; i < start.nodeCount(); ++i) {
+        start.nodeClass[i] = {NodeKind::Fixed, -1};
+        if (start.nodes[i] == Vec3{2, 2, 2}) v = static_cast<Index>(i);
+    }
+    ASSERT_NE(v, kNone);
+    const auto sv = static_cast<std::size_t>(v);
+    start.nodeClass[sv] = {NodeKind::Surface, 0};
+    start.nodes[sv] = {2, 2, 2.6};
+    const test::PlaneProjector surface({0, 0, 1}, 2.6);
+    WorstHexOptions opt;
+    opt.target = 0.95;
+    const double before = test::minScaledJacobian(start);
+    ASSERT_LT(before, opt.target);
+
+    HexMesh kept = start;
+    const auto rk = raiseWorstHexes(kept, &surface, opt);
+    EXPECT_NEAR(kept.nodes[sv][2], 2.6, 1e-12);
+    EXPECT_NEAR(rk.minAfter, before, 1e-12);
+    EXPECT_EQ(rk.surfaceNodesWithinSlack, 0u);
+
+    HexMesh slack = start;
+    opt.surfaceSlack = 0.2;
+    const auto rs = raiseWorstHexes(slack, &surface, opt);
+    const double off = 2.6 - slack.nodes[sv][2];
+    std::cout << "[figures] slack 0.2: node " << off << " below its surface, min scaled Jacobian " << before << " -> "
+              << rs.minAfter << "\n";
+    EXPECT_GT(off, 0.1);
+    EXPECT_LE(off, 0.2 + 1e-12);
+    EXPECT_NEAR(slack.nodes[sv][0], 2.0, 0.01);  // (the compass steps diagonally too)
+    EXPECT_NEAR(slack.nodes[sv][1], 2.0, 0.01);
+    EXPECT_GT(rs.minAfter, before + 0.05);
+    EXPECT_EQ(rs.surfaceNodesWithinSlack, 1u);
+    EXPECT_EQ(rs.surfaceNodesReleased, 0u);
+    EXPECT_EQ(rs.surfaceNodesOffAfter, 0u);
+}

@@ -15,6 +15,11 @@
 // so the next node can). So no hex around a node turns inverted, and none ends
 // below the worst value that node's hexes had.
 //
+// With a surface slack (WorstHexOptions::surfaceSlack), the max-min rounds
+// then run once more with surface nodes free in 3-D within that distance of
+// their surface: hexes on surface detail finer than an element can open only
+// across the surface.
+//
 // It ends with mean rounds: the nodes of the hexes below 0.9 move, along the
 // gradient of the summed scaled Jacobian of their hexes, to raise that sum
 // while no hex goes below the smaller of its value and the target (the
@@ -49,6 +54,14 @@ struct WorstHexOptions {
     // When the rounds stall with hexes still inverted, their surface nodes
     // may leave the surface by up to this many local edge lengths (0: never).
     double releaseDistance = 0.5;
+    // After the release rounds and the joint moves (below), the max-min
+    // rounds run again over the nodes of the hexes below the target with
+    // surface nodes free in 3-D, off their surface by at most this distance
+    // (world units; 0: no such rounds). Curve nodes stay on their curve. The
+    // return step (below) runs before them too, so nodes released to
+    // untangle get back first. A caller with a fidelity bound (isohex: 0.1
+    // voxel) sets it under that bound.
+    double surfaceSlack = 0;
     // Then, for each hex still inverted, the movable nodes within this many
     // rings of it move jointly (surface nodes within releaseDistance of their
     // surface) to maximise a soft minimum of the scaled Jacobians around
@@ -103,7 +116,8 @@ struct WorstHexResult {
     double meanSeconds = 0;                // time in the mean rounds
     int rounds = 0;
     std::size_t surfaceNodesOffBefore = 0;  // movable surface nodes off their surface before the return
-    std::size_t surfaceNodesOffAfter = 0;   // ... and after it
+    std::size_t surfaceNodesOffAfter = 0;   // ... and after it, farther than surfaceSlack
+    std::size_t surfaceNodesWithinSlack = 0;  // left off their surface by at most surfaceSlack
     double returnSeconds = 0;               // time in the return
 };
 
