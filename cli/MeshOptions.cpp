@@ -57,7 +57,7 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->group(grid);
     cmd->add_flag("--mesh-exterior", s.meshExterior, "Also mesh the background out to a box around the object")
         ->group(grid);
-    cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
+    auto* fixBoundary = cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
         ->group(grid);
     cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
     auto* noWorst = cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
@@ -77,6 +77,7 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
                     "0.1-voxel fidelity bound; 0 keeps every node on the surface)")
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(noWorst)
+        ->excludes(fixBoundary)
         ->group(grid);
 }
 

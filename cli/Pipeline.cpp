@@ -776,7 +776,9 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     if (settings.worstHexPass) {
         // The slack in world units: the tolerance is in voxels of the scan
         // (its smallest spacing), as the fidelity report measures.
-        const double voxels = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
+        // (None with --fix-boundary: surface nodes do not move at all.)
+        const double voxels =
+            settings.fixBoundary ? 0.0 : settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
         const double slack = voxels * p.selection->materials.front().field.voxelSize();
         j["worst_hexes"] =
             worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, slack, &topo);

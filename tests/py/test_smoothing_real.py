@@ -274,12 +274,13 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertEqual(int((sb <= 0).sum()), 0)
         self.assertTrue(rb["validity"]["ok"], rb["validity"])
         # refused before anything is read or written: out of range, with the
-        # pass off, and with --method sheets (no voxels; its volume fit moves
-        # the surface nodes afterwards)
+        # pass off or the boundary fixed, and with --method sheets (no voxels;
+        # its volume fit moves the surface nodes afterwards)
         bad = os.path.join(self.dir, "jhu_tolerance_bad.vtu")
         for opts, says in [(["--surface-tolerance", "1.5"], "--surface-tolerance"),
                            (["--surface-tolerance", "-0.1"], "--surface-tolerance"),
-                           (["--surface-tolerance", "0.05", "--no-worst-hex-pass"], "excludes")]:
+                           (["--surface-tolerance", "0.05", "--no-worst-hex-pass"], "excludes"),
+                           (["--surface-tolerance", "0.05", "--fix-boundary"], "excludes")]:
             p = run(["mesh", src, "--labels", *opts, "-o", bad, "-q"], check=False)
             self.assertNotEqual(p.returncode, 0, opts)
             self.assertIn(says, p.stderr, opts)
