@@ -212,6 +212,13 @@ public:
         return projectDifference(a, b, x);
     }
 
+    // The box around a meshed exterior is no isosurface: project() leaves
+    // its nodes where they are.
+    bool projectsOnto(std::int32_t surfaceId) const override {
+        const SurfaceTag& s = surfaces_.at(static_cast<std::size_t>(surfaceId));
+        return s.inside > 0 || s.outside > 0;
+    }
+
     // Curves where three materials meet (HexMesh::curves): where all three
     // are materials, f_p = f_q = f_r (the crossing of their interfaces, as
     // project() has them); against the outside, the union's isosurface

@@ -525,7 +525,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         const bool surface = mesh.nodeClass[sv].kind == NodeKind::Surface;
         const bool curve = mesh.nodeClass[sv].kind == NodeKind::Curve;
         if (curve && release) return false;  // curve nodes stay on their curve
-        const bool onSurface = surface && !release && !slack;
+        // In the slack rounds a surface node moves in 3-D, off its surface by
+        // at most surfaceSlack (not off a surface the projector leaves alone).
+        const bool offSurface = surface && slack && projector->projectsOnto(mesh.nodeClass[sv].id);
+        const bool onSurface = surface && !release && !offSurface;
         // The mean rounds step along the gradient of the summed scaled
         // Jacobian of the node's hexes (in its tangent plane on a surface),
         // halving the step until a position is better; a curve node keeps
@@ -568,7 +571,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         Around best = evaluate(mesh.nodes[sv]);
         double step = (mean ? opt.meanFirstStep : opt.firstStep) * L;
         // Off the surface by at most surfaceSlack: longer steps cannot pass.
-        if (surface && slack) step = std::min(step, opt.surfaceSlack);
+        if (offSurface) step = std::min(step, opt.surfaceSlack);
         const int maxMoves = mean ? opt.meanMovesPerVisit : opt.maxMovesPerVisit;
         int moves = 0;
         while (ascend && step >= opt.lastStep * L && moves < maxMoves) {
@@ -608,7 +611,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 if (surface && release &&
                     !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))
                     continue;
-                if (surface && slack && !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.surfaceSlack))
+                if (offSurface && !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.surfaceSlack))
                     continue;
                 const Around f = evaluateTrial(p, bestValue);
                 if (improves(f, bestValue)) {

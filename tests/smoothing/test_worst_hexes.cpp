@@ -371,4 +371,17 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
     EXPECT_EQ(rs.surfaceNodesWithinSlack, 1u);
     EXPECT_EQ(rs.surfaceNodesReleased, 0u);
     EXPECT_EQ(rs.surfaceNodesOffAfter, 0u);
+
+    // A surface the projector does not find (it answers every point itself,
+    // as for the box around a meshed exterior) keeps its nodes on it: no
+    // distance can be measured there.
+    struct Construction final : smoothing::SurfaceProjector {
+        Vec3 project(std::int32_t, const Vec3& x) const override { return x; }
+        bool projectsOnto(std::int32_t) const override { return false; }
+    };
+    const Construction construction;
+    HexMesh box = start;
+    const auto rb = raiseWorstHexes(box, &construction, opt);
+    EXPECT_NEAR(box.nodes[sv][2], 2.6, 1e-12);
+    EXPECT_EQ(rb.surfaceNodesWithinSlack, 0u);
 }

@@ -15,6 +15,17 @@ struct SurfaceProjector {
     // not depend on the thread count.
     virtual Vec3 project(std::int32_t surfaceId, const Vec3& x) const = 0;
 
+    // Whether surface `surfaceId` is one the projector finds (an isosurface,
+    // an analytic shape): true by default. A projector that leaves the nodes
+    // of some surface where they are (project answers x itself, as for the
+    // box around a meshed exterior) answers false for it, and the worst-hex
+    // pass's surface slack then keeps those nodes on their surface instead
+    // of letting them move off it by what would look like no distance.
+    virtual bool projectsOnto(std::int32_t surfaceId) const {
+        (void)surfaceId;
+        return true;
+    }
+
     // Curves (NodeKind::Curve, NodeClass::id names the curve): a projector
     // that knows them answers true here and gives the point of curve
     // `curveId` closest to `x`; the smoother then slides curve nodes along
