@@ -59,7 +59,7 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->group(grid);
     auto* fixBoundary = cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
         ->group(grid);
-    cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
+    auto* noOptimize = cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
     auto* noWorst = cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
                                   "After the mean-ratio optimisation, do not run the max-min pass on the hexes "
                                   "below --worst-hex-target")
@@ -78,6 +78,7 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(noWorst)
         ->excludes(fixBoundary)
+        ->excludes(noOptimize)
         ->group(grid);
 }
 
@@ -112,6 +113,14 @@ void MeshArgs::finish() {
     if (!sliceSpacing.empty()) settings.load.sliceSpacing = {sliceSpacing[0], sliceSpacing[1], sliceSpacing[2]};
     if (labels && settings.select.iso)
         throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
+    if (settings.surfaceTolerance) {
+        const double t = *settings.surfaceTolerance;
+        if (!(t >= 0 && t <= 1))
+            throw Error("--surface-tolerance must be between 0 and 1 voxel (got " + std::to_string(t) + ")");
+        if (settings.fixBoundary || !settings.worstHexPass || !settings.optimize)
+            throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
+                        "(no surface node moves off its surface there); leave it out");
+    }
 }
 
 }  // namespace isohex::cli

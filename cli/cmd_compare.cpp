@@ -112,6 +112,9 @@ void addCompareCommand(CLI::App& app) {
         MeshArgs args = c->args;
         args.finish();
         MeshSettings s = args.settings;
+        if (s.surfaceTolerance && !c->moveBoundary)
+            throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
+                        "(the seed's protocol)");
         s.fixBoundary = !c->moveBoundary;
         if (!c->json.empty() && !args.force && std::filesystem::exists(c->json))
             throw Error(c->json + ": file exists; refusing to overwrite it (use --force to replace it)");

@@ -1021,16 +1021,19 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             candidates.swap(still);
             if (!closer) break;
         }
-        // Off by no more than the slack is within the tolerance the caller
-        // set: counted apart, not as released.
-        std::size_t withinSlack = 0;
-        for (Index v : candidates) {
-            const auto sv = static_cast<std::size_t>(v);
-            const bool within = opt.surfaceSlack > 0 && distanceOff(sv) <= opt.surfaceSlack;
-            released[sv] = within ? 0 : 1;
-            withinSlack += within;
-        }
+        // What stays off is marked and counted by the last call only: the
+        // rounds in between may still move a node onto its surface (an
+        // extraction corner held back, say, which no round released). Off by
+        // no more than the slack is within the tolerance the caller set:
+        // counted apart, not as released.
         if (last) {
+            std::size_t withinSlack = 0;
+            for (Index v : candidates) {
+                const auto sv = static_cast<std::size_t>(v);
+                const bool within = opt.surfaceSlack > 0 && distanceOff(sv) <= opt.surfaceSlack;
+                released[sv] = within ? 0 : 1;
+                withinSlack += within;
+            }
             res.surfaceNodesWithinSlack = withinSlack;
             res.surfaceNodesOffAfter = candidates.size() - withinSlack;
         }

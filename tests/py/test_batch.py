@@ -193,6 +193,8 @@ class ManifestErrors(unittest.TestCase):
         self.check("badlabel.csv", 'input,output,label\na.nii.gz,x.vtu,"3,x"\n', "badlabel.csv:2:", "column 'label'")
         self.check("badtolerance.csv", "input,output,surface_tolerance\na.nii.gz,x.vtu,0.5\nb.nii.gz,y.vtu,3\n",
                    "badtolerance.csv:3:", "column 'surface_tolerance'", "between 0 and 1")
+        self.check("tolerancefixed.csv", "input,output,fix_boundary,surface_tolerance\na.nii.gz,x.vtu,true,0.05\n",
+                   "tolerancefixed.csv:2:", "no effect")
 
     def test_malformed_csv(self):
         self.check("fields.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,y.vtu,3\n", "fields.csv:3:",

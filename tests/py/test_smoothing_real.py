@@ -273,13 +273,16 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertLess((sb < 0.3).sum(), (sa < 0.3).sum())
         self.assertEqual(int((sb <= 0).sum()), 0)
         self.assertTrue(rb["validity"]["ok"], rb["validity"])
-        # refused before anything is read or written: out of range, with the
-        # pass off or the boundary fixed, and with --method sheets (no voxels;
-        # its volume fit moves the surface nodes afterwards)
+        # refused before anything is read or written: out of range or NaN,
+        # with the pass or the optimiser off or the boundary fixed, and with
+        # --method sheets (no voxels; its volume fit moves the surface nodes
+        # afterwards)
         bad = os.path.join(self.dir, "jhu_tolerance_bad.vtu")
         for opts, says in [(["--surface-tolerance", "1.5"], "--surface-tolerance"),
                            (["--surface-tolerance", "-0.1"], "--surface-tolerance"),
+                           (["--surface-tolerance", "nan"], "--surface-tolerance"),
                            (["--surface-tolerance", "0.05", "--no-worst-hex-pass"], "excludes"),
+                           (["--surface-tolerance", "0.05", "--no-optimize"], "excludes"),
                            (["--surface-tolerance", "0.05", "--fix-boundary"], "excludes")]:
             p = run(["mesh", src, "--labels", *opts, "-o", bad, "-q"], check=False)
             self.assertNotEqual(p.returncode, 0, opts)
@@ -290,6 +293,10 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("--surface-tolerance", p.stderr)
         self.assertFalse(os.path.exists(bad))
+        # compare keeps surface nodes fixed unless --move-boundary
+        p = run(["compare", src, "--labels", "--surface-tolerance", "0.05", "-q"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--move-boundary", p.stderr)
 
     def test_output_is_identical_for_one_and_two_threads(self):
         # The skull exercises every stage: untangling rounds, the release of
