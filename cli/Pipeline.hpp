@@ -44,7 +44,7 @@ struct MeshSettings {
     bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
     double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
     // How far (voxels) the max-min pass may leave a surface node off its
-    // isosurface to lift a hex below worstHexTarget; unset: the default below.
+    // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.
     std::optional<double> surfaceTolerance;
     int randomSheetSeed = 1;
 };

@@ -473,6 +473,9 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         return c.kind == NodeKind::Surface && projector != nullptr;
     };
     std::vector<std::uint8_t> everMoved(N, 0), released(N, 0);
+    // How far p is from surface node v's surface (NaN where the projection
+    // fails, so that a bound `!(offBy(..) <= b)` refuses it).
+    auto offBy = [&](std::size_t v, const Vec3& p) { return norm(projector->project(mesh.nodeClass[v].id, p) - p); };
     // A compass visit is a function of where the nodes of the node's hexes
     // are (and of fixed data: its normal, the target, the projector), so a
     // node whose last visit in the same kind of round moved nothing, and none
@@ -608,11 +611,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 // a curve node: the 3-D trial point onto its curve (both ways along it)
                 if (curve) p = projector->projectToCurve(mesh.nodeClass[sv].id, p);
                 if (!finite(p)) continue;
-                if (surface && release &&
-                    !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.releaseDistance * L))
-                    continue;
-                if (offSurface && !(norm(projector->project(mesh.nodeClass[sv].id, p) - p) <= opt.surfaceSlack))
-                    continue;
+                if (surface && release && !(offBy(sv, p) <= opt.releaseDistance * L)) continue;
+                if (offSurface && !(offBy(sv, p) <= opt.surfaceSlack)) continue;
                 const Around f = evaluateTrial(p, bestValue);
                 if (improves(f, bestValue)) {
                     bestValue = f;
@@ -976,8 +976,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         const auto t0 = std::chrono::steady_clock::now();
         std::vector<double> off(N, 0.0);
         auto distanceOff = [&](std::size_t v) {
-            const Vec3 q = projector->project(mesh.nodeClass[v].id, mesh.nodes[v]);
-            return finite(q) ? norm(q - mesh.nodes[v]) : 0.0;
+            const double d = offBy(v, mesh.nodes[v]);
+            return std::isfinite(d) ? d : 0.0;
         };
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 1024), [&](const auto& r) {
             for (std::size_t v = r.begin(); v != r.end(); ++v)
@@ -1015,7 +1015,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             std::vector<Index> still;
             for (Index v : candidates) {
                 const auto sv = static_cast<std::size_t>(v);
-                if (distanceOff(sv) > opt.returnTolerance * meanEdgeLengthAt(mesh, topo, v)) still.push_back(v);
+                off[sv] = distanceOff(sv);
+                if (off[sv] > opt.returnTolerance * meanEdgeLengthAt(mesh, topo, v)) still.push_back(v);
                 else released[sv] = 0;
             }
             candidates.swap(still);
@@ -1030,7 +1031,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             std::size_t withinSlack = 0;
             for (Index v : candidates) {
                 const auto sv = static_cast<std::size_t>(v);
-                const bool within = opt.surfaceSlack > 0 && distanceOff(sv) <= opt.surfaceSlack;
+                const bool within = opt.surfaceSlack > 0 && off[sv] <= opt.surfaceSlack;  // (measured just above)
                 released[sv] = within ? 0 : 1;
                 withinSlack += within;
             }
