@@ -2,8 +2,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
+#include <functional>
 #include <set>
+#include <unordered_map>
+#include <unordered_set>
 #include <sstream>
 
 #include <tbb/blocked_range.h>
@@ -352,11 +357,11 @@ struct McWindow {
 };
 const McWindow kMcWindow;
 
-// What mcLocal computes for one state of the window.
+// What mcLocal computes for one state of a window.
 struct McLocal {
     long long chi = 0;
-    int closed = 0;                           // pieces without a port
-    std::array<std::int16_t, 864> portGroup;  // per vertex: first port of its piece (-1: not a port)
+    int closed = 0;                        // pieces without a port
+    std::vector<std::int32_t> portGroup;   // per vertex: first port of its piece (-1: not a port)
 };
 
 // Pattern of a cell as the polygoniser uses it: its signs, inverted when its
@@ -367,54 +372,71 @@ inline std::uint8_t correctedSigns(std::uint8_t raw, std::uint8_t neighbourRaw, 
     return f != 0 && t.ambiguousFace[neighbourRaw] == kOpposite[f] ? static_cast<std::uint8_t>(~raw) : raw;
 }
 
-// in: the window's points (offsets -4..4, x fastest), true when inside.
-void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& out) {
-    auto pt = [](int x, int y, int z) { return x + 9 * (y + 9 * z); };
-    // raw patterns of the cells with lowest corner at offsets -4..3 (index 0..7)
-    std::array<std::uint8_t, 512> raw;
-    for (int z = 0; z < 8; ++z)
-        for (int y = 0; y < 8; ++y)
-            for (int x = 0; x < 8; ++x) {
+// The window of mcLocal around a box of changed points k[a] points wide on
+// axis a: 4 more points on every side (a single point: 9x9x9). Relative to
+// the box's lowest point (offset 0, window point 4), points at offsets -4..k+3.
+struct McBox {
+    std::array<int, 3> k{1, 1, 1};
+    int w(int a) const { return k[a] + 8; }
+    int points() const { return w(0) * w(1) * w(2); }
+};
+
+// in: the window's points (x fastest), true when inside. A change of the
+// points in the box changes the raw patterns of the cells with a corner in it
+// (offsets -1..k-1) and, through the ambiguous faces, the corrected patterns
+// of the cells one further (-2..k): those are R. The faces that can change
+// are the grid edges with both ends within -2..k+1.
+void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdgeGroups& t, McLocal& out) {
+    const int w0 = b.w(0), w1 = b.w(1), w2 = b.w(2);
+    auto pt = [&](int x, int y, int z) { return x + w0 * (y + w1 * z); };
+    // raw patterns of the cells with lowest corner at window points 0..w-2
+    const int r0 = w0 - 1, r1 = w1 - 1, r2 = w2 - 1;
+    std::vector<std::uint8_t> raw(static_cast<std::size_t>(r0) * r1 * r2);
+    for (int z = 0; z < r2; ++z)
+        for (int y = 0; y < r1; ++y)
+            for (int x = 0; x < r0; ++x) {
                 unsigned sg = 0;
                 for (int v = 0; v < 8; ++v)
                     if (in[pt(x + McWindow::kCorner[v][0], y + McWindow::kCorner[v][1], z + McWindow::kCorner[v][2])])
                         sg |= 1u << v;
-                raw[x + 8 * (y + 8 * z)] = static_cast<std::uint8_t>(sg);
+                raw[x + r0 * (y + r1 * z)] = static_cast<std::uint8_t>(sg);
             }
-    // patterns of the cells at offsets -3..2 (index 0..5 here, 1..6 in raw)
-    auto cid = [](int x, int y, int z) { return x + 6 * (y + 6 * z); };
-    std::array<std::uint8_t, 216> signs;
+    // corrected patterns of the cells at window points 1..w-3 (index 0..w-4)
+    const int s0 = w0 - 3, s1 = w1 - 3, s2 = w2 - 3;
+    auto cid = [&](int x, int y, int z) { return x + s0 * (y + s1 * z); };
+    const int cells = s0 * s1 * s2;
+    std::vector<std::uint8_t> signs(cells);
     static constexpr int kFace[7][3] = {{0, 0, 0}, {0, 0, -1}, {1, 0, 0}, {0, 0, 1}, {-1, 0, 0}, {0, -1, 0}, {0, 1, 0}};
-    for (int z = 0; z < 6; ++z)
-        for (int y = 0; y < 6; ++y)
-            for (int x = 0; x < 6; ++x) {
-                const std::uint8_t r = raw[(x + 1) + 8 * ((y + 1) + 8 * (z + 1))];
+    for (int z = 0; z < s2; ++z)
+        for (int y = 0; y < s1; ++y)
+            for (int x = 0; x < s0; ++x) {
+                const std::uint8_t r = raw[(x + 1) + r0 * ((y + 1) + r1 * (z + 1))];
                 const int f = t.ambiguousFace[r];
                 const std::uint8_t nb =
-                    raw[(x + 1 + kFace[f][0]) + 8 * ((y + 1 + kFace[f][1]) + 8 * (z + 1 + kFace[f][2]))];
+                    raw[(x + 1 + kFace[f][0]) + r0 * ((y + 1 + kFace[f][1]) + r1 * (z + 1 + kFace[f][2]))];
                 signs[cid(x, y, z)] = correctedSigns(r, nb, t);
             }
     const auto& g = t.edgeGroups;
-    auto inR = [](int c) {
-        const int x = c % 6, y = c / 6 % 6, z = c / 36;
-        return x >= 1 && x <= 4 && y >= 1 && y <= 4 && z >= 1 && z <= 4;
+    auto inR = [&](int c) {
+        const int x = c % s0, y = c / s0 % s1, z = c / (s0 * s1);
+        return x >= 1 && x <= s0 - 2 && y >= 1 && y <= s1 - 2 && z >= 1 && z <= s2 - 2;
     };
-    FixedDisjointSets<std::int16_t, 864> sets;
-    auto find = [&](int a) -> int { return sets.find(static_cast<std::int16_t>(a)); };
+    DisjointSets<std::int32_t> sets(static_cast<std::size_t>(cells) * 4);
+    auto find = [&](int a) -> int { return sets.find(a); };
     long long v = 0, f = 0;
-    for (int c = 0; c < 216; ++c)
+    for (int c = 0; c < cells; ++c)
         if (inR(c)) v += g[signs[c]][0];
-    std::array<std::uint32_t, 1200> edges;
-    int ne = 0;
-    // grid edges within the box: points at offsets -2..2 (window 2..6; cell
-    // index = window point index - 1)
+    std::vector<std::uint64_t> edges;
+    // grid edges with both ends at window points 2..w-3 (offsets -2..k+1;
+    // cell index = window point index - 1)
+    const int hi[3] = {w0 - 3, w1 - 3, w2 - 3};
     for (int a = 0; a < 3; ++a)
-        for (int z = 2; z <= 6; ++z)
-            for (int y = 2; y <= 6; ++y)
-                for (int x = 2; x <= 6; ++x) {
+        for (int z = 2; z <= hi[2]; ++z)
+            for (int y = 2; y <= hi[1]; ++y)
+                for (int x = 2; x <= hi[0]; ++x) {
                     int e[3] = {x, y, z};
                     ++e[a];
-                    if (e[a] > 6) continue;
+                    if (e[a] > hi[a]) continue;
                     if (in[pt(x, y, z)] == in[pt(e[0], e[1], e[2])]) continue;
                     ++f;
                     int vert[4], cellOf[4];
@@ -427,29 +449,28 @@ void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& 
                     }
                     for (int n = 0; n < 4; ++n) {
                         const int p = vert[n], q = vert[(n + 1) % 4];
-                        sets.unite(static_cast<std::int16_t>(p), static_cast<std::int16_t>(q));
+                        sets.unite(p, q);
                         if (inR(cellOf[n]) || inR(cellOf[(n + 1) % 4]))
-                            edges[ne++] = static_cast<std::uint32_t>(std::min(p, q)) << 16 |
-                                          static_cast<std::uint32_t>(std::max(p, q));
+                            edges.push_back(static_cast<std::uint64_t>(std::min(p, q)) << 32 |
+                                            static_cast<std::uint64_t>(std::max(p, q)));
                     }
                 }
-    std::sort(edges.begin(), edges.begin() + ne);
-    const long long e = std::unique(edges.begin(), edges.begin() + ne) - edges.begin();
+    std::sort(edges.begin(), edges.end());
+    const long long e = std::unique(edges.begin(), edges.end()) - edges.begin();
     out.chi = v - e + f;
     // ports: the vertices of the cells outside R, in a fixed order
-    std::array<std::int16_t, 864> firstPort;
-    firstPort.fill(-1);
-    out.portGroup.fill(-1);
-    for (int c = 0; c < 216; ++c) {
+    std::vector<std::int32_t> firstPort(static_cast<std::size_t>(cells) * 4, -1);
+    out.portGroup.assign(static_cast<std::size_t>(cells) * 4, -1);
+    for (int c = 0; c < cells; ++c) {
         if (inR(c)) continue;
         for (int k = 0; k < g[signs[c]][0]; ++k) {
             const int p = c * 4 + k, r = find(p);
-            if (firstPort[r] < 0) firstPort[r] = static_cast<std::int16_t>(p);
+            if (firstPort[r] < 0) firstPort[r] = p;
             out.portGroup[p] = firstPort[r];
         }
     }
     out.closed = 0;
-    for (int c = 0; c < 216; ++c) {
+    for (int c = 0; c < cells; ++c) {
         if (!inR(c)) continue;
         for (int k = 0; k < g[signs[c]][0]; ++k) {
             const int p = c * 4 + k;
@@ -458,28 +479,51 @@ void mcLocal(const std::array<bool, 729>& in, const CellEdgeGroups& t, McLocal& 
     }
 }
 
-// Whether point (i, j, k) joining or leaving material m keeps the components
-// and Euler characteristic of the polygoniser's surface of m (m's points
-// inside, every other point outside).
+using PointChange = std::pair<std::size_t, std::int32_t>;  // grid index, new material
+
+// Whether giving the points of `changes` their new materials keeps the
+// components and Euler characteristic of the polygoniser's surface of
+// material m (m's points inside, every other point outside).
 // (eulerChange: the change of the surface's Euler characteristic, exact.)
-bool mcKeeps(const Labels& l, int i, int j, int k, std::int32_t m, const CellEdgeGroups& t,
+bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int32_t m, const CellEdgeGroups& t,
              long long* eulerChange = nullptr) {
     const auto [nx, ny, nz] = l.grid.dims;
-    std::array<bool, 729> in{};
-    for (int z = 0; z < 9; ++z)
-        for (int y = 0; y < 9; ++y)
-            for (int x = 0; x < 9; ++x) {
-                const int a = i + x - 4, b = j + y - 4, c = k + z - 4;
+    std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+    for (const auto& [p, to] : changes) {
+        const int c[3] = {static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], c[a]);
+            hi[a] = std::max(hi[a], c[a]);
+        }
+    }
+    McBox box;
+    for (int a = 0; a < 3; ++a) box.k[a] = hi[a] - lo[a] + 1;
+    const int w0 = box.w(0), w1 = box.w(1), w2 = box.w(2);
+    std::vector<std::uint8_t> in(box.points(), 0);
+    for (int z = 0; z < w2; ++z)
+        for (int y = 0; y < w1; ++y)
+            for (int x = 0; x < w0; ++x) {
+                const int a = lo[0] + x - 4, b = lo[1] + y - 4, c = lo[2] + z - 4;
                 const bool inside = a >= 0 && b >= 0 && c >= 0 && a < nx && b < ny && c < nz;
-                in[x + 9 * (y + 9 * z)] = inside && l.material[l.grid.index(a, b, c)] == m;
+                in[x + w0 * (y + w1 * z)] = inside && l.material[l.grid.index(a, b, c)] == m;
             }
     McLocal before, after;
-    mcLocal(in, t, before);
-    const int centre = 4 + 9 * (4 + 9 * 4);
-    in[centre] = !in[centre];
-    mcLocal(in, t, after);
+    mcLocal(in, box, t, before);
+    for (const auto& [p, to] : changes) {
+        const int x = static_cast<int>(p % nx) - lo[0] + 4, y = static_cast<int>(p / nx % ny) - lo[1] + 4,
+                  z = static_cast<int>(p / nx / ny) - lo[2] + 4;
+        in[x + w0 * (y + w1 * z)] = to == m;
+    }
+    mcLocal(in, box, t, after);
     if (eulerChange) *eulerChange = after.chi - before.chi;
     return before.chi == after.chi && before.closed == after.closed && before.portGroup == after.portGroup;
+}
+
+bool mcKeeps(const Labels& l, int i, int j, int k, std::int32_t m, const CellEdgeGroups& t,
+             long long* eulerChange = nullptr) {
+    const std::size_t p = l.grid.index(i, j, k);
+    const std::int32_t to = l.material[p] == m ? m + 1 : m;  // toggles m there (any other material is outside m)
+    return mcKeeps(l, {PointChange{p, to}}, m, t, eulerChange);
 }
 
 // Region ids of the repair (see repairNonManifold): union-find over ids, so a
@@ -883,6 +927,430 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                         " places where regions touch along an edge or at a point cannot be fixed by flipping grid "
                         "points; try a different --size");
     }
+}
+
+namespace {
+
+// Euler characteristic of the boundary of the union of the cubes around
+// every material's points (regionTopology's sum), counted over the blocks
+// with lowest corners `blocks`: each block contributes its lowest corner's
+// three pairs, its three squares there and itself.
+long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
+    long long chi = 0;
+    auto mixed = [](const std::int32_t* m, int n) {
+        int count = 0;
+        for (int c = 0; c < n; ++c) {
+            if (m[c] == 0) continue;
+            bool first = true, all = true;
+            for (int e = 0; e < c; ++e) first = first && m[e] != m[c];
+            for (int e = 0; e < n; ++e) all = all && m[e] == m[c];
+            count += first && !all;
+        }
+        return count;
+    };
+    const auto [nx, ny, nz] = l.grid.dims;
+    for (std::size_t b : blocks) {
+        const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+        const BlockView v = block(l, i, j, k);
+        if (uniformBlock(v.mat)) continue;
+        for (int d = 0; d < 3; ++d) {
+            const std::int32_t a = v.mat[0], o = v.mat[1 << d];
+            if (a != o) chi += (a != 0) + (o != 0);
+        }
+        const std::int32_t sq[3][4] = {{v.mat[0], v.mat[1], v.mat[2], v.mat[3]},
+                                       {v.mat[0], v.mat[1], v.mat[4], v.mat[5]},
+                                       {v.mat[0], v.mat[2], v.mat[4], v.mat[6]}};
+        for (const auto& q : sq) chi -= mixed(q, 4);
+        chi += mixed(v.mat.data(), 8);
+    }
+    return chi;
+}
+
+// matchPolygonTopology's search: at most this many flips on top of the repair's change.
+constexpr int kMatchDepth = 3;
+
+// Lowest corners of the blocks holding any of the points, sorted, unique.
+std::vector<std::size_t> blocksAround(const Grid& g, const std::vector<std::size_t>& points) {
+    const auto [nx, ny, nz] = g.dims;
+    std::vector<std::size_t> out;
+    for (std::size_t p : points) {
+        const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+        for (int c = 0; c < 8; ++c) {
+            const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+            if (bi >= 0 && bj >= 0 && bk >= 0 && bi + 1 < nx && bj + 1 < ny && bk + 1 < nz)
+                out.push_back(g.index(bi, bj, bk));
+        }
+    }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
+}
+
+// Whether the change keeps every involved material's polygoniser surface;
+// *eulerChange: the sum of their Euler changes.
+bool changeKeepsPolygonTopology(const Labels& l, const std::vector<PointChange>& changes, const CellEdgeGroups& t,
+                                long long* eulerChange) {
+    std::vector<std::int32_t> mats;
+    for (const auto& [p, to] : changes) {
+        if (l.material[p] == to) continue;
+        if (l.material[p] != 0) mats.push_back(l.material[p]);
+        if (to != 0) mats.push_back(to);
+    }
+    std::sort(mats.begin(), mats.end());
+    mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
+    bool keeps = true;
+    long long sum = 0;
+    for (std::int32_t m : mats) {
+        long long d = 0;
+        keeps = mcKeeps(l, changes, m, t, &d) && keeps;
+        sum += d;
+    }
+    if (eulerChange) *eulerChange = sum;
+    return keeps;
+}
+
+}  // namespace
+
+TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled, const Domain& domain,
+                                         const CellEdgeGroups& table) {
+    TopologyMatchReport rep;
+    const Grid& g = repaired.grid;
+    const auto [nx, ny, nz] = g.dims;
+    if (sampled.material.size() != repaired.material.size())
+        throw Error("matchPolygonTopology: the sampled and repaired labels have different grids");
+    std::vector<std::size_t> changed;
+    for (std::size_t p = 0; p < repaired.material.size(); ++p)
+        if (repaired.material[p] != sampled.material[p]) changed.push_back(p);
+    if (changed.empty()) return rep;
+    auto coords = [&](std::size_t p) {
+        return std::array<int, 3>{static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
+    };
+    // Groups: changed points within kGap of each other on every axis. A
+    // group's search flips points within 1 of it, or within 2 where no
+    // point of another group is next to the flip; so a block holding a flip
+    // holds no point of another group, and a block holding flips of two
+    // groups is checked by the later group's search.
+    constexpr int kGap = 2;
+    std::unordered_map<std::size_t, std::int32_t> at;
+    at.reserve(changed.size() * 2);
+    for (std::size_t n = 0; n < changed.size(); ++n) at.emplace(changed[n], static_cast<std::int32_t>(n));
+    DisjointSets<std::int32_t> groups(changed.size());
+    for (std::size_t n = 0; n < changed.size(); ++n) {
+        const auto [i, j, k] = coords(changed[n]);
+        for (int dz = -kGap; dz <= kGap; ++dz)
+            for (int dy = -kGap; dy <= kGap; ++dy)
+                for (int dx = -kGap; dx <= kGap; ++dx) {
+                    const int x = i + dx, y = j + dy, z = k + dz;
+                    if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
+                    const auto it = at.find(g.index(x, y, z));
+                    if (it != at.end() && it->second > static_cast<std::int32_t>(n))
+                        groups.unite(static_cast<std::int32_t>(n), it->second);
+                }
+    }
+    std::map<std::int32_t, std::vector<std::size_t>> members;  // by root: the smallest member, in grid order
+    for (std::size_t n = 0; n < changed.size(); ++n)
+        members[groups.find(static_cast<std::int32_t>(n))].push_back(changed[n]);
+    rep.groups = members.size();
+
+    Labels work = sampled;
+    auto isBorder = [&](const std::array<int, 3>& c) {
+        return c[0] == 0 || c[1] == 0 || c[2] == 0 || c[0] == nx - 1 || c[1] == ny - 1 || c[2] == nz - 1;
+    };
+    auto apply = [&](const std::vector<PointChange>& ch) {
+        for (const auto& [p, to] : ch) work.material[p] = to;
+    };
+    auto manifoldAt = [&](const std::vector<std::size_t>& blocks) {
+        for (std::size_t b : blocks) {
+            const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+            const BlockView v = block(work, i, j, k);
+            if (!uniformBlock(v.mat) && !blockManifold(v.mat)) return false;
+        }
+        return true;
+    };
+    // The points within 1 of `points`, sorted.
+    auto around = [&](const std::vector<std::size_t>& points) {
+        std::vector<std::size_t> near;
+        for (std::size_t p : points) {
+            const auto [i, j, k] = coords(p);
+            for (int dz = -1; dz <= 1; ++dz)
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int x = i + dx, y = j + dy, z = k + dz;
+                        if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
+                        near.push_back(g.index(x, y, z));
+                    }
+        }
+        std::sort(near.begin(), near.end());
+        near.erase(std::unique(near.begin(), near.end()), near.end());
+        return near;
+    };
+    constexpr int kMaxExtent = 12;   // wider groups are split, or keep the repair's change
+    constexpr std::size_t kDeepOptions = 80;  // three flips only around small groups (options^3)
+    const bool debug = std::getenv("ISOHEX_DEBUG_MATCH") != nullptr;
+
+    // Search: up to kMatchDepth flips of points within 1 of the group, on top
+    // of the repair's change (already applied), that leave every block around
+    // them manifold and make the whole change (from `before`) keep the
+    // polygoniser's surface. Applies the best one; false if none.
+    // later/laterBefore (optional): points still to be changed after this
+    // one, as the repair changes them and as they are now; the blocks are
+    // judged with them changed, the surface with them as they are.
+    auto search = [&](std::int32_t group, const std::vector<std::size_t>& near, const std::vector<PointChange>& before,
+                      const std::vector<PointChange>& change, long long d0,
+                      const std::vector<PointChange>* later = nullptr,
+                      const std::vector<PointChange>* laterBefore = nullptr,
+                      const std::unordered_set<std::size_t>* frozen = nullptr, int maxDepth = kMatchDepth) {
+        std::vector<PointChange> options;  // (point, material it may take)
+        for (std::size_t p : near) {
+            const auto c = coords(p);
+            if (isBorder(c) || (frozen && frozen->count(p))) continue;
+            bool nextToOther = false;  // a point of another group within 1
+            for (int q = 0; q < 27 && !nextToOther; ++q) {
+                const int x = c[0] + q % 3 - 1, y = c[1] + q / 3 % 3 - 1, z = c[2] + q / 9 - 1;
+                const auto it = at.find(g.index(x, y, z));
+                nextToOther = it != at.end() && groups.find(it->second) != group;
+            }
+            if (nextToOther) continue;
+            std::vector<std::int32_t> to{0, sampled.material[p], repaired.material[p]};
+            for (int d = 0; d < 6; ++d) {
+                const int x = c[0] + (d == 0) - (d == 1), y = c[1] + (d == 2) - (d == 3), z = c[2] + (d == 4) - (d == 5);
+                to.push_back(work.material[g.index(x, y, z)]);
+            }
+            std::sort(to.begin(), to.end());
+            to.erase(std::unique(to.begin(), to.end()), to.end());
+            for (std::int32_t m : to)
+                if (m != work.material[p]) options.emplace_back(p, m);
+        }
+        bool found = false;
+        std::vector<PointChange> best;
+        std::size_t bestDiff = 0;
+        double bestCost = 0;
+        std::vector<int> pick;
+        auto evaluate = [&]() {
+            std::vector<PointChange> flips, undo;
+            std::vector<std::size_t> flipped;
+            for (int q : pick) {
+                flips.push_back(options[q]);
+                flipped.push_back(options[q].first);
+                undo.emplace_back(options[q].first, work.material[options[q].first]);
+            }
+            const std::vector<std::size_t> blocks = blocksAround(g, flipped);
+            if (later) apply(*later);
+            const long long chiBase = cubeEuler(work, blocks);
+            apply(flips);
+            // Where both states are manifold the polygoniser's surface changes
+            // its Euler characteristic as the cubes' boundary does: a cheap
+            // filter before the exact test.
+            const bool candidate = manifoldAt(blocks) && cubeEuler(work, blocks) - chiBase == -d0;
+            if (later) apply(*laterBefore);
+            if (candidate) {
+                std::vector<PointChange> total;
+                for (const auto& [p, was] : before)
+                    if (work.material[p] != was) total.emplace_back(p, work.material[p]);
+                apply(before);
+                const bool keeps = changeKeepsPolygonTopology(work, total, table, nullptr);
+                apply(change);
+                apply(flips);
+                if (keeps) {
+                    std::size_t diff = 0;
+                    double cost = 0;
+                    for (const auto& [p, to] : total) {
+                        if (to == sampled.material[p]) continue;
+                        ++diff;
+                        const auto c = coords(p);
+                        cost += std::abs(domain.value(to != 0 ? to : sampled.material[p], g.point(c[0], c[1], c[2])));
+                    }
+                    if (!found || diff < bestDiff || (diff == bestDiff && cost < bestCost)) {
+                        found = true;
+                        best = flips;
+                        bestDiff = diff;
+                        bestCost = cost;
+                    }
+                }
+            }
+            apply(undo);
+        };
+        for (int depth = 1; depth <= maxDepth && !found; ++depth) {
+            if (depth == 3 && options.size() > kDeepOptions) break;
+            pick.assign(depth, 0);
+            // combinations of `depth` options at distinct points, in order
+            std::function<void(int, int)> choose = [&](int level, int from) {
+                if (level == depth) {
+                    evaluate();
+                    return;
+                }
+                for (int q = from; q < static_cast<int>(options.size()); ++q) {
+                    bool clash = false;
+                    for (int e = 0; e < level; ++e) clash = clash || options[pick[e]].first == options[q].first;
+                    if (clash) continue;
+                    pick[level] = q;
+                    choose(level + 1, q + 1);
+                }
+            };
+            choose(0, 0);
+        }
+        if (debug) std::fprintf(stderr, "  search: %zu options, found %d (%zu points off the sample)\n", options.size(), found, bestDiff);
+        if (debug && !found && std::getenv("ISOHEX_DEBUG_DUMP")) {
+            std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+            for (std::size_t p : near) {
+                const auto c = coords(p);
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = std::min(lo[a], c[a]);
+                    hi[a] = std::max(hi[a], c[a]);
+                }
+            }
+            for (int z = lo[2] - 1; z <= hi[2] + 1; ++z) {
+                std::fprintf(stderr, "z=%d  (sample | repaired | now)\n", z);
+                for (int y = lo[1] - 1; y <= hi[1] + 1; ++y) {
+                    for (const Labels* l : {&sampled, static_cast<const Labels*>(&repaired), static_cast<const Labels*>(&work)}) {
+                        for (int x = lo[0] - 1; x <= hi[0] + 1; ++x) std::fputc(l->material[g.index(x, y, z)] ? '#' : '.', stderr);
+                        std::fputs("   ", stderr);
+                    }
+                    std::fputc('\n', stderr);
+                }
+            }
+        }
+        if (found) apply(best);
+        return found;
+    };
+
+    // One group: its change as the repair made it when that keeps the
+    // surface; else the search's. A group too wide for the search is split
+    // into its 26-connected parts: with the whole change applied, each part
+    // whose own change alters the surface gets the search; the group then
+    // keeps the repair's change whole if the parts leave a block around it bad.
+    auto extentOf = [&](const std::vector<std::size_t>& points) {
+        std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
+        for (std::size_t p : points) {
+            const auto c = coords(p);
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], c[a]);
+                hi[a] = std::max(hi[a], c[a]);
+            }
+        }
+        return std::array<int, 6>{lo[0], lo[1], lo[2], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
+    };
+    auto changeOf = [&](const std::vector<std::size_t>& points) {
+        std::vector<PointChange> change;
+        for (std::size_t p : points) change.emplace_back(p, repaired.material[p]);
+        return change;
+    };
+    auto process = [&](std::int32_t group, const std::vector<std::size_t>& points) {
+        const std::vector<PointChange> change = changeOf(points);
+        long long d0 = 0;
+        if (changeKeepsPolygonTopology(work, change, table, &d0)) {
+            apply(change);
+            return;
+        }
+        ++rep.groupsChanging;
+        const auto box = extentOf(points);
+        const bool wide = std::max({box[3], box[4], box[5]}) > kMaxExtent;
+        if (debug)
+            std::fprintf(stderr, "group at %d,%d,%d: %zu points, box %dx%dx%d, euler change %lld\n", box[0], box[1],
+                         box[2], points.size(), box[3], box[4], box[5], d0);
+        const std::vector<std::size_t> near = around(points), near2 = around(near);
+        std::vector<PointChange> before;  // the state before the group, at the points it may touch
+        for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
+        apply(change);
+        if (!wide) {
+            // points next to the group first; then within 2, with two flips at most
+            if (search(group, near, before, change, d0) ||
+                search(group, near2, before, change, d0, nullptr, nullptr, nullptr, 2))
+                ++rep.groupsMatched;
+            return;
+        }
+        // 26-connected parts of a wide group, in grid order
+        std::unordered_map<std::size_t, std::int32_t> index;
+        for (std::size_t n = 0; n < points.size(); ++n) index.emplace(points[n], static_cast<std::int32_t>(n));
+        DisjointSets<std::int32_t> parts(points.size());
+        for (std::size_t n = 0; n < points.size(); ++n) {
+            const auto [i, j, k] = coords(points[n]);
+            for (int q = 0; q < 27; ++q) {
+                const int x = i + q % 3 - 1, y = j + q / 3 % 3 - 1, z = k + q / 9 - 1;
+                if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) continue;
+                const auto it = index.find(g.index(x, y, z));
+                if (it != index.end()) parts.unite(static_cast<std::int32_t>(n), it->second);
+            }
+        }
+        std::map<std::int32_t, std::vector<std::size_t>> byPart;
+        for (std::size_t n = 0; n < points.size(); ++n) byPart[parts.find(static_cast<std::int32_t>(n))].push_back(points[n]);
+        // The parts in turn, each from the state the earlier ones left
+        // (exact, step by step); a part's search judges blocks with the later
+        // parts changed as the repair changes them.
+        apply(before);
+        // a part wider than the search is cut into boxes 8 points wide
+        std::vector<std::vector<std::size_t>> order;
+        for (const auto& [r, part] : byPart) {
+            const auto pbox = extentOf(part);
+            if (std::max({pbox[3], pbox[4], pbox[5]}) <= kMaxExtent) {
+                order.push_back(part);
+                continue;
+            }
+            std::map<std::array<int, 3>, std::vector<std::size_t>> chunks;
+            for (std::size_t p : part) {
+                const auto c = coords(p);
+                chunks[{(c[2] - pbox[2]) / 8, (c[1] - pbox[1]) / 8, (c[0] - pbox[0]) / 8}].push_back(p);
+            }
+            for (auto& [key, chunk] : chunks) order.push_back(std::move(chunk));
+        }
+        const std::unordered_set<std::size_t> groupPoints(points.begin(), points.end());
+        for (std::size_t n = 0; n < order.size(); ++n) {
+            const std::vector<std::size_t>& part = order[n];
+            const std::vector<PointChange> partChange = changeOf(part);
+            const std::vector<std::size_t> partNear = around(part), partNear2 = around(partNear);
+            std::vector<PointChange> partBefore;
+            for (std::size_t p : partNear2) partBefore.emplace_back(p, work.material[p]);
+            long long dp = 0;
+            const bool keeps = changeKeepsPolygonTopology(work, partChange, table, &dp);
+            apply(partChange);
+            const auto pbox = extentOf(part);
+            if (keeps) continue;
+            if (debug)
+                std::fprintf(stderr, "  part at %d,%d,%d: %zu points, box %dx%dx%d, euler change %lld\n", pbox[0], pbox[1],
+                             pbox[2], part.size(), pbox[3], pbox[4], pbox[5], dp);
+            std::vector<PointChange> later, laterBefore;
+            for (std::size_t m = n + 1; m < order.size(); ++m)
+                for (std::size_t p : order[m]) {
+                    later.emplace_back(p, repaired.material[p]);
+                    laterBefore.emplace_back(p, work.material[p]);
+                }
+            std::unordered_set<std::size_t> frozen = groupPoints;  // the other parts' points
+            for (std::size_t p : part) frozen.erase(p);
+            if (!search(group, partNear, partBefore, partChange, dp, &later, &laterBefore, &frozen))
+                search(group, partNear2, partBefore, partChange, dp, &later, &laterBefore, &frozen, 2);
+        }
+        std::vector<PointChange> total;
+        for (const auto& [p, w] : before)
+            if (work.material[p] != w) total.emplace_back(p, work.material[p]);
+        const std::vector<PointChange> done = total;
+        apply(before);
+        const bool keeps = changeKeepsPolygonTopology(work, total, table, nullptr);
+        apply(done);
+        // the blocks around what changed (a flip is never next to another group)
+        std::vector<std::size_t> touched = points;
+        for (const auto& [p, to] : total) touched.push_back(p);
+        const bool manifold = manifoldAt(blocksAround(g, touched));
+        if (!manifold) {
+            apply(before);
+            apply(change);
+        }
+        if (keeps && manifold) ++rep.groupsMatched;
+        if (debug) std::fprintf(stderr, "  wide group: %zu parts, keeps %d, manifold %d\n", byPart.size(), keeps, manifold);
+    };
+    for (const auto& [root, points] : members) process(root, points);
+    // Each search checked the blocks around its flips; the whole grid is
+    // checked once more, and a result that is not manifold is not used.
+    if (!badBlocks(work).empty()) {
+        if (debug) std::fprintf(stderr, "not manifold: %zu bad blocks\n", badBlocks(work).size());
+        rep.groupsMatched = 0;
+        rep.discarded = true;
+        return rep;
+    }
+    std::size_t differ = 0;
+    for (std::size_t p = 0; p < work.material.size(); ++p) differ += work.material[p] != repaired.material[p];
+    rep.pointsChanged = differ;
+    repaired.material = std::move(work.material);
+    return rep;
 }
 
 std::vector<RegionTopology> regionTopology(const Labels& l) {

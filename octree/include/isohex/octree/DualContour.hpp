@@ -104,6 +104,28 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
                                const std::vector<std::int32_t>* regions = nullptr,
                                const CellEdgeGroups* marchingCubes = nullptr);
 
+// After repairNonManifold: makes the repair's changes keep the topology of
+// the surface a marching-cubes polygoniser (`table`) draws around the
+// sampled labels, where a small search finds how. The points where
+// `repaired` differs from `sampled` are taken in groups (changes within 4
+// points of each other); a group whose change alters some material's
+// polygon surface (components or Euler characteristic, mcKeeps on the
+// group's box) is replaced by the repair's change plus up to three flips of
+// points next to it that leave every block manifold and keep that surface,
+// the one nearest the sampled labels (fewest points changed, then smallest
+// |field| there). Groups the search cannot mend keep the repair's change.
+// `repaired` stays manifold. Deterministic.
+struct TopologyMatchReport {
+    std::size_t groups = 0;           // groups of changed points
+    std::size_t groupsChanging = 0;   // whose change altered the polygon surface
+    std::size_t groupsMatched = 0;    // of those, replaced by a change that keeps it
+    std::size_t groupsTooLarge = 0;   // more than 12 points wide on an axis: not checked
+    std::size_t pointsChanged = 0;    // points whose label differs from the repair's now
+    bool discarded = false;           // the result was not manifold: the repair's labels are kept
+};
+TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled, const Domain& domain,
+                                         const CellEdgeGroups& table);
+
 // Topology of each material region's boundary: connected components and
 // Euler characteristic (a closed surface of genus g per component has chi = 2 - 2g).
 struct RegionTopology {
