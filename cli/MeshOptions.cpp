@@ -23,6 +23,11 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
                   "Fill background pits and wells one element wide before meshing (the boundary sheet cannot "
                   "give their floor a good hex; topology is kept)")
         ->group(sel);
+    cmd->add_flag("--isosurface-topology", s.isosurfaceTopology,
+                  "Keep the components and tunnels of the isosurface drawn on the element grid (OpenVDB's "
+                  "volumeToMesh), sub-element specks, pockets and tunnels included, where a local search can "
+                  "(slower; the hexes at such places are poorer)")
+        ->group(sel);
     cmd->add_option("--min-label-voxels", s.select.minLabelVoxels, "Drop (and report) labels with fewer voxels")
         ->group(sel);
     cmd->add_option("--smooth", s.select.smoothSigma, "Gaussian pre-smoothing, standard deviation in mm")->group(sel);

@@ -424,19 +424,6 @@ octree::Grid gridFor(const imaging::Volume& vol, const openvdb::CoordBBox& solid
 // component of the volumeToMesh surface of the material's points (grid
 // points of the material inside, the rest outside). Each surface polygon is
 // dual to the grid edge it crosses, which names the point on its inner side.
-// OpenVDB's own marching-cubes cell tables, for the repair's exact topology test.
-const octree::CellEdgeGroups& volumeToMeshTables() {
-    static const octree::CellEdgeGroups table = [] {
-        octree::CellEdgeGroups t;
-        for (int p = 0; p < 256; ++p) {
-            for (int e = 0; e < 13; ++e) t.edgeGroups[p][e] = openvdb::tools::volume_to_mesh_internal::sEdgeGroupTable[p][e];
-            t.ambiguousFace[p] = openvdb::tools::volume_to_mesh_internal::sAmbiguousFace[p];
-        }
-        return t;
-    }();
-    return table;
-}
-
 std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
     const octree::Grid& g = l.grid;
     const auto [nx, ny, nz] = g.dims;
@@ -512,6 +499,19 @@ nlohmann::json gridJson(const octree::Grid& g) {
 }
 
 }  // namespace
+
+// OpenVDB's own marching-cubes cell tables, for the repair's exact topology test.
+const octree::CellEdgeGroups& volumeToMeshTables() {
+    static const octree::CellEdgeGroups table = [] {
+        octree::CellEdgeGroups t;
+        for (int p = 0; p < 256; ++p) {
+            for (int e = 0; e < 13; ++e) t.edgeGroups[p][e] = openvdb::tools::volume_to_mesh_internal::sEdgeGroupTable[p][e];
+            t.ambiguousFace[p] = openvdb::tools::volume_to_mesh_internal::sAmbiguousFace[p];
+        }
+        return t;
+    }();
+    return table;
+}
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
     Prepared p;
@@ -644,12 +644,15 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     sink.progress(0.5);
     const std::vector<std::int32_t> regions = marchingCubesRegions(p.labels);
     const auto repairStart = std::chrono::steady_clock::now();
-    const octree::Labels beforeRepair = p.labels;
+    std::optional<octree::Labels> beforeRepair;
+    if (settings.isosurfaceTopology) beforeRepair = p.labels;
     octree::RepairReport rep = octree::repairNonManifold(p.labels, *domain, &regions);
-    const octree::TopologyMatchReport match =
-        octree::matchPolygonTopology(p.labels, beforeRepair, *domain, volumeToMeshTables());
-    // Repair can cut a thin bridge; keep the largest region again and re-check.
-    if (settings.keepLargest && octree::keepLargestComponents(p.labels) > 0) {
+    std::optional<octree::TopologyMatchReport> match;
+    if (beforeRepair) match = octree::matchPolygonTopology(p.labels, *beforeRepair, *domain, volumeToMeshTables());
+    // Repair can cut a thin bridge; keep the largest region again and re-check
+    // (not with --isosurface-topology: the pieces the isosurface has apart
+    // stay, as there).
+    if (settings.keepLargest && !match && octree::keepLargestComponents(p.labels) > 0) {
         const octree::RepairReport again = octree::repairNonManifold(p.labels, *domain);
         rep.pointsAdded += again.pointsAdded;
         rep.pointsRemoved += again.pointsRemoved;
@@ -685,13 +688,13 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                       {"points_added", rep.pointsAdded},
                       {"points_removed", rep.pointsRemoved},
                       {"rounds", rep.rounds},
-                      {"seconds", repairSeconds},
-                      {"polygon_topology",
-                       {{"groups", match.groups},
-                        {"groups_changing", match.groupsChanging},
-                        {"groups_matched", match.groupsMatched},
-                        {"groups_too_large", match.groupsTooLarge},
-                        {"points_changed", match.pointsChanged}}}};
+                      {"seconds", repairSeconds}};
+    if (match)
+        grid["repair"]["isosurface_topology"] = {{"groups", match->groups},
+                                                 {"groups_changing_it", match->groupsChanging},
+                                                 {"groups_mended", match->groupsMatched},
+                                                 {"points_changed", match->pointsChanged},
+                                                 {"discarded", match->discarded}};
     for (const auto& t : topo)
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});

@@ -35,6 +35,10 @@ struct MeshSettings {
     std::string method = "dual";  // "dual" (dual contouring), "voxel" (one hex per voxel, the baseline), "sheets" (surfaces)
     bool keepLargest = false;     // only the largest connected region of each material
     bool fillPits = false;        // fill background pits one grid cell wide (octree::fillOneCellPits)
+    // after the non-manifold repair, re-choose its changes so the boundary keeps
+    // the components and Euler characteristic of volumeToMesh's surface of the
+    // sampled grid where a small search can (octree::matchPolygonTopology)
+    bool isosurfaceTopology = false;
     bool pillow = true;
     int boundaryLayers = 1;
     bool meshExterior = false;
@@ -76,6 +80,10 @@ struct Prepared {
     nlohmann::json report;          // input, selection, grid and repair facts
     std::vector<std::string> warnings;
 };
+
+// OpenVDB volumeToMesh's own marching-cubes cell tables (the exact topology
+// test of --isosurface-topology, octree::matchPolygonTopology).
+const octree::CellEdgeGroups& volumeToMeshTables();
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink);
 // Dual contouring (or voxel hexes) of the prepared labels. Dual contouring

@@ -54,6 +54,9 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
     if (settings.surfaceTolerance)
         throw Error("--surface-tolerance is in voxels of a scan; --method sheets keeps surface nodes on the triangles "
                     "until its volume fit, so leave it out");
+    if (settings.isosurfaceTopology)
+        throw Error("--isosurface-topology chooses grid points of a sampled grid; --method sheets has none (use "
+                    "--method dual)");
     auto surface = stage(sink, "load", [&] { return loadTriangleTree(input); });
     const double size = settings.size ? *settings.size : surface->meanEdgeLength();
     const auto box = surface->bounds();

@@ -185,6 +185,8 @@ const std::vector<Column>& columns() {
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.keepLargest = toBool(f.scalar()); }},
         {"fill_pits", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.fillPits = toBool(f.scalar()); }},
+        {"isosurface_topology", "true/false",
+         [](const Field& f, MeshArgs& a, JobFields&) { a.settings.isosurfaceTopology = toBool(f.scalar()); }},
         {"min_label_voxels", "whole number",
          [](const Field& f, MeshArgs& a, JobFields&) {
              const long long v = toInteger(f.scalar());

@@ -2,8 +2,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <map>
 #include <functional>
 #include <set>
@@ -969,10 +967,10 @@ long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
 // matchPolygonTopology's search: at most this many flips on top of the repair's change.
 constexpr int kMatchDepth = 3;
 
-// Lowest corners of the blocks holding any of the points, sorted, unique.
-std::vector<std::size_t> blocksAround(const Grid& g, const std::vector<std::size_t>& points) {
+// Lowest corners of the blocks holding any of the points, sorted, unique (into out).
+void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::vector<std::size_t>& out) {
     const auto [nx, ny, nz] = g.dims;
-    std::vector<std::size_t> out;
+    out.clear();
     for (std::size_t p : points) {
         const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
         for (int c = 0; c < 8; ++c) {
@@ -983,6 +981,11 @@ std::vector<std::size_t> blocksAround(const Grid& g, const std::vector<std::size
     }
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+std::vector<std::size_t> blocksAround(const Grid& g, const std::vector<std::size_t>& points) {
+    std::vector<std::size_t> out;
+    blocksAround(g, points, out);
     return out;
 }
 
@@ -1086,7 +1089,6 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     };
     constexpr int kMaxExtent = 12;   // wider groups are split, or keep the repair's change
     constexpr std::size_t kDeepOptions = 80;  // three flips only around small groups (options^3)
-    const bool debug = std::getenv("ISOHEX_DEBUG_MATCH") != nullptr;
 
     // Search: up to kMatchDepth flips of points within 1 of the group, on top
     // of the repair's change (already applied), that leave every block around
@@ -1126,22 +1128,30 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         std::size_t bestDiff = 0;
         double bestCost = 0;
         std::vector<int> pick;
+        std::vector<PointChange> flips, undo;  // reused by every trial
+        std::vector<std::size_t> flipped, blocks;
         auto evaluate = [&]() {
-            std::vector<PointChange> flips, undo;
-            std::vector<std::size_t> flipped;
+            flips.clear();
+            undo.clear();
+            flipped.clear();
             for (int q : pick) {
                 flips.push_back(options[q]);
                 flipped.push_back(options[q].first);
                 undo.emplace_back(options[q].first, work.material[options[q].first]);
             }
-            const std::vector<std::size_t> blocks = blocksAround(g, flipped);
+            blocksAround(g, flipped, blocks);
             if (later) apply(*later);
-            const long long chiBase = cubeEuler(work, blocks);
             apply(flips);
             // Where both states are manifold the polygoniser's surface changes
             // its Euler characteristic as the cubes' boundary does: a cheap
             // filter before the exact test.
-            const bool candidate = manifoldAt(blocks) && cubeEuler(work, blocks) - chiBase == -d0;
+            bool candidate = manifoldAt(blocks);
+            if (candidate) {
+                const long long chi = cubeEuler(work, blocks);
+                apply(undo);
+                candidate = chi - cubeEuler(work, blocks) == -d0;
+                apply(flips);
+            }
             if (later) apply(*laterBefore);
             if (candidate) {
                 std::vector<PointChange> total;
@@ -1189,27 +1199,6 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             };
             choose(0, 0);
         }
-        if (debug) std::fprintf(stderr, "  search: %zu options, found %d (%zu points off the sample)\n", options.size(), found, bestDiff);
-        if (debug && !found && std::getenv("ISOHEX_DEBUG_DUMP")) {
-            std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
-            for (std::size_t p : near) {
-                const auto c = coords(p);
-                for (int a = 0; a < 3; ++a) {
-                    lo[a] = std::min(lo[a], c[a]);
-                    hi[a] = std::max(hi[a], c[a]);
-                }
-            }
-            for (int z = lo[2] - 1; z <= hi[2] + 1; ++z) {
-                std::fprintf(stderr, "z=%d  (sample | repaired | now)\n", z);
-                for (int y = lo[1] - 1; y <= hi[1] + 1; ++y) {
-                    for (const Labels* l : {&sampled, static_cast<const Labels*>(&repaired), static_cast<const Labels*>(&work)}) {
-                        for (int x = lo[0] - 1; x <= hi[0] + 1; ++x) std::fputc(l->material[g.index(x, y, z)] ? '#' : '.', stderr);
-                        std::fputs("   ", stderr);
-                    }
-                    std::fputc('\n', stderr);
-                }
-            }
-        }
         if (found) apply(best);
         return found;
     };
@@ -1245,9 +1234,6 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         ++rep.groupsChanging;
         const auto box = extentOf(points);
         const bool wide = std::max({box[3], box[4], box[5]}) > kMaxExtent;
-        if (debug)
-            std::fprintf(stderr, "group at %d,%d,%d: %zu points, box %dx%dx%d, euler change %lld\n", box[0], box[1],
-                         box[2], points.size(), box[3], box[4], box[5], d0);
         const std::vector<std::size_t> near = around(points), near2 = around(near);
         std::vector<PointChange> before;  // the state before the group, at the points it may touch
         for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
@@ -1303,11 +1289,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             long long dp = 0;
             const bool keeps = changeKeepsPolygonTopology(work, partChange, table, &dp);
             apply(partChange);
-            const auto pbox = extentOf(part);
             if (keeps) continue;
-            if (debug)
-                std::fprintf(stderr, "  part at %d,%d,%d: %zu points, box %dx%dx%d, euler change %lld\n", pbox[0], pbox[1],
-                             pbox[2], part.size(), pbox[3], pbox[4], pbox[5], dp);
             std::vector<PointChange> later, laterBefore;
             for (std::size_t m = n + 1; m < order.size(); ++m)
                 for (std::size_t p : order[m]) {
@@ -1335,13 +1317,11 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             apply(change);
         }
         if (keeps && manifold) ++rep.groupsMatched;
-        if (debug) std::fprintf(stderr, "  wide group: %zu parts, keeps %d, manifold %d\n", byPart.size(), keeps, manifold);
     };
     for (const auto& [root, points] : members) process(root, points);
     // Each search checked the blocks around its flips; the whole grid is
     // checked once more, and a result that is not manifold is not used.
     if (!badBlocks(work).empty()) {
-        if (debug) std::fprintf(stderr, "not manifold: %zu bad blocks\n", badBlocks(work).size());
         rep.groupsMatched = 0;
         rep.discarded = true;
         return rep;
