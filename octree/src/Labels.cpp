@@ -964,8 +964,11 @@ long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
     return chi;
 }
 
-// matchPolygonTopology's search: at most this many flips on top of the repair's change.
+// matchPolygonTopology's search: at most this many flips on top of the
+// repair's change, and this many trials per search (a bound on the time a
+// noisy place can take: three flips among 80 options are 82,160 trials).
 constexpr int kMatchDepth = 3;
+constexpr std::size_t kMatchTrials = 150'000;
 
 // Lowest corners of the blocks holding any of the points, sorted, unique (into out).
 void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::vector<std::size_t>& out) {
@@ -1130,7 +1133,9 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         std::vector<int> pick;
         std::vector<PointChange> flips, undo;  // reused by every trial
         std::vector<std::size_t> flipped, blocks;
+        std::size_t trials = 0;
         auto evaluate = [&]() {
+            ++trials;
             flips.clear();
             undo.clear();
             flipped.clear();
@@ -1185,6 +1190,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             pick.assign(depth, 0);
             // combinations of `depth` options at distinct points, in order
             std::function<void(int, int)> choose = [&](int level, int from) {
+                if (trials >= kMatchTrials) return;
                 if (level == depth) {
                     evaluate();
                     return;

@@ -539,6 +539,116 @@ TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
     EXPECT_GT(changed, 100u);
 }
 
+// --isosurface-topology: after the repair, matchPolygonTopology re-chooses
+// the repair's changes. On random blobby labellings (smoothed noise cut at
+// a level, one and two materials, with many edge and corner contacts): the
+// result is manifold, and wherever the report says every group whose change
+// altered the surface was mended, every material's boundary has the
+// components and Euler characteristic of volumeToMesh's surface of the
+// sampled labels; the repair alone misses it in many of those cases.
+TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
+    // the labels as a domain: |value| grows away from the level, the sign is the label
+    // (two materials: the solid split by a plane)
+    struct GridDomain : octree::Domain {
+        const octree::Labels* l;
+        const std::vector<float>* noise;
+        std::size_t at(const Vec3& x) const {
+            const auto [nx, ny, nz] = l->grid.dims;
+            const int i = std::clamp(static_cast<int>(std::lround(x[0])), 0, nx - 1);
+            const int j = std::clamp(static_cast<int>(std::lround(x[1])), 0, ny - 1);
+            const int k = std::clamp(static_cast<int>(std::lround(x[2])), 0, nz - 1);
+            return l->grid.index(i, j, k);
+        }
+        std::int32_t materialAt(const Vec3& x) const override { return l->material[at(x)]; }
+        double value(std::int32_t m, const Vec3& x, Vec3* gradient) const override {
+            if (gradient) *gradient = {0, 0, 0};
+            const double v = std::abs((*noise)[at(x)]) + 0.01;
+            return l->material[at(x)] == m ? -v : v;
+        }
+    };
+    auto surface = [](const octree::Labels& l, std::int32_t m) {
+        auto grid = openvdb::FloatGrid::create(1.0f);
+        auto acc = grid->getAccessor();
+        const auto [nx, ny, nz] = l.grid.dims;
+        for (int k = 0; k < nz; ++k)
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i)
+                    if (l.material[l.grid.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
+        return vdbTopology(*grid);
+    };
+    std::mt19937 rng(20261202);
+    std::uniform_real_distribution<double> u(0, 1);
+    int mendedAll = 0, repairAloneDiffers = 0, searched = 0;
+    for (int materials : {1, 2})
+        for (int trial = 0; trial < 60; ++trial) {
+            const int n = 14;
+            octree::Labels l;
+            l.grid.dims = {n, n, n};
+            l.grid.origin = {0, 0, 0};
+            l.grid.axes = {{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
+            l.material.assign(l.grid.size(), 0);
+            // noise smoothed twice over 3x3x3, cut at a level chosen per trial
+            std::vector<float> raw(l.grid.size()), noise(l.grid.size(), 0.0f);
+            for (auto& v : raw) v = static_cast<float>(u(rng) - 0.5);
+            for (int pass = 0; pass < 2; ++pass) {
+                std::fill(noise.begin(), noise.end(), 0.0f);
+                for (int k = 1; k < n - 1; ++k)
+                    for (int j = 1; j < n - 1; ++j)
+                        for (int i = 1; i < n - 1; ++i) {
+                            float sum = 0;
+                            for (int q = 0; q < 27; ++q)
+                                sum += raw[l.grid.index(i + q % 3 - 1, j + q / 3 % 3 - 1, k + q / 9 - 1)];
+                            noise[l.grid.index(i, j, k)] = sum / 27.0f;
+                        }
+                if (pass == 0) raw = noise;
+            }
+            const float level = static_cast<float>(0.01 * (u(rng) - 0.5));
+            for (int k = 1; k < n - 1; ++k)
+                for (int j = 1; j < n - 1; ++j)
+                    for (int i = 1; i < n - 1; ++i) {
+                        const std::size_t p = l.grid.index(i, j, k);
+                        if (noise[p] - level < 0)
+                            l.material[p] = materials == 1 ? 1 : 1 + (2 * i + j > 3 * n / 2);
+                    }
+            GridDomain d;
+            d.l = &l;
+            d.noise = &noise;
+            const octree::Labels sampled = l;
+            octree::Labels repaired = l;
+            octree::repairNonManifold(repaired, d);
+            octree::Labels matched = repaired;
+            const octree::TopologyMatchReport rep =
+                octree::matchPolygonTopology(matched, sampled, d, cli::volumeToMeshTables());
+            const std::string where = std::to_string(materials) + " material(s), trial " + std::to_string(trial);
+            EXPECT_EQ(octree::countNonManifoldBlocks(matched), 0u) << where;
+            EXPECT_FALSE(rep.discarded) << where;
+            searched += rep.groupsChanging > 0;
+            if (rep.groupsChanging != rep.groupsMatched) continue;
+            ++mendedAll;
+            bool repairSame = true;
+            for (std::int32_t m = 1; m <= materials; ++m) {
+                const SurfaceTopology want = surface(sampled, m);
+                auto topologyOf = [&](const octree::Labels& x) {
+                    for (const auto& t : octree::regionTopology(x))
+                        if (t.material == m) return std::make_pair(static_cast<long long>(t.components), t.euler);
+                    return std::make_pair(0LL, 0LL);
+                };
+                const auto got = topologyOf(matched), alone = topologyOf(repaired);
+                EXPECT_EQ(got.first, static_cast<long long>(want.components)) << where << ", material " << m;
+                EXPECT_EQ(got.second, want.euler) << where << ", material " << m;
+                repairSame = repairSame && alone.first == static_cast<long long>(want.components) && alone.second == want.euler;
+            }
+            repairAloneDiffers += !repairSame;
+        }
+    std::cout << "[figures] isosurface topology on random labellings: " << searched << " of 120 searched, "
+              << mendedAll << " with every group mended, " << repairAloneDiffers
+              << " of those where the repair alone differs from volumeToMesh\n";
+    // (measured: 82 searched, 109 with every group mended, 69 of them where
+    // the repair alone differs)
+    EXPECT_GE(mendedAll, 90);
+    EXPECT_GE(repairAloneDiffers, 50);
+}
+
 // Label maps: each label's surface is the 0.5 level of its trilinear
 // indicator. Those surfaces do not tile the labelled region: where three
 // labels meet, or two labels and the background, every label's isosurface

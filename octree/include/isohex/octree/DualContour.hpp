@@ -104,22 +104,30 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
                                const std::vector<std::int32_t>* regions = nullptr,
                                const CellEdgeGroups* marchingCubes = nullptr);
 
-// After repairNonManifold: makes the repair's changes keep the topology of
-// the surface a marching-cubes polygoniser (`table`) draws around the
-// sampled labels, where a small search finds how. The points where
-// `repaired` differs from `sampled` are taken in groups (changes within 4
-// points of each other); a group whose change alters some material's
-// polygon surface (components or Euler characteristic, mcKeeps on the
-// group's box) is replaced by the repair's change plus up to three flips of
-// points next to it that leave every block manifold and keep that surface,
-// the one nearest the sampled labels (fewest points changed, then smallest
-// |field| there). Groups the search cannot mend keep the repair's change.
-// `repaired` stays manifold. Deterministic.
+// After repairNonManifold (the pipeline's --isosurface-topology): re-chooses
+// the repair's changes so that the boundary keeps the components and Euler
+// characteristic of the surface a marching-cubes polygoniser (`table`, e.g.
+// OpenVDB's volumeToMesh) draws around `sampled`, where a small search finds
+// how. The points where `repaired` differs from `sampled` are taken in
+// groups (changes within 2 points of each other on every axis), in grid
+// order, each checked exactly from the state the earlier groups left (the
+// polygon surface of every material in a window around the group, mcKeeps).
+// A group whose change alters it gets the search: the repair's change plus
+// up to three flips of points next to the group (then up to two within 2
+// points, none next to another group) that leave every block around them
+// manifold and keep the surface; of those with the fewest flips, the one
+// nearest the sampled labels (fewest points off them, then smallest |field|
+// there). A group more than 12 points wide is taken part by part (its
+// 26-connected parts, wide ones cut into boxes 8 points wide), each part
+// checked and searched the same way with the later parts judged as the
+// repair leaves them; it keeps the repair's change whole if its parts leave
+// a block bad. Groups the search cannot mend keep the repair's change.
+// `repaired` stays manifold (checked; if not, it is left as it was and the
+// report says discarded). Deterministic, single-threaded.
 struct TopologyMatchReport {
     std::size_t groups = 0;           // groups of changed points
-    std::size_t groupsChanging = 0;   // whose change altered the polygon surface
-    std::size_t groupsMatched = 0;    // of those, replaced by a change that keeps it
-    std::size_t groupsTooLarge = 0;   // more than 12 points wide on an axis: not checked
+    std::size_t groupsChanging = 0;   // whose change (the repair's) altered the polygon surface
+    std::size_t groupsMatched = 0;    // of those, mended: the group's change now keeps it
     std::size_t pointsChanged = 0;    // points whose label differs from the repair's now
     bool discarded = false;           // the result was not manifold: the repair's labels are kept
 };
