@@ -424,7 +424,10 @@ octree::Grid gridFor(const imaging::Volume& vol, const openvdb::CoordBBox& solid
 // component of the volumeToMesh surface of the material's points (grid
 // points of the material inside, the rest outside). Each surface polygon is
 // dual to the grid edge it crosses, which names the point on its inner side.
-std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
+// surfaces (optional): each material's components and Euler characteristic
+// of that surface (what --isosurface-topology aims at).
+std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l,
+                                               std::vector<octree::RegionTopology>* surfaces = nullptr) {
     const octree::Grid& g = l.grid;
     const auto [nx, ny, nz] = g.dims;
     const std::size_t n = l.material.size();
@@ -462,6 +465,33 @@ std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l) {
             for (int e = 0; e < 4; ++e) surface.unite(q[e], q[(e + 1) % 4]);
         for (const auto& t : tris)
             for (int e = 0; e < 3; ++e) surface.unite(t[e], t[(e + 1) % 3]);
+        if (surfaces) {
+            octree::RegionTopology t;
+            t.material = m;
+            std::vector<std::uint64_t> edges;
+            auto edge = [&](std::uint32_t a, std::uint32_t b) {
+                edges.push_back(static_cast<std::uint64_t>(std::min(a, b)) << 32 | std::max(a, b));
+            };
+            for (const auto& q : quads)
+                for (int e = 0; e < 4; ++e) edge(q[e], q[(e + 1) % 4]);
+            for (const auto& tr : tris)
+                for (int e = 0; e < 3; ++e) edge(tr[e], tr[(e + 1) % 3]);
+            std::sort(edges.begin(), edges.end());
+            const auto e = static_cast<long long>(std::unique(edges.begin(), edges.end()) - edges.begin());
+            std::vector<char> used(pts.size(), 0);
+            for (const auto& q : quads)
+                for (int k = 0; k < 4; ++k) used[q[k]] = 1;
+            for (const auto& tr : tris)
+                for (int k = 0; k < 3; ++k) used[tr[k]] = 1;
+            long long v = 0;
+            for (std::uint32_t a = 0; a < pts.size(); ++a) {
+                if (!used[a]) continue;
+                ++v;
+                t.components += surface.find(a) == a;
+            }
+            t.euler = v - e + static_cast<long long>(quads.size() + tris.size());
+            surfaces->push_back(t);
+        }
         std::vector<std::int64_t> inner(pts.size(), -1);  // per surface component: a point on its inner side
         for (const auto& q : quads) {
             // the 4 vertices lie in the 4 cells around the crossed edge: equal
@@ -642,7 +672,9 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                                            " grid points of smaller regions removed)");
     }
     sink.progress(0.5);
-    const std::vector<std::int32_t> regions = marchingCubesRegions(p.labels);
+    std::vector<octree::RegionTopology> isosurface;  // volumeToMesh's, for --isosurface-topology
+    const std::vector<std::int32_t> regions =
+        marchingCubesRegions(p.labels, settings.isosurfaceTopology ? &isosurface : nullptr);
     const auto repairStart = std::chrono::steady_clock::now();
     std::optional<octree::Labels> beforeRepair;
     if (settings.isosurfaceTopology) beforeRepair = p.labels;
@@ -698,6 +730,26 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     for (const auto& t : topo)
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+    if (match) {
+        // what --isosurface-topology aimed at, and where it fell short
+        auto& out = grid["repair"]["isosurface_topology"]["isosurface"];
+        out = nlohmann::json::array();
+        for (const auto& want : isosurface) {
+            out.push_back({{"material", want.material}, {"components", want.components}, {"euler", want.euler}});
+            const auto it =
+                std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == want.material; });
+            const std::size_t c = it == topo.end() ? 0 : it->components;
+            const long long e = it == topo.end() ? 0 : it->euler;
+            if (c != want.components || e != want.euler)
+                p.warnings.push_back(
+                    "material " + std::to_string(want.material) + ": --isosurface-topology mended " +
+                    std::to_string(match->groupsMatched) + " of the " + std::to_string(match->groupsChanging) +
+                    " places where the repair changed the isosurface's topology; the mesh boundary has " +
+                    std::to_string(c) + " component(s), Euler characteristic " + std::to_string(e) +
+                    ", the isosurface on the element grid " + std::to_string(want.components) + " and " +
+                    std::to_string(want.euler) + " (grid.repair.isosurface_topology in the report)");
+        }
+    }
     // Compare with the topology the mesh should have. A triangle surface has
     // its own (its level set's voxels are half an element, so a voxel-level
     // reference would coarsen with --size and miss what a large size loses);

@@ -195,6 +195,8 @@ class ManifestErrors(unittest.TestCase):
                    "badtolerance.csv:3:", "column 'surface_tolerance'", "between 0 and 1")
         self.check("tolerancefixed.csv", "input,output,fix_boundary,surface_tolerance\na.nii.gz,x.vtu,true,0.05\n",
                    "tolerancefixed.csv:2:", "no effect")
+        self.check("badtopology.csv", "input,output,isosurface_topology\na.nii.gz,x.vtu,true\nb.nii.gz,y.vtu,yes please\n",
+                   "badtopology.csv:3:", "column 'isosurface_topology'", "true or false")
 
     def test_malformed_csv(self):
         self.check("fields.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,y.vtu,3\n", "fields.csv:3:",
