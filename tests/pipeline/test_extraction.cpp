@@ -117,7 +117,8 @@ SurfaceTopology meshRegionTopology(const HexMesh& mesh, const Topology& topo, st
         const std::int32_t a = mesh.material[q.hex[0]];
         const std::int32_t b = q.boundary() ? -1 : mesh.material[q.hex[1]];
         if (a == b || (a != m && b != m)) continue;
-        polys.push_back({q.nodes[0], q.nodes[1], q.nodes[2], q.nodes[3]});
+        polys.push_back({static_cast<std::size_t>(q.nodes[0]), static_cast<std::size_t>(q.nodes[1]),
+                         static_cast<std::size_t>(q.nodes[2]), static_cast<std::size_t>(q.nodes[3])});
     }
     return polygonTopology(polys);
 }
@@ -530,7 +531,9 @@ TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
                     same = same && after[m].components == t.components && after[m].euler == t.euler;
                 }
                 EXPECT_EQ(dchi, actual) << "trial " << trial << " point " << i << "," << j << "," << k;
-                if (keeps) EXPECT_TRUE(same) << "trial " << trial << " point " << i << "," << j << "," << k;
+                if (keeps) {
+                    EXPECT_TRUE(same) << "trial " << trial << " point " << i << "," << j << "," << k;
+                }
                 (same ? kept : changed) += 1;
             }
         }
