@@ -97,9 +97,10 @@ bool flipKeepsPolygonTopology(const Labels& labels, int i, int j, int k, std::in
 // counts as topology-keeping only when flipKeepsPolygonTopology says so (the
 // 26/6 digital model above is only close to marching cubes: on ch2bet at
 // 2 mm about a thousand of its "simple" flips change volumeToMesh's surface,
-// with changes that happen to cancel). Not used by the pipeline yet: with it
+// with changes that happen to cancel). Not used by the pipeline: with it
 // the ~15 contacts of ch2bet at 2 mm that no single flip or pocket move can
-// mend exactly no longer cancel (see docs/DESIGN.md).
+// mend exactly no longer cancel (see docs/DESIGN.md). --isosurface-topology
+// instead re-chooses the repair's changes afterwards (matchPolygonTopology).
 RepairReport repairNonManifold(Labels& labels, const Domain& domain,
                                const std::vector<std::int32_t>* regions = nullptr,
                                const CellEdgeGroups* marchingCubes = nullptr);
