@@ -684,7 +684,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     // Repair can cut a thin bridge; keep the largest region again and re-check
     // (not with --isosurface-topology: the pieces the isosurface has apart
     // stay, as there).
-    if (settings.keepLargest && !match && octree::keepLargestComponents(p.labels) > 0) {
+    if (settings.keepLargest && (!match || match->discarded) && octree::keepLargestComponents(p.labels) > 0) {
         const octree::RepairReport again = octree::repairNonManifold(p.labels, *domain);
         rep.pointsAdded += again.pointsAdded;
         rep.pointsRemoved += again.pointsRemoved;
@@ -740,14 +740,23 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                 std::find_if(topo.begin(), topo.end(), [&](const auto& t) { return t.material == want.material; });
             const std::size_t c = it == topo.end() ? 0 : it->components;
             const long long e = it == topo.end() ? 0 : it->euler;
-            if (c != want.components || e != want.euler)
-                p.warnings.push_back(
-                    "material " + std::to_string(want.material) + ": --isosurface-topology mended " +
-                    std::to_string(match->groupsMatched) + " of the " + std::to_string(match->groupsChanging) +
-                    " places where the repair changed the isosurface's topology; the mesh boundary has " +
-                    std::to_string(c) + " component(s), Euler characteristic " + std::to_string(e) +
-                    ", the isosurface on the element grid " + std::to_string(want.components) + " and " +
-                    std::to_string(want.euler) + " (grid.repair.isosurface_topology in the report)");
+            if (c == want.components && e == want.euler) continue;
+            std::string why;
+            if (match->discarded)
+                why = "its result was not manifold and was dropped (please report this with the input)";
+            else if (match->groupsMatched < match->groupsChanging)
+                why = "the search mended " + std::to_string(match->groupsMatched) + " of the " +
+                      std::to_string(match->groupsChanging) +
+                      " places (all materials) where the repair changed the isosurface's topology";
+            else
+                why = "every place the first repair changed was mended; a later step (--fill-pits and its repair) "
+                      "changed it";
+            p.warnings.push_back("material " + std::to_string(want.material) +
+                                 ": --isosurface-topology: the mesh boundary has " + std::to_string(c) +
+                                 " component(s), Euler characteristic " + std::to_string(e) +
+                                 "; the isosurface on the element grid " + std::to_string(want.components) + " and " +
+                                 std::to_string(want.euler) + ": " + why +
+                                 " (grid.repair.isosurface_topology in the report)");
         }
     }
     // Compare with the topology the mesh should have. A triangle surface has

@@ -1232,25 +1232,27 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     };
     auto process = [&](std::int32_t group, const std::vector<std::size_t>& points) {
         const std::vector<PointChange> change = changeOf(points);
-        long long d0 = 0;
-        if (changeKeepsPolygonTopology(work, change, table, &d0)) {
-            apply(change);
-            return;
-        }
-        ++rep.groupsChanging;
         const auto box = extentOf(points);
         const bool wide = std::max({box[3], box[4], box[5]}) > kMaxExtent;
         const std::vector<std::size_t> near = around(points), near2 = around(near);
-        std::vector<PointChange> before;  // the state before the group, at the points it may touch
-        for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
-        apply(change);
         if (!wide) {
+            long long d0 = 0;
+            if (changeKeepsPolygonTopology(work, change, table, &d0)) {
+                apply(change);
+                return;
+            }
+            ++rep.groupsChanging;
+            std::vector<PointChange> before;  // the state before the group, at the points it may touch
+            for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
+            apply(change);
             // points next to the group first; then within 2, with two flips at most
             if (search(group, near, before, change, d0) ||
                 search(group, near2, before, change, d0, nullptr, nullptr, nullptr, 2))
                 ++rep.groupsMatched;
             return;
         }
+        std::vector<PointChange> before;
+        for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
         // 26-connected parts of a wide group, in grid order
         std::unordered_map<std::size_t, std::int32_t> index;
         for (std::size_t n = 0; n < points.size(); ++n) index.emplace(points[n], static_cast<std::int32_t>(n));
@@ -1266,10 +1268,10 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         }
         std::map<std::int32_t, std::vector<std::size_t>> byPart;
         for (std::size_t n = 0; n < points.size(); ++n) byPart[parts.find(static_cast<std::int32_t>(n))].push_back(points[n]);
-        // The parts in turn, each from the state the earlier ones left
-        // (exact, step by step); a part's search judges blocks with the later
-        // parts changed as the repair changes them.
-        apply(before);
+        // The parts in turn, each checked from the state the earlier ones
+        // left (so the group keeps the surface when every part does); a
+        // part's search judges blocks with the later parts changed as the
+        // repair changes them.
         // a part wider than the search is cut into boxes 8 points wide
         std::vector<std::vector<std::size_t>> order;
         for (const auto& [r, part] : byPart) {
@@ -1286,6 +1288,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             for (auto& [key, chunk] : chunks) order.push_back(std::move(chunk));
         }
         const std::unordered_set<std::size_t> groupPoints(points.begin(), points.end());
+        bool changing = false, mended = true;
         for (std::size_t n = 0; n < order.size(); ++n) {
             const std::vector<std::size_t>& part = order[n];
             const std::vector<PointChange> partChange = changeOf(part);
@@ -1304,25 +1307,23 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 }
             std::unordered_set<std::size_t> frozen = groupPoints;  // the other parts' points
             for (std::size_t p : part) frozen.erase(p);
-            if (!search(group, partNear, partBefore, partChange, dp, &later, &laterBefore, &frozen))
+            changing = true;
+            const bool found =
+                search(group, partNear, partBefore, partChange, dp, &later, &laterBefore, &frozen) ||
                 search(group, partNear2, partBefore, partChange, dp, &later, &laterBefore, &frozen, 2);
+            mended = mended && found;
         }
-        std::vector<PointChange> total;
-        for (const auto& [p, w] : before)
-            if (work.material[p] != w) total.emplace_back(p, work.material[p]);
-        const std::vector<PointChange> done = total;
-        apply(before);
-        const bool keeps = changeKeepsPolygonTopology(work, total, table, nullptr);
-        apply(done);
+        if (changing) ++rep.groupsChanging;
         // the blocks around what changed (a flip is never next to another group)
         std::vector<std::size_t> touched = points;
-        for (const auto& [p, to] : total) touched.push_back(p);
-        const bool manifold = manifoldAt(blocksAround(g, touched));
-        if (!manifold) {
+        for (const auto& [p, was] : before)
+            if (work.material[p] != was) touched.push_back(p);
+        if (!manifoldAt(blocksAround(g, touched))) {
             apply(before);
             apply(change);
+            mended = false;
         }
-        if (keeps && manifold) ++rep.groupsMatched;
+        if (changing && mended) ++rep.groupsMatched;
     };
     for (const auto& [root, points] : members) process(root, points);
     // Each search checked the blocks around its flips; the whole grid is

@@ -737,6 +737,7 @@ TEST(Ch2bet, KeepLargestIsManifoldAndValidAtTwoAndOneMillimetre) {
 // change that widens it fails. The boundary's topology is that of the
 // repaired labels (regionTopology; the tests above check the mesh against it).
 TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
+    std::map<std::string, std::vector<std::int32_t>> repairOnly;  // labels without the option, by case
     struct Bound {
         double size;
         bool keepLargest;
@@ -751,6 +752,8 @@ TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
     for (const Bound& b : {Bound{2.0, false, false, 1, 2}, Bound{2.0, true, false, 2, 2}, Bound{1.0, false, false, 3, 30},
                            Bound{1.0, true, false, 8, 42}, Bound{2.0, false, true, 1, 2}, Bound{2.0, true, true, 1, 2},
                            Bound{1.0, false, true, 2, 2}, Bound{1.0, true, true, 0, 2}}) {
+        // (2 mm without --keep-largest: both within 1 and 2; the option must
+        // still change the repair's labels, checked below)
         const std::string name = "ch2bet_" + std::string(b.keepLargest ? "keep_largest_" : "") +
                                  std::to_string(static_cast<int>(b.size)) + "mm" +
                                  (b.isosurfaceTopology ? "_isosurface_topology" : "");
@@ -759,6 +762,9 @@ TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
         QuietSink sink;
         const cli::Prepared p = cli::prepare(sharedData() + "/ch2bet.nii.gz", s, sink);
         EXPECT_EQ(octree::countNonManifoldBlocks(p.labels), 0u) << name;
+        const std::string plainKey = std::to_string(b.size) + (b.keepLargest ? "k" : "");
+        if (!b.isosurfaceTopology) repairOnly[plainKey] = p.labels.material;
+        else EXPECT_NE(p.labels.material, repairOnly.at(plainKey)) << name << ": --isosurface-topology changed nothing";
         const auto topo = octree::regionTopology(p.labels);
         ASSERT_EQ(topo.size(), 1u) << name;
         const octree::Grid& g = p.labels.grid;

@@ -122,7 +122,7 @@ class Batch(unittest.TestCase):
         jobs = [
             {"input": sphere, "output": ["a.vtu", "a.msh"], "report": "a.json", "iso": 50, "size": 4},
             {"input": os.path.join(self.scans, "two_materials.nii.gz"), "output": "b.vtu", "report": "b.json",
-             "label": [1, 3], "size": 4, "no_pillow": False, "plot": "b.svg"},
+             "label": [1, 3], "size": 4, "no_pillow": False, "plot": "b.svg", "isosurface_topology": True},
         ]
         with open(manifest, "w") as f:
             f.write(json.dumps(jobs[0]) + "\n\n")  # a blank line is allowed
@@ -138,6 +138,9 @@ class Batch(unittest.TestCase):
             self.assertTrue(os.path.exists(os.path.join(d, "a." + ext)), ext)
         b = load(os.path.join(d, "b.json"))
         self.assertEqual(sorted(m["id"] for m in b["selection"]["materials"]), [1, 3])
+        # the isosurface_topology column reaches the job (job a leaves it out)
+        self.assertIn("isosurface_topology", b["grid"]["repair"])
+        self.assertNotIn("isosurface_topology", load(os.path.join(d, "a.json"))["grid"]["repair"])
         self.assertEqual(b["hexes"], cells(os.path.join(d, "b.vtu")))
         with open(os.path.join(d, "b.svg")) as f:
             self.assertIn("<svg", f.read())

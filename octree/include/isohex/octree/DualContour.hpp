@@ -114,17 +114,20 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
 // order, each checked exactly from the state the earlier groups left (the
 // polygon surface of every material in a window around the group, mcKeeps).
 // A group whose change alters it gets the search: the repair's change plus
-// up to three flips of points next to the group (then up to two within 2
-// points, none next to another group) that leave every block around them
-// manifold and keep the surface; of those with the fewest flips, the one
-// nearest the sampled labels (fewest points off them, then smallest |field|
-// there). A group more than 12 points wide is taken part by part (its
-// 26-connected parts, wide ones cut into boxes 8 points wide), each part
-// checked and searched the same way with the later parts judged as the
-// repair leaves them; it keeps the repair's change whole if its parts leave
-// a block bad. Groups the search cannot mend keep the repair's change.
-// `repaired` stays manifold (checked; if not, it is left as it was and the
-// report says discarded). Deterministic, single-threaded.
+// 1, 2 or 3 flips of points next to the group (3 only among at most 80
+// candidate flips), then 1 or 2 flips of points within 2 of it, never of a
+// point next to another group, that leave every block around them manifold
+// and keep the surface (at most 150,000 trials per search); of those with
+// the fewest flips, the one nearest the sampled labels (fewest points off
+// them, then smallest |field| there). A group more than 12 points wide is
+// taken part by part (its 26-connected parts, wide ones cut into boxes 8
+// points wide), each part checked from the state the earlier parts left and
+// searched the same way, with the later parts judged as the repair leaves
+// them; if its parts leave a block bad, the group keeps the repair's whole
+// change. A group or part the search cannot mend keeps the repair's change.
+// So no window is wider than 12 + 4 + 8 points. `repaired` stays manifold
+// (checked; if not, it is left as it was and the report says discarded).
+// Deterministic, single-threaded.
 struct TopologyMatchReport {
     std::size_t groups = 0;           // groups of changed points
     std::size_t groupsChanging = 0;   // whose change (the repair's) altered the polygon surface
