@@ -158,6 +158,18 @@ SurfaceTopology vdbTopology(const openvdb::FloatGrid& grid) {
     return polygonTopology(polys);
 }
 
+// volumeToMesh's surface of material m's grid points (inside; all others outside).
+SurfaceTopology labelSurface(const octree::Labels& l, std::int32_t m) {
+    auto grid = openvdb::FloatGrid::create(1.0f);
+    auto acc = grid->getAccessor();
+    const auto [nx, ny, nz] = l.grid.dims;
+    for (int k = 0; k < nz; ++k)
+        for (int j = 0; j < ny; ++j)
+            for (int i = 0; i < nx; ++i)
+                if (l.material[l.grid.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
+    return vdbTopology(*grid);
+}
+
 // Distances (in voxels of the scan) of the corners of every boundary quad
 // against the outside to their isosurface, by kind of corner: the labels of
 // its cell's 8 grid points differ from a fresh sampling of the scan
@@ -480,21 +492,7 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
 // the Euler characteristic of either material's surface, and the Euler
 // change it reports is the polygonisation's.
 TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
-    octree::CellEdgeGroups table;
-    for (int p = 0; p < 256; ++p) {
-        for (int e = 0; e < 13; ++e) table.edgeGroups[p][e] = openvdb::tools::volume_to_mesh_internal::sEdgeGroupTable[p][e];
-        table.ambiguousFace[p] = openvdb::tools::volume_to_mesh_internal::sAmbiguousFace[p];
-    }
-    auto surface = [](const octree::Labels& l, std::int32_t m) {
-        auto grid = openvdb::FloatGrid::create(1.0f);
-        auto acc = grid->getAccessor();
-        const auto [nx, ny, nz] = l.grid.dims;
-        for (int k = 0; k < nz; ++k)
-            for (int j = 0; j < ny; ++j)
-                for (int i = 0; i < nx; ++i)
-                    if (l.material[l.grid.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
-        return vdbTopology(*grid);
-    };
+    const octree::CellEdgeGroups& table = cli::volumeToMeshTables();
     std::mt19937 rng(20261123);
     std::size_t kept = 0, changed = 0;
     for (int materials : {1, 2})
@@ -521,12 +519,12 @@ TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
                 const bool keeps = octree::flipKeepsPolygonTopology(l, i, j, k, to, table, &dchi);
                 std::map<std::int32_t, SurfaceTopology> before, after;
                 for (std::int32_t m : {from, to})
-                    if (m != 0) before[m] = surface(l, m);
+                    if (m != 0) before[m] = labelSurface(l, m);
                 l.material[l.grid.index(i, j, k)] = to;
                 long long actual = 0;
                 bool same = true;
                 for (auto& [m, t] : before) {
-                    after[m] = surface(l, m);
+                    after[m] = labelSurface(l, m);
                     actual += after[m].euler - t.euler;
                     same = same && after[m].components == t.components && after[m].euler == t.euler;
                 }
@@ -568,16 +566,6 @@ TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
             const double v = std::abs((*noise)[at(x)]) + 0.01;
             return l->material[at(x)] == m ? -v : v;
         }
-    };
-    auto surface = [](const octree::Labels& l, std::int32_t m) {
-        auto grid = openvdb::FloatGrid::create(1.0f);
-        auto acc = grid->getAccessor();
-        const auto [nx, ny, nz] = l.grid.dims;
-        for (int k = 0; k < nz; ++k)
-            for (int j = 0; j < ny; ++j)
-                for (int i = 0; i < nx; ++i)
-                    if (l.material[l.grid.index(i, j, k)] == m) acc.setValue(openvdb::Coord(i, j, k), -1.0f);
-        return vdbTopology(*grid);
     };
     std::mt19937 rng(20261202);
     std::uniform_real_distribution<double> u(0, 1);
@@ -630,7 +618,7 @@ TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
             ++mendedAll;
             bool repairSame = true;
             for (std::int32_t m = 1; m <= materials; ++m) {
-                const SurfaceTopology want = surface(sampled, m);
+                const SurfaceTopology want = labelSurface(sampled, m);
                 auto topologyOf = [&](const octree::Labels& x) {
                     for (const auto& t : octree::regionTopology(x))
                         if (t.material == m) return std::make_pair(static_cast<long long>(t.components), t.euler);

@@ -22,3 +22,26 @@ def run(args, check=True, timeout=600, **kw):
 def workdir(name):
     d = tempfile.mkdtemp(prefix=f"isohex_{name}_")
     return d
+
+
+def polygon_topology(polys):
+    """Components and Euler characteristic V - E + F of a polygon surface given
+    as a numpy array of vertex ids (one row per polygon, all the same size)."""
+    import numpy as np
+    polys = np.asarray(polys)
+    used = np.unique(polys)
+    edges = np.unique(np.sort(np.stack([polys, np.roll(polys, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    parent = {int(v): int(v) for v in used}
+
+    def find(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+
+    for a, b in edges:
+        ra, rb = find(int(a)), find(int(b))
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    components = len({find(int(v)) for v in used})
+    return components, len(used) - len(edges) + len(polys)

@@ -11,7 +11,7 @@ import numpy as np
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import ISOHEX, SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from common import ISOHEX, SHARED_DATA, SOURCE, polygon_topology, run, workdir  # noqa: E402
 from vtk_tools import read_vtu as read, vtk_sj, vtk_volumes  # noqa: E402
 
 
@@ -139,23 +139,7 @@ def off_topology(path):
         n = int(words[i])
         tris.append([weld[int(w)] for w in words[i + 1:i + 1 + n]])
         i += 1 + n
-    tris = np.array(tris)
-    edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1), axis=0)
-    used = np.unique(tris)
-    parent = {int(v): int(v) for v in used}
-
-    def find(v):
-        while parent[v] != v:
-            parent[v] = parent[parent[v]]
-            v = parent[v]
-        return v
-
-    for a, b in edges:
-        ra, rb = find(int(a)), find(int(b))
-        if ra != rb:
-            parent[max(ra, rb)] = min(ra, rb)
-    components = len({find(int(v)) for v in used})
-    return components, len(used) - len(edges) + len(tris)
+    return polygon_topology(np.array(tris))
 
 
 class SurfaceTopology(unittest.TestCase):

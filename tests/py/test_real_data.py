@@ -13,7 +13,7 @@ import vtk
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SHARED_DATA, run, workdir  # noqa: E402
+from common import SHARED_DATA, polygon_topology, run, workdir  # noqa: E402
 
 FACES = np.array([[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1], [4, 5, 6, 7]])
 
@@ -147,24 +147,7 @@ def boundary_topology(hexes, mat):
     counts = np.bincount(np.cumsum(start) - 1)
     single = np.nonzero(counts == 1)[0]
     firsts = np.nonzero(start)[0][single]
-    faces = hexes[:, FACES].reshape(-1, 4)[order[firsts]]
-    nodes = np.unique(faces)
-    edges = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    edges = np.unique(edges, axis=0)
-    parent = {int(n): int(n) for n in nodes}
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    for a, b in edges:
-        ra, rb = find(int(a)), find(int(b))
-        if ra != rb:
-            parent[max(ra, rb)] = min(ra, rb)
-    components = sum(1 for n in nodes if find(int(n)) == int(n))
-    return components, len(nodes) - len(edges) + len(faces)
+    return polygon_topology(hexes[:, FACES].reshape(-1, 4)[order[firsts]])
 
 
 class IsosurfaceTopology(unittest.TestCase):
