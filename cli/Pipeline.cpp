@@ -721,19 +721,19 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                       {"points_removed", rep.pointsRemoved},
                       {"rounds", rep.rounds},
                       {"seconds", repairSeconds}};
-    if (match)
-        grid["repair"]["isosurface_topology"] = {{"groups", match->groups},
-                                                 {"groups_changing_it", match->groupsChanging},
-                                                 {"groups_mended", match->groupsMatched},
-                                                 {"points_changed", match->pointsChanged},
-                                                 {"discarded", match->discarded}};
     for (const auto& t : topo)
         grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
                                     {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
     if (match) {
-        // what --isosurface-topology aimed at, and where it fell short
-        auto& out = grid["repair"]["isosurface_topology"]["isosurface"];
-        out = nlohmann::json::array();
+        // what --isosurface-topology did and aimed at, and where it fell short
+        nlohmann::json& block = grid["repair"]["isosurface_topology"];
+        block = {{"groups", match->groups},
+                 {"groups_changing_it", match->groupsChanging},
+                 {"groups_mended", match->groupsMatched},
+                 {"points_changed", match->pointsChanged},
+                 {"discarded", match->discarded},
+                 {"isosurface", nlohmann::json::array()}};
+        nlohmann::json& out = block["isosurface"];
         for (const auto& want : isosurface) {
             out.push_back({{"material", want.material}, {"components", want.components}, {"euler", want.euler}});
             const auto it =

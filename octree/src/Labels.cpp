@@ -195,6 +195,45 @@ bool uniformBlock(const std::array<std::int32_t, 8>& mat) {
     return true;
 }
 
+// Grid coordinates (i, j, k) of point index p.
+std::array<int, 3> gridCoords(const Grid& g, std::size_t p) {
+    const auto [nx, ny, nz] = g.dims;
+    return {static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
+}
+
+// The contributions of a non-uniform block to the Euler characteristic of
+// each material's boundary (the union of the closed cubes around its
+// points), with every point pair, square and block counted at the block
+// whose lowest corner is its lowest point: add(material, delta, wholeBlock)
+// for the lowest corner's three pairs (+1 for each material of a pair that
+// differs), its three squares there and the block itself (-1 and +1 for each
+// material present but not everywhere; wholeBlock for the block's own).
+// Background (0) gets nothing.
+template <class Add>
+void forBlockEuler(const std::array<std::int32_t, 8>& mat, Add add) {
+    // corner c of the block is offset (c & 1, c >> 1 & 1, c >> 2 & 1)
+    for (int d = 0; d < 3; ++d) {
+        const std::int32_t a = mat[0], o = mat[1 << d];
+        if (a == o) continue;
+        if (a != 0) add(a, 1, false);
+        if (o != 0) add(o, 1, false);
+    }
+    auto mixed = [&](const std::int32_t* m, int n, int d, bool wholeBlock) {
+        for (int c = 0; c < n; ++c) {
+            if (m[c] == 0) continue;
+            bool first = true, all = true;
+            for (int e = 0; e < c; ++e) first = first && m[e] != m[c];
+            for (int e = 0; e < n; ++e) all = all && m[e] == m[c];
+            if (first && !all) add(m[c], d, wholeBlock);
+        }
+    };
+    const std::int32_t sq[3][4] = {{mat[0], mat[1], mat[2], mat[3]},   // xy
+                                   {mat[0], mat[1], mat[4], mat[5]},   // xz
+                                   {mat[0], mat[2], mat[4], mat[6]}};  // yz
+    for (const auto& q : sq) mixed(q, 4, -1, false);
+    mixed(mat.data(), 8, 1, true);
+}
+
 // Lowest-corner indices of the non-manifold blocks, sorted.
 std::vector<std::size_t> badBlocks(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
@@ -488,7 +527,7 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     const auto [nx, ny, nz] = l.grid.dims;
     std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
     for (const auto& [p, to] : changes) {
-        const int c[3] = {static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
+        const auto c = gridCoords(l.grid, p);
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], c[a]);
             hi[a] = std::max(hi[a], c[a]);
@@ -508,9 +547,8 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     McLocal before, after;
     mcLocal(in, box, t, before);
     for (const auto& [p, to] : changes) {
-        const int x = static_cast<int>(p % nx) - lo[0] + 4, y = static_cast<int>(p / nx % ny) - lo[1] + 4,
-                  z = static_cast<int>(p / nx / ny) - lo[2] + 4;
-        in[x + w0 * (y + w1 * z)] = to == m;
+        const auto c = gridCoords(l.grid, p);
+        in[(c[0] - lo[0] + 4) + w0 * ((c[1] - lo[1] + 4) + w1 * (c[2] - lo[2] + 4))] = to == m;
     }
     mcLocal(in, box, t, after);
     if (eulerChange) *eulerChange = after.chi - before.chi;
@@ -931,35 +969,13 @@ namespace {
 
 // Euler characteristic of the boundary of the union of the cubes around
 // every material's points (regionTopology's sum), counted over the blocks
-// with lowest corners `blocks`: each block contributes its lowest corner's
-// three pairs, its three squares there and itself.
+// with lowest corners `blocks`.
 long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
     long long chi = 0;
-    auto mixed = [](const std::int32_t* m, int n) {
-        int count = 0;
-        for (int c = 0; c < n; ++c) {
-            if (m[c] == 0) continue;
-            bool first = true, all = true;
-            for (int e = 0; e < c; ++e) first = first && m[e] != m[c];
-            for (int e = 0; e < n; ++e) all = all && m[e] == m[c];
-            count += first && !all;
-        }
-        return count;
-    };
-    const auto [nx, ny, nz] = l.grid.dims;
     for (std::size_t b : blocks) {
-        const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+        const auto [i, j, k] = gridCoords(l.grid, b);
         const BlockView v = block(l, i, j, k);
-        if (uniformBlock(v.mat)) continue;
-        for (int d = 0; d < 3; ++d) {
-            const std::int32_t a = v.mat[0], o = v.mat[1 << d];
-            if (a != o) chi += (a != 0) + (o != 0);
-        }
-        const std::int32_t sq[3][4] = {{v.mat[0], v.mat[1], v.mat[2], v.mat[3]},
-                                       {v.mat[0], v.mat[1], v.mat[4], v.mat[5]},
-                                       {v.mat[0], v.mat[2], v.mat[4], v.mat[6]}};
-        for (const auto& q : sq) chi -= mixed(q, 4);
-        chi += mixed(v.mat.data(), 8);
+        if (!uniformBlock(v.mat)) forBlockEuler(v.mat, [&](std::int32_t, int d, bool) { chi += d; });
     }
     return chi;
 }
@@ -975,7 +991,7 @@ void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::ve
     const auto [nx, ny, nz] = g.dims;
     out.clear();
     for (std::size_t p : points) {
-        const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
+        const auto [i, j, k] = gridCoords(g, p);
         for (int c = 0; c < 8; ++c) {
             const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
             if (bi >= 0 && bj >= 0 && bk >= 0 && bi + 1 < nx && bj + 1 < ny && bk + 1 < nz)
@@ -1028,9 +1044,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     for (std::size_t p = 0; p < repaired.material.size(); ++p)
         if (repaired.material[p] != sampled.material[p]) changed.push_back(p);
     if (changed.empty()) return rep;
-    auto coords = [&](std::size_t p) {
-        return std::array<int, 3>{static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
-    };
+    auto coords = [&](std::size_t p) { return gridCoords(g, p); };
     // Groups: changed points within kGap of each other on every axis. A
     // group's search flips points within 1 of it, or within 2 where no
     // point of another group is next to the flip; so a block holding a flip
@@ -1067,7 +1081,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     };
     auto manifoldAt = [&](const std::vector<std::size_t>& blocks) {
         for (std::size_t b : blocks) {
-            const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
+            const auto [i, j, k] = gridCoords(g, b);
             const BlockView v = block(work, i, j, k);
             if (!uniformBlock(v.mat) && !blockManifold(v.mat)) return false;
         }
@@ -1105,6 +1119,17 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                       const std::vector<PointChange>* later = nullptr,
                       const std::vector<PointChange>* laterBefore = nullptr,
                       const std::unordered_set<std::size_t>* frozen = nullptr, int maxDepth = kMatchDepth) {
+        // of the later points, those a block around a flip can hold (within
+        // 1 of `near`): set and reset on every trial
+        std::vector<PointChange> laterHere, laterHereBefore;
+        if (later) {
+            const std::vector<std::size_t> reach = around(near);
+            for (std::size_t n = 0; n < later->size(); ++n)
+                if (std::binary_search(reach.begin(), reach.end(), (*later)[n].first)) {
+                    laterHere.push_back((*later)[n]);
+                    laterHereBefore.push_back((*laterBefore)[n]);
+                }
+        }
         std::vector<PointChange> options;  // (point, material it may take)
         for (std::size_t p : near) {
             const auto c = coords(p);
@@ -1145,7 +1170,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 undo.emplace_back(options[q].first, work.material[options[q].first]);
             }
             blocksAround(g, flipped, blocks);
-            if (later) apply(*later);
+            apply(laterHere);
             apply(flips);
             // Where both states are manifold the polygoniser's surface changes
             // its Euler characteristic as the cubes' boundary does: a cheap
@@ -1157,7 +1182,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 candidate = chi - cubeEuler(work, blocks) == -d0;
                 apply(flips);
             }
-            if (later) apply(*laterBefore);
+            apply(laterHereBefore);
             if (candidate) {
                 std::vector<PointChange> total;
                 for (const auto& [p, was] : before)
@@ -1210,10 +1235,9 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     };
 
     // One group: its change as the repair made it when that keeps the
-    // surface; else the search's. A group too wide for the search is split
-    // into its 26-connected parts: with the whole change applied, each part
-    // whose own change alters the surface gets the search; the group then
-    // keeps the repair's change whole if the parts leave a block around it bad.
+    // surface; else the search's. A group too wide for the search is taken
+    // part by part (see below); it keeps the repair's change whole if its
+    // parts leave a block around it bad.
     auto extentOf = [&](const std::vector<std::size_t>& points) {
         std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
         for (std::size_t p : points) {
@@ -1353,44 +1377,17 @@ std::vector<RegionTopology> regionTopology(const Labels& l) {
     tbb::enumerable_thread_specific<Acc> local;
     tbb::parallel_for(tbb::blocked_range<int>(0, std::max(nz - 1, 0)), [&](const tbb::blocked_range<int>& r) {
         Acc& acc = local.local();
-        auto addEuler = [&](std::int32_t m, long long d) {
-            if (m == 0) return;
-            auto& t = acc.t[m];
-            t.material = m;
-            t.euler += d;
-        };
-        // squares and blocks: each material present but not everywhere counts once
-        auto mixedSet = [&](const std::int32_t* m, int n, long long d, std::size_t block) {
-            for (int c = 0; c < n; ++c) {
-                if (m[c] == 0) continue;
-                bool first = true, all = true;
-                for (int e = 0; e < c; ++e) first = first && m[e] != m[c];
-                for (int e = 0; e < n; ++e) all = all && m[e] == m[c];
-                if (!first || all) continue;
-                addEuler(m[c], d);
-                if (block != static_cast<std::size_t>(-1)) acc.mixed.emplace_back(m[c], block);
-            }
-        };
         for (int k = r.begin(); k != r.end(); ++k)
             for (int j = 0; j + 1 < ny; ++j)
                 for (int i = 0; i + 1 < nx; ++i) {
                     const BlockView b = block(l, i, j, k);
-                    bool uniform = true;
-                    for (int c = 1; c < 8; ++c) uniform = uniform && b.mat[c] == b.mat[0];
-                    if (uniform) continue;
-                    // corner c of the block is offset (c & 1, c >> 1 & 1, c >> 2 & 1)
-                    for (int d = 0; d < 3; ++d) {  // faces: pairs from the lowest corner
-                        const std::int32_t a = b.mat[0], o = b.mat[1 << d];
-                        if (a != o) {
-                            addEuler(a, 1);
-                            addEuler(o, 1);
-                        }
-                    }
-                    const std::int32_t sq[3][4] = {{b.mat[0], b.mat[1], b.mat[2], b.mat[3]},   // xy
-                                                   {b.mat[0], b.mat[1], b.mat[4], b.mat[5]},   // xz
-                                                   {b.mat[0], b.mat[2], b.mat[4], b.mat[6]}};  // yz
-                    for (const auto& q : sq) mixedSet(q, 4, -1, static_cast<std::size_t>(-1));
-                    mixedSet(b.mat.data(), 8, 1, l.grid.index(i, j, k));
+                    if (uniformBlock(b.mat)) continue;
+                    forBlockEuler(b.mat, [&](std::int32_t m, int d, bool wholeBlock) {
+                        auto& t = acc.t[m];
+                        t.material = m;
+                        t.euler += d;
+                        if (wholeBlock) acc.mixed.emplace_back(m, l.grid.index(i, j, k));
+                    });
                 }
     });
     std::map<std::int32_t, RegionTopology> out;
