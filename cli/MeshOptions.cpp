@@ -85,6 +85,13 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->excludes(fixBoundary)
         ->excludes(noOptimize)
         ->group(grid);
+    cmd->add_option("--inverted-retries", s.invertedRetries,
+                    "When hexes stay inverted after optimisation, up to this many times give a grid point next to "
+                    "them another material (never changing a material's components, tunnels or cavities) and mesh "
+                    "again, keeping the result with fewer inverted hexes (default 3; 0 never)")
+        ->check(CLI::Range(0, 16))
+        ->excludes(noOptimize)
+        ->group(grid);
 }
 
 void addRunOptions(CLI::App* cmd, MeshArgs& a) {

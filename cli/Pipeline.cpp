@@ -523,6 +523,43 @@ std::vector<std::int32_t> marchingCubesRegions(const octree::Labels& l,
     return id;
 }
 
+// Hexes with a corner or centre Jacobian determinant <= 0, by index.
+std::vector<Index> invertedHexes(const HexMesh& mesh) {
+    const std::size_t H = mesh.hexCount();
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, H, 1 << 14), std::vector<Index>{},
+        [&](const tbb::blocked_range<std::size_t>& range, std::vector<Index> l) {
+            for (std::size_t h = range.begin(); h != range.end(); ++h)
+                if (!(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0))
+                    l.push_back(static_cast<Index>(h));
+            return l;
+        },
+        [](std::vector<Index> a, const std::vector<Index>& b) {
+            a.insert(a.end(), b.begin(), b.end());
+            std::sort(a.begin(), a.end());
+            return a;
+        });
+}
+
+Vec3 hexCentre(const HexMesh& mesh, Index h) {
+    Vec3 c{0, 0, 0};
+    for (const Vec3& x : hexCoords(mesh, h))
+        for (int i = 0; i < 3; ++i) c[i] += x[i] / 8.0;
+    return c;
+}
+
+// The warning for hexes still inverted at the end (none: no warning).
+void warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>& left, std::size_t afterUntangling,
+                  const std::string& more) {
+    if (left.empty()) return;
+    const Vec3 c = hexCentre(mesh, left.front());
+    std::string msg = std::to_string(left.size()) + " hex(es) stay inverted after optimisation";
+    if (left.size() != afterUntangling) msg += " (" + std::to_string(afterUntangling) + " after untangling)";
+    msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")" +
+           more + "; another --size may avoid them";
+    sink.note("warning", msg);
+}
+
 nlohmann::json gridJson(const octree::Grid& g) {
     const auto s = g.spacing();
     return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
@@ -849,7 +886,8 @@ nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSi
     return j;
 }
 
-nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink) {
+nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
+                        bool warnLeftInverted) {
     nlohmann::json j;
     j["enabled"] = settings.optimize;
     if (!settings.optimize) return j;
@@ -899,38 +937,13 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     }
     // The warning counts what is still inverted after the worst-hex pass too
     // (which may fix some, and may trade one for another), at the first.
+    j["inverted_after_untangling"] = r.untangleFailures.size();
     if (!r.untangleFailures.empty()) {
-        const std::size_t H = mesh.hexCount();
-        struct Left {
-            std::size_t count = 0;
-            std::size_t first = std::numeric_limits<std::size_t>::max();
-        };
-        const Left left = tbb::parallel_reduce(
-            tbb::blocked_range<std::size_t>(0, H, 1 << 14), Left{},
-            [&](const tbb::blocked_range<std::size_t>& range, Left l) {
-                for (std::size_t h = range.begin(); h != range.end(); ++h)
-                    if (!(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0)) {
-                        ++l.count;
-                        l.first = std::min(l.first, h);
-                    }
-                return l;
-            },
-            [](Left a, const Left& b) {
-                a.count += b.count;
-                a.first = std::min(a.first, b.first);
-                return a;
-            });
-        if (left.count > 0) {
-            Vec3 c{0, 0, 0};
-            for (const Vec3& x : hexCoords(mesh, static_cast<Index>(left.first)))
-                for (int i = 0; i < 3; ++i) c[i] += x[i] / 8.0;
-            std::string msg = std::to_string(left.count) + " hex(es) stay inverted after optimisation";
-            if (left.count != r.untangleFailures.size())
-                msg += " (" + std::to_string(r.untangleFailures.size()) + " after untangling)";
-            msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) +
-                   "); another --size may avoid them";
-            sink.note("warning", msg);
-        }
+        const std::vector<Index> left = invertedHexes(mesh);
+        j["inverted_at_end"] = left.size();
+        if (warnLeftInverted) warnInverted(sink, mesh, left, r.untangleFailures.size(), "");
+    } else {
+        j["inverted_at_end"] = 0;
     }
     st.finish();
     return j;
@@ -1128,7 +1141,80 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     out.report["method"] = settings.method;
     out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
     out.report["pillow"] = insertSheets(out.mesh, settings, sink);
-    out.report["optimization"] = optimize(out.mesh, p, settings, sink);
+    out.report["optimization"] = optimize(out.mesh, p, settings, sink, false);
+    std::vector<Index> left = invertedHexes(out.mesh);
+    nlohmann::json retries = nlohmann::json::array();
+    std::size_t editsKept = 0;
+    const int maxRetries = settings.invertedRetries.value_or(kDefaultInvertedRetries);
+    if (!left.empty() && maxRetries > 0 && settings.method == "dual" && settings.optimize) {
+        // Hexes still inverted sit where the grid's shape asks the sheet for
+        // a convex hex no node placement gives (a one-point bump at a junction
+        // of materials, a pit). Give a grid point there another material
+        // (simple for both: no topology change; octree::editNearInvertedHexes)
+        // and mesh again; keep the result with fewer inverted hexes.
+        const octree::Grid& g = p.labels.grid;
+        Eigen::Matrix3d axes;
+        for (int a = 0; a < 3; ++a)
+            for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
+        const Eigen::Matrix3d toGrid = axes.inverse();
+        std::vector<std::size_t> frozen;
+        std::shared_ptr<const octree::Labels> sampled;
+        for (int attempt = 1; attempt <= maxRetries && !left.empty(); ++attempt) {
+            if (left.size() > kMaxInvertedToRetry) {
+                retries.push_back({{"attempt", attempt}, {"skipped", "more than " + std::to_string(kMaxInvertedToRetry) +
+                                                                         " inverted hexes; not a few stuck places"}});
+                break;
+            }
+            std::vector<std::array<double, 3>> at;
+            for (Index h : left) {
+                const Vec3 c = hexCentre(out.mesh, h);
+                const Eigen::Vector3d x = toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
+                at.push_back({x[0], x[1], x[2]});
+            }
+            Prepared q = p;
+            const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, at, frozen);
+            nlohmann::json tried = {{"attempt", attempt}, {"inverted_before", left.size()}, {"edits", nlohmann::json::array()}};
+            for (const auto& e : edits) {
+                const auto [nx, ny, nz] = g.dims;
+                const int i = static_cast<int>(e.point % nx), jj = static_cast<int>(e.point / nx % ny),
+                          k = static_cast<int>(e.point / nx / ny);
+                tried["edits"].push_back({{"grid_point", {i, jj, k}}, {"at", g.point(i, jj, k)}, {"from", e.from}, {"to", e.to}});
+                frozen.push_back(e.point);
+            }
+            if (edits.empty()) {
+                tried["kept"] = false;
+                tried["why"] = "no grid point near the inverted hexes can change material without changing the topology";
+                retries.push_back(tried);
+                break;
+            }
+            if (!sampled) sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, g));
+            q.repairedDomain = std::make_shared<octree::RepairedDomain>(*p.domain, *sampled, q.labels);
+            HexMesh mesh = extract(q, settings, sink);
+            nlohmann::json pillow = insertSheets(mesh, settings, sink);
+            nlohmann::json opt = optimize(mesh, q, settings, sink, false);
+            std::vector<Index> now = invertedHexes(mesh);
+            tried["inverted_after"] = now.size();
+            tried["kept"] = now.size() < left.size();
+            retries.push_back(tried);
+            if (now.size() < left.size()) {
+                p = std::move(q);
+                out.mesh = std::move(mesh);
+                out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
+                out.report["pillow"] = std::move(pillow);
+                out.report["optimization"] = std::move(opt);
+                left = std::move(now);
+                editsKept += edits.size();
+            }
+        }
+    }
+    if (settings.method == "dual" && settings.optimize)
+        out.report["inverted_retries"] = {{"allowed", maxRetries}, {"attempts", retries}, {"points_edited", editsKept}};
+    if (editsKept > 0)
+        sink.note("info", "changed the material of " + std::to_string(editsKept) +
+                              " grid point(s) where hexes stayed inverted and meshed again (topology kept; "
+                              "inverted_retries in the report)");
+    warnInverted(sink, out.mesh, left, out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
+                 retries.empty() ? "" : " (after " + std::to_string(retries.size()) + " retries with grid edits)");
     {
         Stage st(sink, "fidelity");
         out.report["fidelity"] = fidelity(out.mesh, p);

@@ -51,7 +51,17 @@ struct MeshSettings {
     // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.
     std::optional<double> surfaceTolerance;
     int randomSheetSeed = 1;
+    // When hexes stay inverted after optimisation: how many times to give a
+    // grid point near them another material (topology kept) and mesh again
+    // (octree::editNearInvertedHexes); 0 never; unset: kDefaultInvertedRetries.
+    std::optional<int> invertedRetries;
 };
+
+inline constexpr int kDefaultInvertedRetries = 3;
+
+// The retry is for a few stuck places; more inverted hexes than this are
+// another problem (a surface the sheet cannot follow) and are left as they are.
+inline constexpr std::size_t kMaxInvertedToRetry = 64;
 
 // Stage reporting: begin(name), fraction updates, end. The pipeline times
 // each stage through it.
@@ -95,7 +105,10 @@ HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink
 // Pillows the fundamental sheets (unless settings.pillow is off).
 nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
 // Untangling and mean-ratio optimisation with surface nodes kept on the isosurface.
-nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink);
+// Its report block's "inverted_at_end" counts the hexes still inverted after
+// it; unless `warnLeftInverted` is false, a warning names them.
+nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
+                        bool warnLeftInverted = true);
 
 // The max-min pass on the hexes the optimiser left below `target`
 // (smoothing/WorstHexes.hpp), timed; returns its report block. Surface nodes

@@ -268,6 +268,12 @@ const std::vector<Column>& columns() {
              if (!(v >= 0 && v <= 1)) throw FieldError{"must be between 0 and 1 (voxels)"};
              a.settings.surfaceTolerance = v;
          }},
+        {"inverted_retries", "0..16",
+         [](const Field& f, MeshArgs& a, JobFields&) {
+             const long long v = toInteger(f.scalar());
+             if (v < 0 || v > 16) throw FieldError{"must be between 0 and 16"};
+             a.settings.invertedRetries = static_cast<int>(v);
+         }},
         {"no_optimize", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.optimize = !toBool(f.scalar()); }},
     };

@@ -115,6 +115,9 @@ void addCompareCommand(CLI::App& app) {
         if (s.surfaceTolerance && !c->moveBoundary)
             throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
                         "(the seed's protocol)");
+        if (s.invertedRetries)
+            throw Error("--inverted-retries is for isohex mesh: compare meshes every variant from one grid, and "
+                        "editing the grid for one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;
         if (!c->json.empty() && !args.force && std::filesystem::exists(c->json))
             throw Error(c->json + ": file exists; refusing to overwrite it (use --force to replace it)");

@@ -3,6 +3,8 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <optional>
+#include <tuple>
 #include <functional>
 #include <set>
 #include <unordered_map>
@@ -1520,6 +1522,92 @@ std::size_t fillOneCellPits(Labels& labels) {
             }
     }
     return filled;
+}
+
+}  // namespace isohex::octree
+
+namespace isohex::octree {
+
+std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<std::array<double, 3>>& positions,
+                                             const std::vector<std::size_t>& frozen, int maxSame) {
+    const Grid& g = labels.grid;
+    const auto [nx, ny, nz] = g.dims;
+    std::vector<PointEdit> edits;
+    if (nx < 3 || ny < 3 || nz < 3) return edits;
+    auto& mat = labels.material;
+    auto isFrozen = [&](std::size_t p) { return std::find(frozen.begin(), frozen.end(), p) != frozen.end(); };
+    const int faceStep[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    // Whether point (i, j, k) leaving material `from` for `to` keeps the
+    // components, tunnels and cavities of both (simple for each: its
+    // neighbours of that material one 26-component, the rest one 6-component
+    // in the 18-neighbourhood) and leaves the 8 blocks around it manifold.
+    auto allowed = [&](int i, int j, int k, std::int32_t from, std::int32_t to) {
+        std::array<std::int32_t, 27> m27;
+        for (int q = 0; q < 27; ++q)
+            m27[q] = mat[g.index(i + q % 3 - 1, j + q / 3 % 3 - 1, k + q / 9 - 1)];
+        auto simple = [&](std::int32_t m) {
+            std::array<bool, 27> in{}, out{};
+            for (int q = 0; q < 27; ++q) {
+                in[q] = q != 13 && m27[q] == m;
+                out[q] = q != 13 && m27[q] != m;
+            }
+            return topoNumber(in, 26) == 1 && topoNumber(out, 6) == 1;
+        };
+        if ((from != 0 && !simple(from)) || (to != 0 && !simple(to))) return false;
+        const std::size_t p = g.index(i, j, k);
+        mat[p] = to;
+        bool manifold = true;
+        for (int c = 0; c < 8 && manifold; ++c) {
+            const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+            manifold = blockManifold(block(labels, bi, bj, bk).mat);
+        }
+        mat[p] = from;
+        return manifold;
+    };
+    for (const auto& x : positions) {
+        const int ci = static_cast<int>(std::lround(x[0])), cj = static_cast<int>(std::lround(x[1])),
+                  ck = static_cast<int>(std::lround(x[2]));
+        // the most exposed point, then the material most of its neighbours
+        // hold, then the nearest, then the first
+        using Key = std::tuple<int, int, double, std::size_t, std::int32_t>;
+        std::optional<Key> best;
+        std::int32_t bestFrom = 0;
+        bool nearEdit = false;
+        for (int dk = -1; dk <= 1; ++dk)
+            for (int dj = -1; dj <= 1; ++dj)
+                for (int di = -1; di <= 1; ++di) {
+                    const int i = ci + di, j = cj + dj, k = ck + dk;
+                    // points on the outer layer stay background; their blocks reach past it
+                    if (i < 1 || j < 1 || k < 1 || i + 1 >= nx || j + 1 >= ny || k + 1 >= nz) continue;
+                    const std::size_t p = g.index(i, j, k);
+                    if (std::any_of(edits.begin(), edits.end(), [&](const PointEdit& e) { return e.point == p; })) nearEdit = true;
+                    if (isFrozen(p)) continue;
+                    const std::int32_t from = mat[p];
+                    std::array<std::int32_t, 6> nb;
+                    int same = 0;
+                    for (int d = 0; d < 6; ++d) {
+                        nb[d] = mat[g.index(i + faceStep[d][0], j + faceStep[d][1], k + faceStep[d][2])];
+                        same += nb[d] == from;
+                    }
+                    if (same > maxSame) continue;
+                    const double dist = (x[0] - i) * (x[0] - i) + (x[1] - j) * (x[1] - j) + (x[2] - k) * (x[2] - k);
+                    for (int d = 0; d < 6; ++d) {
+                        const std::int32_t to = nb[d];
+                        if (to == from || std::find(nb.begin(), nb.begin() + d, to) != nb.begin() + d) continue;
+                        const Key key{same, -static_cast<int>(std::count(nb.begin(), nb.end(), to)), dist, p, to};
+                        if ((best && !(key < *best)) || !allowed(i, j, k, from, to)) continue;
+                        best = key;
+                        bestFrom = from;
+                    }
+                }
+        // one edit per place: a second inverted hex of an edited place waits
+        // for the next attempt, which sees the mesh this edit gives
+        if (!best || nearEdit) continue;
+        const std::size_t p = std::get<3>(*best);
+        mat[p] = std::get<4>(*best);
+        edits.push_back({p, bestFrom, mat[p]});
+    }
+    return edits;
 }
 
 }  // namespace isohex::octree

@@ -46,6 +46,27 @@ std::size_t keepLargestComponents(Labels& labels);
 // the grid's outer layer are never filled. Returns the points filled.
 std::size_t fillOneCellPits(Labels& labels);
 
+// One grid point given another material.
+struct PointEdit {
+    std::size_t point = 0;
+    std::int32_t from = 0, to = 0;
+};
+
+// The grid edit behind the pipeline's retry for hexes the optimiser leaves
+// inverted. Such hexes sit where the grid's shape asks the sheet for a convex
+// hex no node placement gives: a bump one point wide at a junction of
+// materials, a pit, a notch. Near each position (fractional grid coordinates
+// of an inverted hex's centre), among the 27 points around it that are not
+// `frozen` and not on the grid's outer layer, the most exposed one (fewest
+// face neighbours of its own material, at most `maxSame`) takes the material
+// most of its face neighbours hold, provided the change is simple for both
+// materials (every material keeps its components, tunnels and cavities) and
+// leaves the 8 blocks around the point manifold. At most one edit per place:
+// a position with an edit of this call among its 27 points is skipped.
+// Returns the edits, in the order made.
+std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<std::array<double, 3>>& positions,
+                                             const std::vector<std::size_t>& frozen = {}, int maxSame = 2);
+
 struct RepairReport {
     std::size_t nonManifoldBefore = 0;   // 2x2x2 blocks whose regions were not manifold
     std::size_t pointsAdded = 0;         // grid points given to a region
