@@ -340,6 +340,16 @@ class SmoothingOnRealInputs(unittest.TestCase):
         c, rc = self.mesh("jhu_3.5mm_retry_t1", src, "--labels", "--size", "3.5", threads=1)
         with open(b, "rb") as fb, open(c, "rb") as fc:
             self.assertEqual(fb.read(), fc.read())
+        # where there is no grid to edit, the option is refused before anything is written
+        bad = os.path.join(self.dir, "retries_refused.vtu")
+        for args, why in [(["mesh", os.path.join(SHARED_DATA, "femur.off"), "--method", "sheets"], "--method sheets"),
+                          (["compare", src, "--labels"], "compare meshes every variant from one grid"),
+                          (["mesh", src, "--labels", "--no-optimize"], "excludes")]:
+            p = run([*args, "--inverted-retries", "2", "-o", bad, "-q"] if args[0] == "mesh"
+                    else [*args, "--inverted-retries", "2", "-q"], check=False)
+            self.assertNotEqual(p.returncode, 0, args)
+            self.assertIn(why, p.stderr)
+            self.assertFalse(os.path.exists(bad))
 
     def test_output_is_identical_for_one_and_two_threads(self):
         # The skull exercises every stage: untangling rounds, the release of
