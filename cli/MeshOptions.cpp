@@ -90,7 +90,6 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
                     "them another material (never changing a material's components, tunnels or cavities) and mesh "
                     "again, keeping the result with fewer inverted hexes (default 3; 0 never)")
         ->check(CLI::Range(0, 16))
-        ->excludes(noOptimize)
         ->group(grid);
 }
 
@@ -132,6 +131,16 @@ void MeshArgs::finish() {
         if (settings.fixBoundary || !settings.worstHexPass || !settings.optimize)
             throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
                         "(no surface node moves off its surface there); leave it out");
+    }
+    if (settings.invertedRetries) {
+        const int n = *settings.invertedRetries;
+        if (n < 0 || n > 16) throw Error("--inverted-retries must be between 0 and 16 (got " + std::to_string(n) + ")");
+        if (n > 0 && settings.method != "dual")
+            throw Error("--inverted-retries edits the element grid of --method dual; --method " + settings.method +
+                        " has no such grid (leave the option out)");
+        if (n > 0 && !settings.optimize)
+            throw Error("--inverted-retries has no effect with --no-optimize (the retries follow the optimiser); "
+                        "leave it out");
     }
 }
 

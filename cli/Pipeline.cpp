@@ -1142,16 +1142,16 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
     out.report["pillow"] = insertSheets(out.mesh, settings, sink);
     out.report["optimization"] = optimize(out.mesh, p, settings, sink, false);
-    std::vector<Index> left = invertedHexes(out.mesh);
-    nlohmann::json retries = nlohmann::json::array();
-    std::size_t editsKept = 0;
-    const int maxRetries = settings.invertedRetries.value_or(kDefaultInvertedRetries);
-    if (!left.empty() && maxRetries > 0 && settings.method == "dual" && settings.optimize) {
-        // Hexes still inverted sit where the grid's shape asks the sheet for
-        // a convex hex no node placement gives (a one-point bump at a junction
-        // of materials, a pit). Give a grid point there another material
-        // (simple for both: no topology change; octree::editNearInvertedHexes)
-        // and mesh again; keep the result with fewer inverted hexes.
+    // Hexes still inverted sit where the grid's shape asks the sheet for a
+    // convex hex no node placement gives (a one-point bump at a junction of
+    // materials, a pit). Give a grid point there another material (simple:
+    // no topology change; octree::editNearInvertedHexes) and mesh again; keep
+    // the result with fewer inverted hexes.
+    if (settings.optimize) {
+        const int maxRetries = settings.method == "dual" ? settings.invertedRetries.value_or(kDefaultInvertedRetries) : 0;
+        std::vector<Index> left = invertedHexes(out.mesh);
+        nlohmann::json attempts = nlohmann::json::array();
+        std::size_t editsKept = 0, meshedAgain = 0;
         const octree::Grid& g = p.labels.grid;
         Eigen::Matrix3d axes;
         for (int a = 0; a < 3; ++a)
@@ -1160,9 +1160,12 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         std::vector<std::size_t> frozen;
         std::shared_ptr<const octree::Labels> sampled;
         for (int attempt = 1; attempt <= maxRetries && !left.empty(); ++attempt) {
+            nlohmann::json tried = {{"attempt", attempt}, {"inverted_before", left.size()},
+                                    {"edits", nlohmann::json::array()}, {"kept", false}};
             if (left.size() > kMaxInvertedToRetry) {
-                retries.push_back({{"attempt", attempt}, {"skipped", "more than " + std::to_string(kMaxInvertedToRetry) +
-                                                                         " inverted hexes; not a few stuck places"}});
+                tried["not_meshed_because"] = "more than " + std::to_string(kMaxInvertedToRetry) +
+                                              " inverted hexes: not a few stuck places";
+                attempts.push_back(tried);
                 break;
             }
             std::vector<std::array<double, 3>> at;
@@ -1173,48 +1176,60 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             }
             Prepared q = p;
             const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, at, frozen);
-            nlohmann::json tried = {{"attempt", attempt}, {"inverted_before", left.size()}, {"edits", nlohmann::json::array()}};
+            const auto [nx, ny, nz] = g.dims;
             for (const auto& e : edits) {
-                const auto [nx, ny, nz] = g.dims;
                 const int i = static_cast<int>(e.point % nx), jj = static_cast<int>(e.point / nx % ny),
                           k = static_cast<int>(e.point / nx / ny);
                 tried["edits"].push_back({{"grid_point", {i, jj, k}}, {"at", g.point(i, jj, k)}, {"from", e.from}, {"to", e.to}});
                 frozen.push_back(e.point);
             }
             if (edits.empty()) {
-                tried["kept"] = false;
-                tried["why"] = "no grid point near the inverted hexes can change material without changing the topology";
-                retries.push_back(tried);
+                tried["not_meshed_because"] =
+                    "no grid point next to the inverted hexes can change material without changing a topology";
+                attempts.push_back(tried);
                 break;
             }
             if (!sampled) sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, g));
-            q.repairedDomain = std::make_shared<octree::RepairedDomain>(*p.domain, *sampled, q.labels);
+            auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *sampled, q.labels);
+            const std::size_t repairedPoints = repaired->changedPoints();
+            q.repairedDomain = std::move(repaired);
             HexMesh mesh = extract(q, settings, sink);
             nlohmann::json pillow = insertSheets(mesh, settings, sink);
             nlohmann::json opt = optimize(mesh, q, settings, sink, false);
+            ++meshedAgain;
             std::vector<Index> now = invertedHexes(mesh);
             tried["inverted_after"] = now.size();
             tried["kept"] = now.size() < left.size();
-            retries.push_back(tried);
+            attempts.push_back(tried);
             if (now.size() < left.size()) {
                 p = std::move(q);
                 out.mesh = std::move(mesh);
                 out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
                 out.report["pillow"] = std::move(pillow);
                 out.report["optimization"] = std::move(opt);
+                out.report["grid"]["repaired_field_points"] = repairedPoints;
                 left = std::move(now);
                 editsKept += edits.size();
             }
         }
+        if (editsKept > 0) {
+            // the topology of the labels meshed (the edits are simple, so it
+            // is the one before; counted again rather than assumed)
+            nlohmann::json topo = nlohmann::json::array();
+            for (const auto& t : octree::regionTopology(p.labels))
+                topo.push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
+                                {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+            out.report["grid"]["topology"] = topo;
+            sink.note("info", "changed the material of " + std::to_string(editsKept) +
+                                  " grid point(s) where hexes stayed inverted and meshed again (topology kept; "
+                                  "inverted_retries in the report)");
+        }
+        if (settings.method == "dual")
+            out.report["inverted_retries"] = {{"allowed", maxRetries}, {"attempts", attempts}, {"points_edited", editsKept}};
+        warnInverted(sink, out.mesh, left, out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
+                     meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
+                                                 " time(s) with grid edits)");
     }
-    if (settings.method == "dual" && settings.optimize)
-        out.report["inverted_retries"] = {{"allowed", maxRetries}, {"attempts", retries}, {"points_edited", editsKept}};
-    if (editsKept > 0)
-        sink.note("info", "changed the material of " + std::to_string(editsKept) +
-                              " grid point(s) where hexes stayed inverted and meshed again (topology kept; "
-                              "inverted_retries in the report)");
-    warnInverted(sink, out.mesh, left, out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
-                 retries.empty() ? "" : " (after " + std::to_string(retries.size()) + " retries with grid edits)");
     {
         Stage st(sink, "fidelity");
         out.report["fidelity"] = fidelity(out.mesh, p);

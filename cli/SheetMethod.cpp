@@ -57,9 +57,6 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
     if (settings.isosurfaceTopology)
         throw Error("--isosurface-topology chooses grid points of a sampled grid; --method sheets has none (use "
                     "--method dual)");
-    if (settings.invertedRetries)
-        throw Error("--inverted-retries edits grid points of a sampled grid; --method sheets has none (use "
-                    "--method dual)");
     auto surface = stage(sink, "load", [&] { return loadTriangleTree(input); });
     const double size = settings.size ? *settings.size : surface->meanEdgeLength();
     const auto box = surface->bounds();

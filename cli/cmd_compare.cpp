@@ -115,7 +115,7 @@ void addCompareCommand(CLI::App& app) {
         if (s.surfaceTolerance && !c->moveBoundary)
             throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
                         "(the seed's protocol)");
-        if (s.invertedRetries)
+        if (s.invertedRetries.value_or(0) > 0)
             throw Error("--inverted-retries is for isohex mesh: compare meshes every variant from one grid, and "
                         "editing the grid for one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;

@@ -1545,15 +1545,20 @@ std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<s
         std::array<std::int32_t, 27> m27;
         for (int q = 0; q < 27; ++q)
             m27[q] = mat[g.index(i + q % 3 - 1, j + q / 3 % 3 - 1, k + q / 9 - 1)];
-        auto simple = [&](std::int32_t m) {
+        // simple for the set of points whose label passes `inSet`
+        auto simple = [&](auto inSet) {
             std::array<bool, 27> in{}, out{};
             for (int q = 0; q < 27; ++q) {
-                in[q] = q != 13 && m27[q] == m;
-                out[q] = q != 13 && m27[q] != m;
+                in[q] = q != 13 && inSet(m27[q]);
+                out[q] = q != 13 && !inSet(m27[q]);
             }
             return topoNumber(in, 26) == 1 && topoNumber(out, 6) == 1;
         };
-        if ((from != 0 && !simple(from)) || (to != 0 && !simple(to))) return false;
+        auto material = [](std::int32_t m) { return [m](std::int32_t x) { return x == m; }; };
+        if ((from != 0 && !simple(material(from))) || (to != 0 && !simple(material(to)))) return false;
+        // a point joining or leaving the object: the union of all materials
+        // (and so the background: its pockets, the exterior) keeps its topology too
+        if ((from == 0 || to == 0) && !simple([](std::int32_t x) { return x != 0; })) return false;
         const std::size_t p = g.index(i, j, k);
         mat[p] = to;
         bool manifold = true;
@@ -1565,6 +1570,9 @@ std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<s
         return manifold;
     };
     for (const auto& x : positions) {
+        bool onGrid = true;
+        for (int a = 0; a < 3; ++a) onGrid = onGrid && std::isfinite(x[a]) && x[a] > -1 && x[a] < g.dims[a];
+        if (!onGrid) continue;
         const int ci = static_cast<int>(std::lround(x[0])), cj = static_cast<int>(std::lround(x[1])),
                   ck = static_cast<int>(std::lround(x[2]));
         // the most exposed point, then the material most of its neighbours

@@ -642,6 +642,18 @@ TEST(InvertedHexEdits, AMaterialsLonePointJoinsTheMaterialAroundIt) {
         EXPECT_EQ(after[m].euler, before[m].euler);
     }
     EXPECT_EQ(countNonManifoldBlocks(l), 0u);
+
+    // a one-point pocket of background where the two meet: filling it with
+    // material 1 keeps material 1's topology (it only touches 1 and 2), but
+    // the object's union would lose a cavity, so it stays
+    set(v, n, 6, 6, 6, 0);
+    const PointSetDomain d2({n, n, n}, v);
+    Labels pocket = sampleLabels(d2, unitGrid(n));
+    const Labels pocketStart = pocket;
+    EXPECT_TRUE(editNearInvertedHexes(pocket, {{6, 6, 6}}).empty());
+    EXPECT_EQ(pocket.material, pocketStart.material);
+    // positions off the grid or not finite are skipped
+    EXPECT_TRUE(editNearInvertedHexes(pocket, {{-5, 6, 6}, {6, 1e300, 6}, {std::nan(""), 6, 6}}).empty());
 }
 
 TEST(InvertedHexEdits, RandomLabelsKeepTheirTopologyAndStayManifold) {
@@ -673,6 +685,11 @@ TEST(InvertedHexEdits, RandomLabelsKeepTheirTopologyAndStayManifold) {
         ASSERT_EQ(countNonManifoldBlocks(l), 0u) << "seed " << seed;
         const Labels start = l;
         const auto before = regionTopology(l);
+        auto unionOf = [](Labels u) {
+            for (auto& m : u.material) m = m != 0 ? 1 : 0;
+            return regionTopology(u);
+        };
+        const auto unionBefore = unionOf(l);
         std::vector<std::array<double, 3>> at;
         for (int q = 0; q < 12; ++q)
             at.push_back({1.0 + rnd() % 1000 / 100.0, 1.0 + rnd() % 1000 / 100.0, 1.0 + rnd() % 1000 / 100.0});
@@ -709,6 +726,13 @@ TEST(InvertedHexEdits, RandomLabelsKeepTheirTopologyAndStayManifold) {
             EXPECT_EQ(after[m].material, before[m].material) << "seed " << seed;
             EXPECT_EQ(after[m].components, before[m].components) << "seed " << seed << " material " << after[m].material;
             EXPECT_EQ(after[m].euler, before[m].euler) << "seed " << seed << " material " << after[m].material;
+        }
+        // the object as a whole (and so the background) keeps its topology too
+        const auto unionAfter = unionOf(l);
+        ASSERT_EQ(unionAfter.size(), unionBefore.size()) << "seed " << seed;
+        if (!unionAfter.empty()) {
+            EXPECT_EQ(unionAfter[0].components, unionBefore[0].components) << "seed " << seed;
+            EXPECT_EQ(unionAfter[0].euler, unionBefore[0].euler) << "seed " << seed;
         }
         EXPECT_TRUE(topologicallyValid(dualContourHexes(l, d))) << "seed " << seed;
     }

@@ -206,6 +206,8 @@ class ManifestErrors(unittest.TestCase):
                    "badtopology.csv:3:", "column 'isosurface_topology'", "true or false")
         self.check("badretries.csv", "input,output,inverted_retries\na.nii.gz,x.vtu,2\nb.nii.gz,y.vtu,17\n",
                    "badretries.csv:3:", "column 'inverted_retries'", "between 0 and 16")
+        self.check("retriesnoopt.csv", "input,output,no_optimize,inverted_retries\na.nii.gz,x.vtu,true,2\n",
+                   "retriesnoopt.csv:2:", "no effect with --no-optimize")
 
     def test_malformed_csv(self):
         self.check("fields.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,y.vtu,3\n", "fields.csv:3:",

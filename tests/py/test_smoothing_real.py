@@ -344,7 +344,8 @@ class SmoothingOnRealInputs(unittest.TestCase):
         bad = os.path.join(self.dir, "retries_refused.vtu")
         for args, why in [(["mesh", os.path.join(SHARED_DATA, "femur.off"), "--method", "sheets"], "--method sheets"),
                           (["compare", src, "--labels"], "compare meshes every variant from one grid"),
-                          (["mesh", src, "--labels", "--no-optimize"], "excludes")]:
+                          (["mesh", src, "--labels", "--no-optimize"], "--no-optimize"),
+                          (["mesh", src, "--labels", "--method", "voxel"], "--method voxel")]:
             p = run([*args, "--inverted-retries", "2", "-o", bad, "-q"] if args[0] == "mesh"
                     else [*args, "--inverted-retries", "2", "-q"], check=False)
             self.assertNotEqual(p.returncode, 0, args)

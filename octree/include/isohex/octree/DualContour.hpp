@@ -60,8 +60,11 @@ struct PointEdit {
 // `frozen` and not on the grid's outer layer, the most exposed one (fewest
 // face neighbours of its own material, at most `maxSame`) takes the material
 // most of its face neighbours hold, provided the change is simple for both
-// materials (every material keeps its components, tunnels and cavities) and
-// leaves the 8 blocks around the point manifold. At most one edit per place:
+// materials (every material keeps its components, tunnels and cavities; a
+// point joining or leaving the background is also simple for the union of
+// all materials, so the exterior and the pockets of background between
+// materials keep theirs) and leaves the 8 blocks around the point manifold.
+// Positions off the grid (or not finite) are skipped. At most one edit per place:
 // a position with an edit of this call among its 27 points is skipped.
 // Returns the edits, in the order made.
 std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<std::array<double, 3>>& positions,
