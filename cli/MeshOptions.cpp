@@ -85,11 +85,17 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->excludes(fixBoundary)
         ->excludes(noOptimize)
         ->group(grid);
-    cmd->add_option("--inverted-retries", s.invertedRetries,
-                    "When hexes stay inverted after optimisation, up to this many times give a grid point next to "
-                    "them another material (never changing a material's components, tunnels or cavities) and mesh "
-                    "again, keeping the result with fewer inverted hexes (default 3; 0 never)")
+    cmd->add_option("--retries", s.retries,
+                    "When hexes stay inverted or below --retry-below after optimisation, up to this many times give "
+                    "a grid point next to them another material (never changing a material's components, tunnels "
+                    "or cavities) and mesh again, keeping the better result (default 3; 0 never)")
         ->check(CLI::Range(0, 16))
+        ->group(grid);
+    cmd->add_option("--retry-below", s.retryBelow,
+                    "Scaled Jacobian below which a hex left by the optimiser counts as stuck for --retries, as an "
+                    "inverted one does (default 0.05; 0: inverted hexes only). Higher gives better worst hexes for "
+                    "the time of meshing again")
+        ->check(CLI::Range(0.0, 1.0))
         ->group(grid);
 }
 
@@ -132,15 +138,22 @@ void MeshArgs::finish() {
             throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
                         "(no surface node moves off its surface there); leave it out");
     }
-    if (settings.invertedRetries) {
-        const int n = *settings.invertedRetries;
-        if (n < 0 || n > 16) throw Error("--inverted-retries must be between 0 and 16 (got " + std::to_string(n) + ")");
-        if (n > 0 && settings.method != "dual")
-            throw Error("--inverted-retries edits the element grid of --method dual; --method " + settings.method +
+    if (settings.retries) {
+        const int n = *settings.retries;
+        if (n < 0 || n > 16) throw Error("--retries must be between 0 and 16 (got " + std::to_string(n) + ")");
+    }
+    if (settings.retryBelow && !(*settings.retryBelow >= 0 && *settings.retryBelow <= 1))
+        throw Error("--retry-below must be a scaled Jacobian between 0 and 1 (got " +
+                    std::to_string(*settings.retryBelow) + ")");
+    if (settings.retries.value_or(0) > 0 || settings.retryBelow.value_or(0) > 0) {
+        const std::string opt = settings.retries.value_or(0) > 0 ? "--retries" : "--retry-below";
+        if (settings.method != "dual")
+            throw Error(opt + " edits the element grid of --method dual; --method " + settings.method +
                         " has no such grid (leave the option out)");
-        if (n > 0 && !settings.optimize)
-            throw Error("--inverted-retries has no effect with --no-optimize (the retries follow the optimiser); "
-                        "leave it out");
+        if (!settings.optimize)
+            throw Error(opt + " has no effect with --no-optimize (the retries follow the optimiser); leave it out");
+        if (settings.retries && *settings.retries == 0 && settings.retryBelow.value_or(0) > 0)
+            throw Error("--retry-below has no effect with --retries 0; leave one of them out");
     }
 }
 

@@ -541,6 +541,39 @@ std::vector<Index> invertedHexes(const HexMesh& mesh) {
         });
 }
 
+// What the grid-edit retries work on: the inverted hexes and those whose
+// scaled Jacobian is below `floor`, worst first (inverted, then by scaled
+// Jacobian, then by index); `min` is the mesh's smallest scaled Jacobian.
+struct Stuck {
+    std::vector<Index> hexes;
+    std::vector<Index> inverted;
+    std::size_t below = 0;  // not inverted, scaled Jacobian below the floor
+    double min = std::numeric_limits<double>::infinity();
+    // fewer inverted; or as many, fewer below the floor and a minimum no lower
+    bool betterThan(const Stuck& o) const {
+        if (inverted.size() != o.inverted.size()) return inverted.size() < o.inverted.size();
+        return below < o.below && min >= o.min;
+    }
+};
+
+Stuck stuckHexes(const HexMesh& mesh, double floor) {
+    Stuck s;
+    s.inverted = invertedHexes(mesh);
+    const std::vector<double> sj = scaledJacobians(mesh);
+    std::vector<char> inv(sj.size(), 0);
+    for (Index h : s.inverted) inv[static_cast<std::size_t>(h)] = 1;
+    std::vector<std::pair<double, Index>> low;
+    for (std::size_t h = 0; h < sj.size(); ++h) {
+        s.min = std::min(s.min, sj[h]);
+        if (!inv[h] && sj[h] < floor) low.emplace_back(sj[h], static_cast<Index>(h));
+    }
+    std::sort(low.begin(), low.end());
+    s.below = low.size();
+    s.hexes = s.inverted;
+    for (const auto& [v, h] : low) s.hexes.push_back(h);
+    return s;
+}
+
 Vec3 hexCentre(const HexMesh& mesh, Index h) {
     Vec3 c{0, 0, 0};
     for (const Vec3& x : hexCoords(mesh, h))
@@ -1142,14 +1175,19 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
     out.report["pillow"] = insertSheets(out.mesh, settings, sink);
     out.report["optimization"] = optimize(out.mesh, p, settings, sink, false);
-    // Hexes still inverted sit where the grid's shape asks the sheet for a
-    // convex hex no node placement gives (a one-point bump at a junction of
-    // materials, a pit). Give a grid point there another material (simple:
-    // no topology change; octree::editNearInvertedHexes) and mesh again; keep
-    // the result with fewer inverted hexes.
+    // Hexes still inverted, or left nearly flat, sit where the grid's shape
+    // asks the sheet for a convex hex no node placement gives (a one-point
+    // bump at a junction of materials, a pit). Give a grid point there
+    // another material (simple: no topology change;
+    // octree::editNearInvertedHexes) and mesh again; keep the result when it
+    // is better (Stuck::betterThan).
     if (settings.optimize) {
-        const int maxRetries = settings.method == "dual" ? settings.invertedRetries.value_or(kDefaultInvertedRetries) : 0;
-        std::vector<Index> left = invertedHexes(out.mesh);
+        const int maxRetries = settings.method == "dual" ? settings.retries.value_or(kDefaultRetries) : 0;
+        const double floor = settings.method == "dual" ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
+        Stuck stuck = stuckHexes(out.mesh, floor);
+        auto counts = [](const Stuck& s) {
+            return nlohmann::json{{"inverted", s.inverted.size()}, {"below", s.below}, {"min_scaled_jacobian", s.min}};
+        };
         nlohmann::json attempts = nlohmann::json::array();
         std::size_t editsKept = 0, meshedAgain = 0;
         const octree::Grid& g = p.labels.grid;
@@ -1159,17 +1197,18 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         const Eigen::Matrix3d toGrid = axes.inverse();
         std::vector<std::size_t> frozen;
         std::shared_ptr<const octree::Labels> sampled;
-        for (int attempt = 1; attempt <= maxRetries && !left.empty(); ++attempt) {
-            nlohmann::json tried = {{"attempt", attempt}, {"inverted_before", left.size()},
+        for (int attempt = 1; attempt <= maxRetries && !stuck.hexes.empty(); ++attempt) {
+            nlohmann::json tried = {{"attempt", attempt}, {"before", counts(stuck)},
                                     {"edits", nlohmann::json::array()}, {"kept", false}};
-            if (left.size() > kMaxInvertedToRetry) {
-                tried["not_meshed_because"] = "more than " + std::to_string(kMaxInvertedToRetry) +
-                                              " inverted hexes: not a few stuck places";
+            if (stuck.hexes.size() > kMaxStuckToRetry) {
+                tried["not_meshed_because"] = "more than " + std::to_string(kMaxStuckToRetry) +
+                                              " hexes inverted or below the floor: not a few stuck places";
                 attempts.push_back(tried);
                 break;
             }
+            // inverted hexes first: while any is left, the edits go to them alone
             std::vector<std::array<double, 3>> at;
-            for (Index h : left) {
+            for (Index h : stuck.inverted.empty() ? stuck.hexes : stuck.inverted) {
                 const Vec3 c = hexCentre(out.mesh, h);
                 const Eigen::Vector3d x = toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
                 at.push_back({x[0], x[1], x[2]});
@@ -1185,7 +1224,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             }
             if (edits.empty()) {
                 tried["not_meshed_because"] =
-                    "no grid point next to the inverted hexes can change material without changing a topology";
+                    "no grid point next to these hexes can change material without changing a topology";
                 attempts.push_back(tried);
                 break;
             }
@@ -1197,18 +1236,19 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             nlohmann::json pillow = insertSheets(mesh, settings, sink);
             nlohmann::json opt = optimize(mesh, q, settings, sink, false);
             ++meshedAgain;
-            std::vector<Index> now = invertedHexes(mesh);
-            tried["inverted_after"] = now.size();
-            tried["kept"] = now.size() < left.size();
+            Stuck now = stuckHexes(mesh, floor);
+            const bool better = now.betterThan(stuck);
+            tried["after"] = counts(now);
+            tried["kept"] = better;
             attempts.push_back(tried);
-            if (now.size() < left.size()) {
+            if (better) {
                 p = std::move(q);
                 out.mesh = std::move(mesh);
                 out.report["extracted"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}};
                 out.report["pillow"] = std::move(pillow);
                 out.report["optimization"] = std::move(opt);
                 out.report["grid"]["repaired_field_points"] = repairedPoints;
-                left = std::move(now);
+                stuck = std::move(now);
                 editsKept += edits.size();
             }
         }
@@ -1221,12 +1261,14 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
                                 {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
             out.report["grid"]["topology"] = topo;
             sink.note("info", "changed the material of " + std::to_string(editsKept) +
-                                  " grid point(s) where hexes stayed inverted and meshed again (topology kept; "
-                                  "inverted_retries in the report)");
+                                  " grid point(s) where hexes stayed inverted or below scaled Jacobian " +
+                                  std::to_string(floor) + " and meshed again (topology kept; retries in the report)");
         }
         if (settings.method == "dual")
-            out.report["inverted_retries"] = {{"allowed", maxRetries}, {"attempts", attempts}, {"points_edited", editsKept}};
-        warnInverted(sink, out.mesh, left, out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
+            out.report["retries"] = {{"allowed", maxRetries}, {"below", floor}, {"attempts", attempts},
+                                     {"points_edited", editsKept}, {"meshed_again", meshedAgain}};
+        warnInverted(sink, out.mesh, stuck.inverted,
+                     out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
                      meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
                                                  " time(s) with grid edits)");
     }

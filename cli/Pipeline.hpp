@@ -51,17 +51,22 @@ struct MeshSettings {
     // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.
     std::optional<double> surfaceTolerance;
     int randomSheetSeed = 1;
-    // When hexes stay inverted after optimisation: how many times to give a
-    // grid point near them another material (topology kept) and mesh again
-    // (octree::editNearInvertedHexes); 0 never; unset: kDefaultInvertedRetries.
-    std::optional<int> invertedRetries;
+    // When hexes stay inverted (or below retryBelow) after optimisation: how
+    // many times to give a grid point next to them another material (topology
+    // kept; octree::editNearInvertedHexes) and mesh again; 0 never; unset:
+    // kDefaultRetries.
+    std::optional<int> retries;
+    // The scaled Jacobian below which a hex counts as stuck too; unset:
+    // kDefaultRetryBelow; 0: inverted hexes only.
+    std::optional<double> retryBelow;
 };
 
-inline constexpr int kDefaultInvertedRetries = 3;
+inline constexpr int kDefaultRetries = 3;
+inline constexpr double kDefaultRetryBelow = 0.05;
 
-// The retry is for a few stuck places; more inverted hexes than this are
+// The retries are for a few stuck places; more stuck hexes than this are
 // another problem (a surface the sheet cannot follow) and are left as they are.
-inline constexpr std::size_t kMaxInvertedToRetry = 64;
+inline constexpr std::size_t kMaxStuckToRetry = 64;
 
 // Stage reporting: begin(name), fraction updates, end. The pipeline times
 // each stage through it.

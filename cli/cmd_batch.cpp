@@ -268,11 +268,17 @@ const std::vector<Column>& columns() {
              if (!(v >= 0 && v <= 1)) throw FieldError{"must be between 0 and 1 (voxels)"};
              a.settings.surfaceTolerance = v;
          }},
-        {"inverted_retries", "0..16",
+        {"retries", "0..16",
          [](const Field& f, MeshArgs& a, JobFields&) {
              const long long v = toInteger(f.scalar());
              if (v < 0 || v > 16) throw FieldError{"must be between 0 and 16"};
-             a.settings.invertedRetries = static_cast<int>(v);
+             a.settings.retries = static_cast<int>(v);
+         }},
+        {"retry_below", "scaled Jacobian 0..1",
+         [](const Field& f, MeshArgs& a, JobFields&) {
+             const double v = toNumber(f.scalar());
+             if (!(v >= 0 && v <= 1)) throw FieldError{"must be between 0 and 1"};
+             a.settings.retryBelow = v;
          }},
         {"no_optimize", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.optimize = !toBool(f.scalar()); }},

@@ -115,9 +115,10 @@ void addCompareCommand(CLI::App& app) {
         if (s.surfaceTolerance && !c->moveBoundary)
             throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
                         "(the seed's protocol)");
-        if (s.invertedRetries.value_or(0) > 0)
-            throw Error("--inverted-retries is for isohex mesh: compare meshes every variant from one grid, and "
-                        "editing the grid for one variant would make them differ");
+        if (s.retries.value_or(0) > 0 || s.retryBelow.value_or(0) > 0)
+            throw Error(std::string(s.retries.value_or(0) > 0 ? "--retries" : "--retry-below") +
+                        " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
+                        "one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;
         if (!c->json.empty() && !args.force && std::filesystem::exists(c->json))
             throw Error(c->json + ": file exists; refusing to overwrite it (use --force to replace it)");

@@ -123,7 +123,7 @@ class Batch(unittest.TestCase):
             {"input": sphere, "output": ["a.vtu", "a.msh"], "report": "a.json", "iso": 50, "size": 4},
             {"input": os.path.join(self.scans, "two_materials.nii.gz"), "output": "b.vtu", "report": "b.json",
              "label": [1, 3], "size": 4, "no_pillow": False, "plot": "b.svg", "isosurface_topology": True,
-             "inverted_retries": 0},
+             "retries": 0},
         ]
         with open(manifest, "w") as f:
             f.write(json.dumps(jobs[0]) + "\n\n")  # a blank line is allowed
@@ -142,9 +142,9 @@ class Batch(unittest.TestCase):
         # the isosurface_topology column reaches the job (job a leaves it out)
         self.assertIn("isosurface_topology", b["grid"]["repair"])
         self.assertNotIn("isosurface_topology", load(os.path.join(d, "a.json"))["grid"]["repair"])
-        # and so does inverted_retries (job a: the default, 3)
-        self.assertEqual(b["inverted_retries"]["allowed"], 0)
-        self.assertEqual(load(os.path.join(d, "a.json"))["inverted_retries"]["allowed"], 3)
+        # and so does retries (job a: the default, 3)
+        self.assertEqual(b["retries"]["allowed"], 0)
+        self.assertEqual(load(os.path.join(d, "a.json"))["retries"]["allowed"], 3)
         self.assertEqual(b["hexes"], cells(os.path.join(d, "b.vtu")))
         with open(os.path.join(d, "b.svg")) as f:
             self.assertIn("<svg", f.read())
@@ -204,10 +204,14 @@ class ManifestErrors(unittest.TestCase):
                    "tolerancefixed.csv:2:", "no effect")
         self.check("badtopology.csv", "input,output,isosurface_topology\na.nii.gz,x.vtu,true\nb.nii.gz,y.vtu,yes please\n",
                    "badtopology.csv:3:", "column 'isosurface_topology'", "true or false")
-        self.check("badretries.csv", "input,output,inverted_retries\na.nii.gz,x.vtu,2\nb.nii.gz,y.vtu,17\n",
-                   "badretries.csv:3:", "column 'inverted_retries'", "between 0 and 16")
-        self.check("retriesnoopt.csv", "input,output,no_optimize,inverted_retries\na.nii.gz,x.vtu,true,2\n",
+        self.check("badretries.csv", "input,output,retries\na.nii.gz,x.vtu,2\nb.nii.gz,y.vtu,17\n",
+                   "badretries.csv:3:", "column 'retries'", "between 0 and 16")
+        self.check("retriesnoopt.csv", "input,output,no_optimize,retries\na.nii.gz,x.vtu,true,2\n",
                    "retriesnoopt.csv:2:", "no effect with --no-optimize")
+        self.check("badretrybelow.csv", "input,output,retry_below\na.nii.gz,x.vtu,0.1\nb.nii.gz,y.vtu,1.5\n",
+                   "badretrybelow.csv:3:", "column 'retry_below'", "between 0 and 1")
+        self.check("retrybelowzero.csv", "input,output,retries,retry_below\na.nii.gz,x.vtu,0,0.1\n",
+                   "retrybelowzero.csv:2:", "--retries 0")
 
     def test_malformed_csv(self):
         self.check("fields.csv", "input,output\na.nii.gz,x.vtu\nb.nii.gz,y.vtu,3\n", "fields.csv:3:",
