@@ -541,18 +541,25 @@ std::vector<Index> invertedHexes(const HexMesh& mesh) {
         });
 }
 
-// What the grid-edit retries work on: the inverted hexes and those whose
-// scaled Jacobian is below `floor`, worst first (inverted, then by scaled
-// Jacobian, then by index); `min` is the mesh's smallest scaled Jacobian.
+// What the grid-edit retries work on: the inverted hexes (by index) and the
+// flat ones, not inverted with a scaled Jacobian below the floor (or
+// degenerate: an edge of zero length), worst first.
 struct Stuck {
-    std::vector<Index> hexes;
     std::vector<Index> inverted;
-    std::size_t below = 0;  // not inverted, scaled Jacobian below the floor
-    double min = std::numeric_limits<double>::infinity();
-    // fewer inverted; or as many, fewer below the floor and a minimum no lower
-    bool betterThan(const Stuck& o) const {
+    std::vector<Index> flat;
+    double min = std::numeric_limits<double>::infinity();         // over all hexes
+    double minValid = std::numeric_limits<double>::infinity();    // over the hexes not inverted
+    // Fewer inverted; or as many and, with a floor, fewer flat with a minimum
+    // over the rest no lower, or as many flat with a higher one.
+    bool betterThan(const Stuck& o, double floor) const {
         if (inverted.size() != o.inverted.size()) return inverted.size() < o.inverted.size();
-        return below < o.below && min >= o.min;
+        if (!(floor > 0)) return false;
+        if (flat.size() != o.flat.size()) return flat.size() < o.flat.size() && minValid >= o.minValid;
+        return minValid > o.minValid;
+    }
+    nlohmann::json counts() const {
+        return {{"inverted", inverted.size()}, {"flat", flat.size()}, {"min_scaled_jacobian", min},
+                {"min_not_inverted", minValid}};
     }
 };
 
@@ -564,14 +571,22 @@ Stuck stuckHexes(const HexMesh& mesh, double floor) {
     for (Index h : s.inverted) inv[static_cast<std::size_t>(h)] = 1;
     std::vector<std::pair<double, Index>> low;
     for (std::size_t h = 0; h < sj.size(); ++h) {
-        s.min = std::min(s.min, sj[h]);
-        if (!inv[h] && sj[h] < floor) low.emplace_back(sj[h], static_cast<Index>(h));
+        // scaledJacobian's value above 1 marks a degenerate hex: as flat as can be
+        const double v = sj[h] > 1 ? 0.0 : sj[h];
+        s.min = std::min(s.min, v);
+        if (inv[h]) continue;
+        s.minValid = std::min(s.minValid, v);
+        if (v < floor) low.emplace_back(v, static_cast<Index>(h));
     }
     std::sort(low.begin(), low.end());
-    s.below = low.size();
-    s.hexes = s.inverted;
-    for (const auto& [v, h] : low) s.hexes.push_back(h);
+    for (const auto& [v, h] : low) s.flat.push_back(h);
     return s;
+}
+
+std::string shortNumber(double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
 }
 
 Vec3 hexCentre(const HexMesh& mesh, Index h) {
@@ -1184,10 +1199,9 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     if (settings.optimize) {
         const int maxRetries = settings.method == "dual" ? settings.retries.value_or(kDefaultRetries) : 0;
         const double floor = settings.method == "dual" ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
-        Stuck stuck = stuckHexes(out.mesh, floor);
-        auto counts = [](const Stuck& s) {
-            return nlohmann::json{{"inverted", s.inverted.size()}, {"below", s.below}, {"min_scaled_jacobian", s.min}};
-        };
+        Stuck stuck;
+        if (maxRetries > 0) stuck = stuckHexes(out.mesh, floor);
+        else stuck.inverted = invertedHexes(out.mesh);
         nlohmann::json attempts = nlohmann::json::array();
         std::size_t editsKept = 0, meshedAgain = 0;
         const octree::Grid& g = p.labels.grid;
@@ -1197,18 +1211,21 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         const Eigen::Matrix3d toGrid = axes.inverse();
         std::vector<std::size_t> frozen;
         std::shared_ptr<const octree::Labels> sampled;
-        for (int attempt = 1; attempt <= maxRetries && !stuck.hexes.empty(); ++attempt) {
-            nlohmann::json tried = {{"attempt", attempt}, {"before", counts(stuck)},
+        for (int attempt = 1; attempt <= maxRetries && !(stuck.inverted.empty() && stuck.flat.empty()); ++attempt) {
+            nlohmann::json tried = {{"attempt", attempt}, {"before", stuck.counts()},
                                     {"edits", nlohmann::json::array()}, {"kept", false}};
-            if (stuck.hexes.size() > kMaxStuckToRetry) {
+            // inverted hexes first: while any is left, the edits go to them
+            // alone; of the flat ones, the worst kMaxStuckToRetry
+            std::vector<Index> work = stuck.inverted.empty() ? stuck.flat : stuck.inverted;
+            if (!stuck.inverted.empty() && work.size() > kMaxStuckToRetry) {
                 tried["not_meshed_because"] = "more than " + std::to_string(kMaxStuckToRetry) +
-                                              " hexes inverted or below the floor: not a few stuck places";
+                                              " inverted hexes: not a few stuck places";
                 attempts.push_back(tried);
                 break;
             }
-            // inverted hexes first: while any is left, the edits go to them alone
+            if (work.size() > kMaxStuckToRetry) work.resize(kMaxStuckToRetry);
             std::vector<std::array<double, 3>> at;
-            for (Index h : stuck.inverted.empty() ? stuck.hexes : stuck.inverted) {
+            for (Index h : work) {
                 const Vec3 c = hexCentre(out.mesh, h);
                 const Eigen::Vector3d x = toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
                 at.push_back({x[0], x[1], x[2]});
@@ -1237,8 +1254,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             nlohmann::json opt = optimize(mesh, q, settings, sink, false);
             ++meshedAgain;
             Stuck now = stuckHexes(mesh, floor);
-            const bool better = now.betterThan(stuck);
-            tried["after"] = counts(now);
+            const bool better = now.betterThan(stuck, floor);
+            tried["after"] = now.counts();
             tried["kept"] = better;
             attempts.push_back(tried);
             if (better) {
@@ -1262,10 +1279,10 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             out.report["grid"]["topology"] = topo;
             sink.note("info", "changed the material of " + std::to_string(editsKept) +
                                   " grid point(s) where hexes stayed inverted or below scaled Jacobian " +
-                                  std::to_string(floor) + " and meshed again (topology kept; retries in the report)");
+                                  shortNumber(floor) + " and meshed again (topology kept; retries in the report)");
         }
         if (settings.method == "dual")
-            out.report["retries"] = {{"allowed", maxRetries}, {"below", floor}, {"attempts", attempts},
+            out.report["retries"] = {{"allowed", maxRetries}, {"floor", floor}, {"attempts", attempts},
                                      {"points_edited", editsKept}, {"meshed_again", meshedAgain}};
         warnInverted(sink, out.mesh, stuck.inverted,
                      out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),

@@ -64,8 +64,9 @@ struct MeshSettings {
 inline constexpr int kDefaultRetries = 3;
 inline constexpr double kDefaultRetryBelow = 0.05;
 
-// The retries are for a few stuck places; more stuck hexes than this are
-// another problem (a surface the sheet cannot follow) and are left as they are.
+// The retries are for a few stuck places: more inverted hexes than this are
+// another problem (a surface the sheet cannot follow) and are left as they
+// are; of more flat hexes than this, an attempt takes the worst this many.
 inline constexpr std::size_t kMaxStuckToRetry = 64;
 
 // Stage reporting: begin(name), fraction updates, end. The pipeline times

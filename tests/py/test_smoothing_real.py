@@ -316,7 +316,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
               f"SJ min {sa.min():.4f} -> {sb.min():.3f}, below 0.2 {(sa < 0.2).sum()} -> {(sb < 0.2).sum()}, "
               f"attempts {[(t['before'], t.get('after'), t['kept']) for t in tries]}")
         self.assertGreater(int((sa <= 0).sum()), 0)  # the case this test is about
-        self.assertEqual(ra["retries"], {"allowed": 0, "below": 0.05, "attempts": [], "points_edited": 0,
+        self.assertEqual(ra["retries"], {"allowed": 0, "floor": 0.05, "attempts": [], "points_edited": 0,
                                          "meshed_again": 0})
         self.assertEqual(int((sb <= 0).sum()), 0)
         self.assertTrue(rb["validity"]["ok"], rb["validity"])
@@ -352,7 +352,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
               f"{(sc < 0.05).sum()}, below 0.2 {(sd < 0.2).sum()} -> {(sc < 0.2).sum()}")
         self.assertGreater(int((sd < 0.05).sum()), 0)  # the case this test is about
         self.assertEqual(rd["retries"]["attempts"], [])
-        self.assertEqual(rd["retries"]["below"], 0)
+        self.assertEqual(rd["retries"]["floor"], 0)
         self.assertEqual(int((sc <= 0).sum()), 0)
         self.assertLess(int((sc < 0.05).sum()), int((sd < 0.05).sum()))
         self.assertGreater(sc.min(), sd.min())
