@@ -1197,6 +1197,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     // octree::editNearInvertedHexes) and mesh again; keep the result when it
     // is better (Stuck::betterThan).
     if (settings.optimize) {
+        const auto retriesStart = Clock::now();
         const int maxRetries = settings.method == "dual" ? settings.retries.value_or(kDefaultRetries) : 0;
         const double floor = settings.method == "dual" ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
         Stuck stuck;
@@ -1283,7 +1284,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         }
         if (settings.method == "dual")
             out.report["retries"] = {{"allowed", maxRetries}, {"floor", floor}, {"attempts", attempts},
-                                     {"points_edited", editsKept}, {"meshed_again", meshedAgain}};
+                                     {"points_edited", editsKept}, {"meshed_again", meshedAgain},
+                                     {"seconds", since(retriesStart)}};
         warnInverted(sink, out.mesh, stuck.inverted,
                      out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
                      meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
