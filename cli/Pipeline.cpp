@@ -608,6 +608,15 @@ void warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>
     sink.note("warning", msg);
 }
 
+// The report's grid.topology: components and Euler characteristic per material.
+nlohmann::json topologyJson(const std::vector<octree::RegionTopology>& topo) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& t : topo)
+        out.push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
+                       {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+    return out;
+}
+
 nlohmann::json gridJson(const octree::Grid& g) {
     const auto s = g.spacing();
     return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
@@ -806,9 +815,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                       {"points_removed", rep.pointsRemoved},
                       {"rounds", rep.rounds},
                       {"seconds", repairSeconds}};
-    for (const auto& t : topo)
-        grid["topology"].push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
-                                    {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+    if (!topo.empty()) grid["topology"] = topologyJson(topo);
     if (match) {
         // what --isosurface-topology did and aimed at, and where it fell short
         nlohmann::json& block = grid["repair"]["isosurface_topology"];
@@ -985,14 +992,10 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     }
     // The warning counts what is still inverted after the worst-hex pass too
     // (which may fix some, and may trade one for another), at the first.
+    // (runMeshPipeline counts and warns itself, after its retries.)
     j["inverted_after_untangling"] = r.untangleFailures.size();
-    if (!r.untangleFailures.empty()) {
-        const std::vector<Index> left = invertedHexes(mesh);
-        j["inverted_at_end"] = left.size();
-        if (warnLeftInverted) warnInverted(sink, mesh, left, r.untangleFailures.size(), "");
-    } else {
-        j["inverted_at_end"] = 0;
-    }
+    if (warnLeftInverted && !r.untangleFailures.empty())
+        warnInverted(sink, mesh, invertedHexes(mesh), r.untangleFailures.size(), "");
     st.finish();
     return j;
 }
@@ -1233,10 +1236,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             }
             Prepared q = p;
             const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, at, frozen);
-            const auto [nx, ny, nz] = g.dims;
             for (const auto& e : edits) {
-                const int i = static_cast<int>(e.point % nx), jj = static_cast<int>(e.point / nx % ny),
-                          k = static_cast<int>(e.point / nx / ny);
+                const auto [i, jj, k] = g.coords(e.point);
                 tried["edits"].push_back({{"grid_point", {i, jj, k}}, {"at", g.point(i, jj, k)}, {"from", e.from}, {"to", e.to}});
                 frozen.push_back(e.point);
             }
@@ -1273,11 +1274,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         if (editsKept > 0) {
             // the topology of the labels meshed (the edits are simple, so it
             // is the one before; counted again rather than assumed)
-            nlohmann::json topo = nlohmann::json::array();
-            for (const auto& t : octree::regionTopology(p.labels))
-                topo.push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
-                                {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
-            out.report["grid"]["topology"] = topo;
+            out.report["grid"]["topology"] = topologyJson(octree::regionTopology(p.labels));
             sink.note("info", "changed the material of " + std::to_string(editsKept) +
                                   " grid point(s) where hexes stayed inverted or below scaled Jacobian " +
                                   shortNumber(floor) + " and meshed again (topology kept; retries in the report)");

@@ -111,8 +111,8 @@ HexMesh extract(const Prepared& p, const MeshSettings& settings, StageSink& sink
 // Pillows the fundamental sheets (unless settings.pillow is off).
 nlohmann::json insertSheets(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
 // Untangling and mean-ratio optimisation with surface nodes kept on the isosurface.
-// Its report block's "inverted_at_end" counts the hexes still inverted after
-// it; unless `warnLeftInverted` is false, a warning names them.
+// Unless `warnLeftInverted` is false, a warning names the hexes still
+// inverted after it.
 nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
                         bool warnLeftInverted = true);
 

@@ -197,12 +197,6 @@ bool uniformBlock(const std::array<std::int32_t, 8>& mat) {
     return true;
 }
 
-// Grid coordinates (i, j, k) of point index p.
-std::array<int, 3> gridCoords(const Grid& g, std::size_t p) {
-    const auto [nx, ny, nz] = g.dims;
-    return {static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
-}
-
 // The contributions of a non-uniform block to the Euler characteristic of
 // each material's boundary (the union of the closed cubes around its
 // points), with every point pair, square and block counted at the block
@@ -529,7 +523,7 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     const auto [nx, ny, nz] = l.grid.dims;
     std::array<int, 3> lo{nx, ny, nz}, hi{-1, -1, -1};
     for (const auto& [p, to] : changes) {
-        const auto c = gridCoords(l.grid, p);
+        const auto c = l.grid.coords(p);
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], c[a]);
             hi[a] = std::max(hi[a], c[a]);
@@ -549,7 +543,7 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     McLocal before, after;
     mcLocal(in, box, t, before);
     for (const auto& [p, to] : changes) {
-        const auto c = gridCoords(l.grid, p);
+        const auto c = l.grid.coords(p);
         in[(c[0] - lo[0] + 4) + w0 * ((c[1] - lo[1] + 4) + w1 * (c[2] - lo[2] + 4))] = to == m;
     }
     mcLocal(in, box, t, after);
@@ -975,7 +969,7 @@ namespace {
 long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
     long long chi = 0;
     for (std::size_t b : blocks) {
-        const auto [i, j, k] = gridCoords(l.grid, b);
+        const auto [i, j, k] = l.grid.coords(b);
         const BlockView v = block(l, i, j, k);
         if (!uniformBlock(v.mat)) forBlockEuler(v.mat, [&](std::int32_t, int d, bool) { chi += d; });
     }
@@ -993,7 +987,7 @@ void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::ve
     const auto [nx, ny, nz] = g.dims;
     out.clear();
     for (std::size_t p : points) {
-        const auto [i, j, k] = gridCoords(g, p);
+        const auto [i, j, k] = g.coords(p);
         for (int c = 0; c < 8; ++c) {
             const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
             if (bi >= 0 && bj >= 0 && bk >= 0 && bi + 1 < nx && bj + 1 < ny && bk + 1 < nz)
@@ -1046,7 +1040,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     for (std::size_t p = 0; p < repaired.material.size(); ++p)
         if (repaired.material[p] != sampled.material[p]) changed.push_back(p);
     if (changed.empty()) return rep;
-    auto coords = [&](std::size_t p) { return gridCoords(g, p); };
+    auto coords = [&](std::size_t p) { return g.coords(p); };
     // Groups: changed points within kGap of each other on every axis. A
     // group's search flips points within 1 of it, or within 2 where no
     // point of another group is next to the flip; so a block holding a flip
@@ -1083,7 +1077,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     };
     auto manifoldAt = [&](const std::vector<std::size_t>& blocks) {
         for (std::size_t b : blocks) {
-            const auto [i, j, k] = gridCoords(g, b);
+            const auto [i, j, k] = g.coords(b);
             const BlockView v = block(work, i, j, k);
             if (!uniformBlock(v.mat) && !blockManifold(v.mat)) return false;
         }

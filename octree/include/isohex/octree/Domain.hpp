@@ -67,6 +67,11 @@ struct Grid {
     std::size_t index(int i, int j, int k) const {
         return (static_cast<std::size_t>(k) * dims[1] + j) * dims[0] + i;
     }
+    // Grid coordinates (i, j, k) of point index p (the inverse of index).
+    std::array<int, 3> coords(std::size_t p) const {
+        const auto nx = static_cast<std::size_t>(dims[0]), ny = static_cast<std::size_t>(dims[1]);
+        return {static_cast<int>(p % nx), static_cast<int>(p / nx % ny), static_cast<int>(p / nx / ny)};
+    }
     // Length of the grid step along each axis, world units.
     std::array<double, 3> spacing() const;
     // Determinant of the axes: negative for a mirrored (left-handed) grid.
