@@ -120,17 +120,25 @@ def world_matrix(origin, spacing, direction):
     return out
 
 
-def isosurface(nifti, iso, origin, spacing, direction, inside_below=False, resample_to=None):
+def isosurface(nifti, iso, origin, spacing, direction, inside_below=False, resample_to=None, labels=None):
     """Closed isosurface (every piece) of a NIfTI scan in isohex's world coordinates.
 
     resample_to: world spacing (same on every axis) to resample the scan to
-    before contouring (a coarser surface); None keeps the voxels."""
+    before contouring (a coarser surface); None keeps the voxels.
+    labels: for a label map, the selected label ids; the surface is then the
+    0.5-isosurface of the indicator of their union (pass iso 0.5)."""
     r = vtk.vtkNIFTIImageReader()
     r.SetFileName(nifti)
     r.Update()
     img = vtk.vtkImageData()
     img.DeepCopy(r.GetOutput())
-    arr = ns.vtk_to_numpy(img.GetPointData().GetScalars()).astype(np.float32)
+    arr = ns.vtk_to_numpy(img.GetPointData().GetScalars())
+    if r.GetQFac() < 0:
+        # With qfac -1 VTK's reader stores the slices in reverse order; put
+        # them back in the file's index order, which origin/direction refer to.
+        nx, ny, nz = img.GetDimensions()
+        arr = arr.reshape(nz, ny, nx)[::-1].reshape(-1)
+    arr = np.isin(arr, labels).astype(np.float32) if labels is not None else arr.astype(np.float32)
     if inside_below:
         arr = -arr
         iso = -iso

@@ -130,6 +130,10 @@ nlohmann::json fidelity(const HexMesh& mesh, const Prepared& p);
 // Volume enclosed by OpenVDB's polygonisation (volumeToMesh) of a field's
 // zero set, by the divergence theorem over its polygons.
 double isosurfaceVolume(const openvdb::FloatGrid& grid);
+// Label maps: the field of the union of the selected labels (0.5 minus the
+// sum of their indicators, blurred as theirs are), whose 0.5-isosurface bounds
+// the labelled region as a whole.
+openvdb::FloatGrid::Ptr labelUnionField(const imaging::Selection& selection);
 
 struct MeshOutcome {
     HexMesh mesh;
