@@ -596,16 +596,18 @@ Vec3 hexCentre(const HexMesh& mesh, Index h) {
     return c;
 }
 
-// The warning for hexes still inverted at the end (none: no warning).
-void warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>& left, std::size_t afterUntangling,
-                  const std::string& more) {
-    if (left.empty()) return;
+// The warning for hexes still inverted at the end (none: no warning);
+// returns its text (empty when none) for the report.
+std::string warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>& left,
+                         std::size_t afterUntangling, const std::string& more) {
+    if (left.empty()) return {};
     const Vec3 c = hexCentre(mesh, left.front());
     std::string msg = std::to_string(left.size()) + " hex(es) stay inverted after optimisation";
     if (left.size() != afterUntangling) msg += " (" + std::to_string(afterUntangling) + " after untangling)";
     msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")" +
            more + "; another --size may avoid them";
     sink.note("warning", msg);
+    return msg;
 }
 
 // The report's grid.topology: components and Euler characteristic per material.
@@ -1224,6 +1226,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     if (settings.method == "sheets") return runSheetMethod(input, settings, sink);  // SheetMethod.cpp
     const auto t0 = Clock::now();
     Prepared p = prepare(input, settings, sink);
+    std::vector<std::string> warnings;  // after prepare's (p.warnings)
     MeshOutcome out;
     out.mesh = extract(p, settings, sink);
     out.report = p.report;
@@ -1321,10 +1324,12 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             out.report["retries"] = {{"allowed", maxRetries}, {"floor", floor}, {"attempts", attempts},
                                      {"points_edited", editsKept}, {"meshed_again", meshedAgain},
                                      {"seconds", since(retriesStart)}};
-        warnInverted(sink, out.mesh, stuck.inverted,
-                     out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
-                     meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
-                                                 " time(s) with grid edits)");
+        const std::string left =
+            warnInverted(sink, out.mesh, stuck.inverted,
+                         out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
+                         meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
+                                                     " time(s) with grid edits)");
+        if (!left.empty()) warnings.push_back(left);
     }
     {
         Stage st(sink, "fidelity");
@@ -1336,7 +1341,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     for (auto m : out.mesh.material) ++hexes[m];
     for (auto [m, n] : hexes) perMaterial.push_back({{"material", m}, {"hexes", n}});
     out.report["materials"] = perMaterial;
-    out.report["warnings"] = p.warnings;
+    warnings.insert(warnings.begin(), p.warnings.begin(), p.warnings.end());
+    out.report["warnings"] = warnings;
     out.report["pipeline_seconds"] = since(t0);
     return out;
 }

@@ -799,6 +799,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             throw Error("non-manifold repair found no fixpoint after " + std::to_string(kMaxRounds) + " rounds (" +
                         std::to_string(bad.size()) + " bad places left); try a different --size or --iso");
         std::set<std::size_t> touched;  // points changed this round; their blocks wait for the next round
+        std::vector<std::size_t> unionOnly;  // blocks with no flip to try where only the union is bad
         for (std::size_t b : bad) {
             const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny), k = static_cast<int>(b / nx / ny);
             BlockView v = block(labels, i, j, k);
@@ -921,7 +922,10 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                         if (v.mat[d] == v.mat[c]) p |= 1u << d;
                     if (v.mat[c] != 0 && !kTable.ok[p]) grow = v.mat[c];
                 }
-                if (grow == 0) continue;
+                if (grow == 0) {
+                    unionOnly.push_back(b);
+                    continue;
+                }
                 for (int c = 0; c < 8; ++c) {
                     if (v.mat[c] == grow) continue;
                     const int pi = i + (c & 1), pj = j + (c >> 1 & 1), pk = k + (c >> 2 & 1);
@@ -953,6 +957,46 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             plain = true;
             std::fill(flips.begin(), flips.end(), 0);
             continue;
+        }
+        if (touched.empty()) {
+            // Last resort, where nothing else is left: every material is fine
+            // on its own in these blocks but their union is not (points of
+            // two materials touching along an edge or at a vertex with the
+            // outside around them), and the points have used up their flips
+            // trading places (the JHU atlas with --smooth 0.5 to 1.5 stopped
+            // here). The outside grows: in each block the point nearest its
+            // surface leaves, whatever its flips. Only reached when no other
+            // rule changes anything; kMaxRounds still bounds the loop.
+            for (std::size_t b : unionOnly) {
+                const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny),
+                          k = static_cast<int>(b / nx / ny);
+                const BlockView v = block(labels, i, j, k);
+                bool stale = false;
+                for (std::size_t q : v.point) stale = stale || touched.count(q);
+                if (stale || blockManifold(v.mat)) continue;
+                int best = -1;
+                double bestCost = 0;
+                for (int c = 0; c < 8; ++c) {
+                    if (v.mat[c] == 0) continue;
+                    const double cost =
+                        std::abs(domain.value(v.mat[c], g.point(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))));
+                    if (best < 0 || cost < bestCost) {
+                        best = c;
+                        bestCost = cost;
+                    }
+                }
+                if (best < 0) continue;
+                record(v.point[best], 0);
+                touched.insert(v.point[best]);
+            }
+            for (std::size_t q : touched) {
+                const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx % ny),
+                          k = static_cast<int>(q / nx / ny);
+                for (int c = 0; c < 8; ++c) {
+                    const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+                    if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
+                }
+            }
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +
