@@ -646,14 +646,23 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
     // surface nodes may leave their surface (validity before fidelity: a fold
     // of the surface within one element cannot be opened along it).
     auto runRound = [&](bool release, bool mean = false, bool slack = false) {
-        std::vector<Index> nodes;
-        for (std::size_t h = 0; h < sj.size(); ++h)
-            if (release ? !(sj[h] > 0) : sj[h] < (mean ? opt.meanBelow : opt.target))
-                for (Index v : mesh.hexes[h])
-                    if (movable(v)) nodes.push_back(v);
-        std::sort(nodes.begin(), nodes.end());
-        nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-        if (nodes.empty()) return false;
+        // The round's nodes: the movable nodes of the hexes it works on,
+        // picked node by node in parallel (on the 1 mm brain the mean rounds
+        // pick about 580 k nodes of 2 M; a serial pass over the hexes with a
+        // sort took 0.16 s a round).
+        const double below = mean ? opt.meanBelow : opt.target;
+        std::vector<std::uint8_t> pick(N, 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 4096), [&](const auto& r) {
+            for (std::size_t v = r.begin(); v != r.end(); ++v) {
+                bool in = false;
+                for (const Index* h = topo.nodeHexes.begin(v); h != topo.nodeHexes.end(v) && !in; ++h) {
+                    const double s = sj[static_cast<std::size_t>(*h)];
+                    in = release ? !(s > 0) : s < below;
+                }
+                pick[v] = in && movable(static_cast<Index>(v));
+            }
+        });
+        if (std::find(pick.begin(), pick.end(), std::uint8_t{1}) == pick.end()) return false;
         if (const int kind = 2 * release + mean + 4 * slack; kind != settledKind) {
             std::fill(settled.begin(), settled.end(), std::uint8_t{0});
             settledKind = kind;
@@ -661,8 +670,6 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
         // Nodes sharing no hex move at once: one colour class per parallel
         // loop, classes in order, so the result is the same for any number
         // of threads.
-        std::vector<std::uint8_t> pick(N, 0);
-        for (Index v : nodes) pick[static_cast<std::size_t>(v)] = 1;
         const NodeColouring colouring = colourNodes(mesh, topo.nodeHexes, pick);
         std::atomic<bool> anyMove{false};
         for (const std::vector<Index>& cls : colouring.classes)
