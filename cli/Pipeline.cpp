@@ -808,6 +808,14 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         if (repaired->changedPoints() > 0) p.repairedDomain = std::move(repaired);
     }
     const auto topo = octree::regionTopology(p.labels);
+    if (topo.empty()) {
+        // Nothing left to mesh (an element larger than the object, or a level
+        // that coarse): say so rather than hand an empty mesh to the optimiser.
+        const auto sp = g.spacing();
+        throw Error(input + ": no grid point lies inside the selected material(s) at this element size (" +
+                    shortNumber(sp[0]) + " x " + shortNumber(sp[1]) + " x " + shortNumber(sp[2]) +
+                    " world units), so there is nothing to mesh; use a smaller --size or a lower --level");
+    }
     grid["step_voxels"] = step;
     grid["element_size"] = g.spacing();
     if (!size) grid["level"] = settings.level ? *settings.level : choice.level;

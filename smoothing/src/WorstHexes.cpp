@@ -446,6 +446,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                                const Topology* topology) {
     WorstHexResult res;
     const std::size_t N = mesh.nodeCount();
+    if (mesh.hexCount() == 0) return res;
     std::vector<double> sj = scaledJacobians(mesh);
     for (double& s : sj)
         if (s > 1.0 + 1e-9) s = -2.0;

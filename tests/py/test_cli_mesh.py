@@ -199,6 +199,20 @@ class FailurePaths(unittest.TestCase):
         self.assertIn("range", p.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "y.vtu")))
 
+    def test_an_element_larger_than_the_object_is_a_clear_error(self):
+        # Nothing of the sphere is left on a 100 mm grid (or at level 6): this
+        # crashed in the worst-hex pass on the empty mesh (exit 139), with and
+        # without the sheet; --mesh-exterior would have meshed only the box.
+        for extra in (["--size", "100"], ["--level", "6"], ["--size", "100", "--no-pillow"],
+                      ["--size", "100", "--mesh-exterior"]):
+            out = os.path.join(self.dir, "empty.vtu")
+            p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), *extra, "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, (extra, p.stderr))
+            self.assertIn("sphere.nii.gz", p.stderr)
+            self.assertIn("nothing to mesh", p.stderr)
+            self.assertIn("smaller --size", p.stderr)
+            self.assertFalse(os.path.exists(out), extra)
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)
