@@ -1018,6 +1018,7 @@ nlohmann::json worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* pr
     wo.surfaceSlack = slack;
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, projector, wo, topo);
     return {{"target", wo.target},
+            {"min_edge", wo.minEdge},
             {"min_scaled_jacobian_before", w.minBefore},
             {"min_scaled_jacobian_after", w.minAfter},
             {"below_target_before", w.belowBefore},

@@ -121,6 +121,15 @@ public:
         return g;
     }
 
+    // The shortest edge at the node with the node at p.
+    double shortestEdge(const Vec3& p) const {
+        double m = std::numeric_limits<double>::infinity();
+        for (const Entry& e : entries_)
+            for (int n : hexcell::kCornerNeighbours[static_cast<std::size_t>(e.local)])
+                m = std::min(m, norm(e.x[static_cast<std::size_t>(n)] - p));
+        return m;
+    }
+
 private:
     struct Entry {
         Index hex = kNone;
@@ -573,6 +582,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             return trial.inverted == 0 && trial.sum > current.sum + 1e-12 * static_cast<double>(floors.size());
         };
         Around best = evaluate(mesh.nodes[sv]);
+        // No edge at the node may end shorter than minEdge x L, or than it
+        // was if it was shorter (see WorstHexOptions::minEdge).
+        const double edgeFloor = std::min(nh.shortestEdge(mesh.nodes[sv]), opt.minEdge * L);
+        auto edgesOk = [&](const Vec3& p) { return !(opt.minEdge > 0) || nh.shortestEdge(p) >= edgeFloor; };
         double step = (mean ? opt.meanFirstStep : opt.firstStep) * L;
         // Off the surface by at most surfaceSlack: longer steps cannot pass.
         if (offSurface) step = std::min(step, opt.surfaceSlack);
@@ -591,7 +604,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             for (; step >= opt.lastStep * L; step *= 0.5) {
                 Vec3 p = mesh.nodes[sv] + step * d;
                 if (onSurface) p = projector->project(mesh.nodeClass[sv].id, p);
-                if (!finite(p)) continue;
+                if (!finite(p) || !edgesOk(p)) continue;
                 const Around f = evaluateTrial(p, best);
                 if (improves(f, best)) {
                     mesh.nodes[sv] = p;
@@ -614,6 +627,7 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 if (!finite(p)) continue;
                 if (surface && release && !(offBy(sv, p) <= opt.releaseDistance * L)) continue;
                 if (offSurface && !(offBy(sv, p) <= opt.surfaceSlack)) continue;
+                if (!edgesOk(p)) continue;
                 const Around f = evaluateTrial(p, bestValue);
                 if (improves(f, bestValue)) {
                     bestValue = f;
