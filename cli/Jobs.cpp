@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -47,10 +48,27 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     const auto t0 = std::chrono::steady_clock::now();
     MeshArgs args = job.args;
     args.finish();
-    // Refuse to clobber before spending minutes meshing.
-    if (!args.force)
-        for (const auto& o : job.outputs)
-            if (fs::exists(o)) throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");
+    // Every file the job writes (meshes, report, plot) is checked before
+    // minutes of meshing: not an existing file without --force, not a
+    // folder, in a folder that exists, and not named twice.
+    std::vector<std::string> files = job.outputs;  // in the order they are written
+    if (!job.plot.empty()) files.push_back(job.plot);
+    if (!job.report.empty()) files.push_back(job.report);
+    std::vector<bool> existed;
+    std::set<fs::path> seen;
+    for (const auto& o : files) {
+        std::error_code ec;
+        const fs::path path(o);
+        if (!seen.insert(fs::absolute(path, ec).lexically_normal()).second)
+            throw Error(o + ": named twice among the outputs; give each output its own path");
+        if (fs::is_directory(path, ec)) throw Error(o + ": is a folder; give an output file name");
+        const fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+        if (!fs::is_directory(dir, ec))
+            throw Error(o + ": the folder " + dir.string() + " does not exist; create it or choose another output path");
+        existed.push_back(fs::exists(path, ec));
+        if (existed.back() && !args.force)
+            throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");
+    }
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
     MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
     const auto tq = std::chrono::steady_clock::now();
@@ -69,24 +87,40 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     io::WriteOptions w;
     w.overwrite = args.force;
     w.scaledJacobian = q.scaledJacobian;
-    for (const auto& o : job.outputs) {
-        const auto t = std::chrono::steady_clock::now();
-        sink.begin("write");
-        io::write(out.mesh, o, w);
-        sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
+    // Each file is written whole or not at all (a temporary file renamed);
+    // if one fails, the files this job created before it are removed again,
+    // so a failed job leaves none of its outputs behind (files it replaced
+    // under --force are gone either way).
+    std::size_t written = 0;
+    try {
+        for (const auto& o : job.outputs) {
+            const auto t = std::chrono::steady_clock::now();
+            sink.begin("write");
+            io::write(out.mesh, o, w);
+            ++written;
+            sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
+        }
+        timings["write"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
+        timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        report["timings_s"] = timings;
+        report["peak_memory_mb"] = peakMemoryMb();
+        report["huge_pages"] = hugePagesRequested();
+        report["outputs"] = job.outputs;
+        report["versions"] = versionsJson();
+        if (!job.plot.empty()) {
+            writeHistogramSvg(job.plot, args.force, "Scaled Jacobian of " + stemOf(job.input),
+                              {{out.report["pillow"].value("enabled", false) ? "with fundamental sheet" : "without sheet",
+                                s.histogram, s.degenerate}});
+            ++written;
+        }
+        if (!job.report.empty()) writeJsonFile(report, job.report, args.force);
+    } catch (...) {
+        for (std::size_t i = 0; i < written; ++i) {  // the meshes, then the plot
+            std::error_code ec;
+            if (!existed[i]) fs::remove(files[i], ec);
+        }
+        throw;
     }
-    timings["write"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
-    timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    report["timings_s"] = timings;
-    report["peak_memory_mb"] = peakMemoryMb();
-    report["huge_pages"] = hugePagesRequested();
-    report["outputs"] = job.outputs;
-    report["versions"] = versionsJson();
-    if (!job.plot.empty())
-        writeHistogramSvg(job.plot, args.force, "Scaled Jacobian of " + stemOf(job.input),
-                          {{out.report["pillow"].value("enabled", false) ? "with fundamental sheet" : "without sheet",
-                            s.histogram, s.degenerate}});
-    if (!job.report.empty()) writeJsonFile(report, job.report, args.force);
     JobResult r;
     r.input = job.input;
     r.status = "ok";
@@ -96,7 +130,23 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     r.inverted = s.inverted;
     r.below02 = s.below02;
     r.seconds = timings["total"];
-    if (!v.ok()) r.message = "validity defects: " + toJson(v)["defects"].dump();
+    if (!v.ok()) {
+        // one readable line; the report's validity block has every example
+        std::string m = "validity defects:";
+        bool first = true;
+        for (const auto& [key, d] : v.defects) {
+            m += std::string(first ? " " : "; ") + key + " x" + std::to_string(d.count) + " (" + d.description;
+            if (!d.where.empty()) {
+                char at[96];
+                std::snprintf(at, sizeof at, ", first at (%.4g, %.4g, %.4g)", d.where[0][0], d.where[0][1],
+                              d.where[0][2]);
+                m += at;
+            }
+            m += ")";
+            first = false;
+        }
+        r.message = m + (job.report.empty() ? "" : "; every example in the report's validity block");
+    }
     return r;
 }
 

@@ -61,7 +61,7 @@ void addMeshCommand(CLI::App& app) {
                         c->inputs[0].c_str(), r.hexes, r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted,
                         r.seconds);
             for (const auto& o : c->outputs) std::printf("wrote %s\n", o.c_str());
-            if (!r.message.empty()) std::printf("warning: %s\n", r.message.c_str());
+            if (!r.message.empty()) sink.note("warning", r.message);  // stderr (a JSON line with --log-json)
             return;
         }
         if (c->outDir.empty()) throw Error("several inputs need --out-dir DIR (outputs are named after the inputs)");

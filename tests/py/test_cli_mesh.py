@@ -199,6 +199,43 @@ class FailurePaths(unittest.TestCase):
         self.assertIn("range", p.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "y.vtu")))
 
+    def test_every_output_path_is_checked_before_meshing_and_a_failed_job_leaves_none(self):
+        src = os.path.join(self.dir, "sphere.nii.gz")
+        d = os.path.join(self.dir, "outs")
+        os.makedirs(os.path.join(d, "afolder"), exist_ok=True)
+        mesh = os.path.join(d, "m.vtu")
+        existing = os.path.join(d, "old.json")
+        with open(existing, "w") as f:
+            f.write("keep")
+        cases = [
+            (["--report", os.path.join(d, "nope", "r.json")], "does not exist"),
+            (["--plot", os.path.join(d, "nope", "p.svg")], "does not exist"),
+            (["--report", existing], "--force"),
+            (["--report", os.path.join(d, "afolder")], "is a folder"),
+            ([os.path.join(d, "m.vtu")], "named twice"),
+        ]
+        for extra, message in cases:
+            opts = extra if extra[0].startswith("--") else []
+            more = [] if opts else extra
+            p = run(["mesh", src, "--size", "3", "-o", mesh, *more, *opts, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, extra)
+            self.assertIn(message, p.stderr, extra)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)  # refused before meshing
+            self.assertFalse(os.path.exists(mesh), extra)
+        with open(existing) as f:
+            self.assertEqual(f.read(), "keep")
+        # A later output that cannot be written (procfs takes no new files):
+        # the mesh written before it is removed again.
+        p = run(["mesh", src, "--size", "3", "-o", mesh, "/proc/isohex_test.msh", "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("isohex_test", p.stderr)
+        self.assertFalse(os.path.exists(mesh))
+        # and with the paths in order, the same job succeeds
+        p = run(["mesh", src, "--size", "3", "-o", mesh, "--report", os.path.join(d, "r.json"), "--plot",
+                 os.path.join(d, "p.svg"), "-q"])
+        for f in (mesh, os.path.join(d, "r.json"), os.path.join(d, "p.svg")):
+            self.assertTrue(os.path.exists(f), f)
+
     def test_an_element_larger_than_the_object_is_a_clear_error(self):
         # Nothing of the sphere is left on a 100 mm grid (or at level 6): this
         # crashed in the worst-hex pass on the empty mesh (exit 139), with and
