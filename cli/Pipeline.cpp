@@ -599,13 +599,16 @@ Vec3 hexCentre(const HexMesh& mesh, Index h) {
 // The warning for hexes still inverted at the end (none: no warning);
 // returns its text (empty when none) for the report.
 std::string warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>& left,
-                         std::size_t afterUntangling, const std::string& more) {
+                         std::size_t afterUntangling, const std::string& more, bool fixedBoundary) {
     if (left.empty()) return {};
     const Vec3 c = hexCentre(mesh, left.front());
     std::string msg = std::to_string(left.size()) + " hex(es) stay inverted after optimisation";
     if (left.size() != afterUntangling) msg += " (" + std::to_string(afterUntangling) + " after untangling)";
     msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")" +
-           more + "; another --size may avoid them";
+           more +
+           (fixedBoundary ? "; --fix-boundary keeps every surface node where extraction put it, and hexes on a folded "
+                            "surface can only be untangled by moving those: drop it, or try another --size"
+                          : "; another --size may avoid them");
     sink.note("warning", msg);
     return msg;
 }
@@ -1005,7 +1008,7 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     // (runMeshPipeline counts and warns itself, after its retries.)
     j["inverted_after_untangling"] = r.untangleFailures.size();
     if (warnLeftInverted && !r.untangleFailures.empty())
-        warnInverted(sink, mesh, invertedHexes(mesh), r.untangleFailures.size(), "");
+        warnInverted(sink, mesh, invertedHexes(mesh), r.untangleFailures.size(), "", settings.fixBoundary);
     st.finish();
     return j;
 }
@@ -1337,7 +1340,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
             warnInverted(sink, out.mesh, stuck.inverted,
                          out.report["optimization"].value("inverted_after_untangling", std::size_t{0}),
                          meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(meshedAgain) +
-                                                     " time(s) with grid edits)");
+                                                     " time(s) with grid edits)",
+                         settings.fixBoundary);
         if (!left.empty()) warnings.push_back(left);
     }
     {
