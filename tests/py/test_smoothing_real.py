@@ -73,6 +73,19 @@ class SmoothingOnRealInputs(unittest.TestCase):
             self.assertLess(cn.max(), 30, name)
             self.assertGreater(sj.min(), 0.1, name)
 
+    def test_fixed_boundary_warning_names_the_option(self):
+        # The seed's protocol (--fix-boundary) cannot untangle hexes on a
+        # folded surface: the warning says so instead of suggesting a size.
+        out, rep = self.mesh("skull_fixed", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), "--iso", "2.9", "--size",
+                             "4", "--fix-boundary")
+        inverted = int((vtk_sj(out) <= 0).sum())
+        left = [w for w in rep["warnings"] if "stay inverted" in w]
+        print(f"skull 4 mm --fix-boundary: {inverted} inverted (VTK); {left}")
+        self.assertGreater(inverted, 0)  # the case this test is about
+        self.assertEqual(len(left), 1)
+        self.assertIn("--fix-boundary keeps every surface node", left[0])
+        self.assertNotIn("another --size may avoid them", left[0])
+
     def test_label_map_with_gaussian_smoothing(self):
         # --smooth blurs each label's indicator on its own. On the JHU atlas
         # two labels' points then kept trading places at one block until both
