@@ -859,8 +859,8 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
             p.warnings.push_back("material " + std::to_string(want.material) +
                                  ": --isosurface-topology: the mesh boundary has " + std::to_string(c) +
                                  " component(s), Euler characteristic " + std::to_string(e) +
-                                 "; the isosurface on the element grid " + std::to_string(want.components) + " and " +
-                                 std::to_string(want.euler) + ": " + why +
+                                 "; the isosurface on the element grid has " + std::to_string(want.components) +
+                                 " component(s), Euler characteristic " + std::to_string(want.euler) + ". Why: " + why +
                                  " (grid.repair.isosurface_topology in the report)");
         }
     }

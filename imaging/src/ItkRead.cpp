@@ -1,6 +1,7 @@
 // Every ITK reader of the module lives in this one translation unit (ITK's
 // templates are expensive to compile). It turns a file or folder into a
 // RawVolume: a dense float or int32 array plus origin, spacing and direction.
+#include <cstdio>
 #include <algorithm>
 #include <cmath>
 #include <cctype>
@@ -262,6 +263,16 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
     itk::ImageIOBase::Pointer io =
         itk::ImageIOFactory::CreateImageIO(file.c_str(), itk::IOFileModeEnum::ReadMode);
     if (!io) {
+        // A gzip stream whose name does not say so (.nii instead of .nii.gz):
+        // the readers pick gzip by the extension.
+        unsigned char magic[2] = {0, 0};
+        if (std::FILE* f = std::fopen(file.c_str(), "rb")) {
+            const std::size_t n = std::fread(magic, 1, 2, f);
+            std::fclose(f);
+            if (n == 2 && magic[0] == 0x1f && magic[1] == 0x8b && path.extension() != ".gz")
+                throw Error(file + ": the file is gzip-compressed but its name does not end in .gz; rename it to " +
+                            path.filename().string() + ".gz or decompress it with gunzip.");
+        }
         throw Error(file + ": not a readable image: no reader recognises its header (damaged "
                     "file, or a format other than NIfTI, NRRD, MetaImage, TIFF, DICOM, OpenVDB). "
                     "Check that the file is complete and its extension matches its content.");

@@ -43,9 +43,14 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
         if (!std::isfinite(*iso) || !(*iso > vol.minValue && *iso < vol.maxValue)) {
             std::ostringstream m;
             m.precision(7);
-            m << src << ": iso value " << *iso << " is outside the data range [" << vol.minValue
-              << ", " << vol.maxValue << "], so no surface crosses it. Choose an iso value "
-              << "strictly inside that range, or omit it to let Otsu's method choose.";
+            if (vol.levelSet)  // a triangle surface's signed distance, not intensities
+                m << src << ": iso value " << *iso << " is outside the signed distance's range [" << vol.minValue
+                  << ", " << vol.maxValue << "] around the surface, so no level crosses it. Omit --iso to mesh "
+                  << "the surface itself (distance 0), or give an offset strictly inside that range.";
+            else
+                m << src << ": iso value " << *iso << " is outside the data range [" << vol.minValue << ", "
+                  << vol.maxValue << "], so no surface crosses it. Choose an iso value "
+                  << "strictly inside that range, or omit it to let Otsu's method choose.";
             throw Error(m.str());
         }
     } else if (vol.levelSet) {

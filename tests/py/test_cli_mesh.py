@@ -3,6 +3,7 @@ with the results judged by VTK (vtkMeshQuality, vtkCellSizeFilter) rather than b
 isohex's own numbers."""
 import json
 import os
+import shutil
 import subprocess
 import sys
 import unittest
@@ -249,6 +250,21 @@ class FailurePaths(unittest.TestCase):
             self.assertIn("nothing to mesh", p.stderr)
             self.assertIn("smaller --size", p.stderr)
             self.assertFalse(os.path.exists(out), extra)
+
+    def test_a_gzip_file_without_gz_and_an_iso_off_a_surface_are_explained(self):
+        src = os.path.join(self.dir, "zipped.nii")
+        shutil.copyfile(os.path.join(self.dir, "sphere.nii.gz"), src)
+        p = run(["mesh", src, "-o", os.path.join(self.dir, "g.vtu"), "-q"], check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("zipped.nii: the file is gzip-compressed", p.stderr)
+        self.assertIn("zipped.nii.gz", p.stderr)
+        # --iso on a triangle surface offsets its signed distance; Otsu has nothing to do with it
+        p = run(["mesh", os.path.join(SHARED_DATA, "femur.off"), "--iso", "100", "-o", os.path.join(self.dir, "g.vtu"),
+                 "-q"], check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("signed distance", p.stderr)
+        self.assertNotIn("Otsu", p.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "g.vtu")))
 
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
