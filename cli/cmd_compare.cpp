@@ -164,7 +164,9 @@ void addCompareCommand(CLI::App& app) {
                     "seconds");
         for (auto& v : variants) {
             const auto t = std::chrono::steady_clock::now();
+            sink.setJob("variant " + v.key);  // its warnings say which variant they are about
             const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+            sink.setJob({});
             v.seconds += secondsSince(t);
             const HexQuality q = computeQuality(v.mesh);
             const QualitySummary qs = summarize(v.mesh, q);

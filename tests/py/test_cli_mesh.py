@@ -107,10 +107,14 @@ class Phantoms(unittest.TestCase):
     def test_compare_writes_four_variants_with_matching_counts(self):
         js = os.path.join(self.dir, "cmp.json")
         svg = os.path.join(self.dir, "cmp.svg")
-        run(["compare", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "--size", "3", "--json", js,
-             "--plot", svg, "--force", "-q"])
+        p = run(["compare", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "--size", "3", "--json", js,
+                 "--plot", svg, "--force", "--log-json"])
         with open(js) as f:
             c = json.load(f)
+        # each variant's optimisation is labelled with it (so are its warnings)
+        events = [json.loads(line) for line in p.stderr.splitlines() if line.startswith("{")]
+        optimised = [e.get("job") for e in events if e.get("stage") == "optimize" and e.get("event") == "stage_end"]
+        self.assertEqual(optimised, ["variant a", "variant b", "variant c", "variant d"], events[-5:])
         v = {x["variant"]: x for x in c["variants"]}
         self.assertEqual(sorted(v), ["a", "b", "c", "d"])
         self.assertGreaterEqual(v["c"]["hexes"], v["b"]["hexes"])          # diced up to b's count
