@@ -943,22 +943,7 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             record(p, bestMat);
             touched.insert(p);
         }
-        for (std::size_t p : touched) {
-            const int i = static_cast<int>(p % nx), j = static_cast<int>(p / nx % ny), k = static_cast<int>(p / nx / ny);
-            for (int c = 0; c < 8; ++c) {
-                const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
-                if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
-            }
-        }
-        if (touched.empty() && !plain) {
-            // The topology preference can spend points' flips going back and
-            // forth (random labellings of several materials): from here on,
-            // the plain rules with fresh flips.
-            plain = true;
-            std::fill(flips.begin(), flips.end(), 0);
-            continue;
-        }
-        if (touched.empty()) {
+        if (touched.empty() && plain) {
             // Last resort, where nothing else is left: every material is fine
             // on its own in these blocks but their union is not (points of
             // two materials touching along an edge or at a vertex with the
@@ -966,10 +951,10 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             // trading places (the JHU atlas with --smooth 0.5 to 1.5 stopped
             // here). The outside grows: in each block the point nearest its
             // surface leaves, whatever its flips. Only reached when no other
-            // rule changes anything; kMaxRounds still bounds the loop.
+            // rule changes anything (in plain mode; the topology preference
+            // first gives way below); kMaxRounds still bounds the loop.
             for (std::size_t b : unionOnly) {
-                const int i = static_cast<int>(b % nx), j = static_cast<int>(b / nx % ny),
-                          k = static_cast<int>(b / nx / ny);
+                const auto [i, j, k] = g.coords(b);
                 const BlockView v = block(labels, i, j, k);
                 bool stale = false;
                 for (std::size_t q : v.point) stale = stale || touched.count(q);
@@ -989,14 +974,21 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
                 record(v.point[best], 0);
                 touched.insert(v.point[best]);
             }
-            for (std::size_t q : touched) {
-                const int i = static_cast<int>(q % nx), j = static_cast<int>(q / nx % ny),
-                          k = static_cast<int>(q / nx / ny);
-                for (int c = 0; c < 8; ++c) {
-                    const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
-                    if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
-                }
+        }
+        for (std::size_t p : touched) {
+            const auto [i, j, k] = g.coords(p);
+            for (int c = 0; c < 8; ++c) {
+                const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+                if (bi >= 0 && bj >= 0 && bk >= 0) bad.push_back(g.index(bi, bj, bk));
             }
+        }
+        if (touched.empty() && !plain) {
+            // The topology preference can spend points' flips going back and
+            // forth (random labellings of several materials): from here on,
+            // the plain rules with fresh flips.
+            plain = true;
+            std::fill(flips.begin(), flips.end(), 0);
+            continue;
         }
         if (touched.empty())
             throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +

@@ -14,6 +14,7 @@ from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 from common import SHARED_DATA, polygon_topology, run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_volumes  # noqa: E402
 
 FACES = np.array([[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1], [4, 5, 6, 7]])
 
@@ -148,14 +149,7 @@ class RealScans(unittest.TestCase):
         self.assertGreater(f["volume_isosurface"], 1.03 * f["volume_labels_isosurfaces"])
         for name, path in (("extracted", os.path.join(self.dir, "jhu_labels_dc.vtu")),
                            ("pillowed", os.path.join(self.dir, "jhu_labels_pillow.vtu"))):
-            r = vtk.vtkXMLUnstructuredGridReader()
-            r.SetFileName(path)
-            r.Update()
-            size = vtk.vtkCellSizeFilter()
-            size.SetInputData(r.GetOutput())
-            size.ComputeVolumeOn()
-            size.Update()
-            mesh_volume = ns.vtk_to_numpy(size.GetOutput().GetCellData().GetArray("Volume")).sum()
+            mesh_volume = vtk_volumes(read_vtu(path)).sum()
             change = 100 * (mesh_volume - vtk_union) / vtk_union
             print(f"jhu labels {name}: mesh {mesh_volume:.0f}, union isosurface (VTK) {vtk_union:.0f} mm^3, "
                   f"{change:+.2f}%")
