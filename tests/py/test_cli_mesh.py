@@ -270,6 +270,25 @@ class FailurePaths(unittest.TestCase):
         self.assertNotIn("Otsu", p.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.dir, "g.vtu")))
 
+    def test_an_intensity_scan_read_as_labels_is_refused_up_front(self):
+        # ch2bet stores its intensities as uint8. Read as a label map, every
+        # grey value was a material of scattered voxels: --labels ran the
+        # repair for four minutes and then failed, --label 100 wrote a mesh of
+        # specks with 1010 inverted hexes. Both are refused at selection now.
+        out = os.path.join(self.dir, "lab.vtu")
+        for extra in (["--labels"], ["--label", "100"]):
+            p = run(["mesh", os.path.join(SHARED_DATA, "ch2bet.nii.gz"), *extra, "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, (extra, p.stderr))
+            self.assertIn("ch2bet.nii.gz: this does not look like a label map", p.stderr)
+            self.assertIn("without --labels", p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertFalse(os.path.exists(out), extra)
+        # a real segmentation passes the same check
+        p = run(["mesh", os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz"), "--label", "5",
+                 "--no-optimize", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(os.path.exists(out))
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)
