@@ -41,7 +41,7 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
         ->group(in);
     cmd->add_flag("--nan-as-outside", s.load.nanAsOutside, "Treat NaN/Inf voxels as outside instead of refusing")
         ->group(in);
-    cmd->add_option("--max-memory", s.load.maxMemoryMB, "Refuse volumes needing more than this many MB to load")
+    cmd->add_option("--max-memory", s.load.maxMemoryMB, "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need more (default: 80% of the machine's memory)")
         ->group(in);
     cmd->add_option("--slice-spacing", a.sliceSpacing, "Folder of 2-D slices: voxel spacing X Y Z in mm")
         ->expected(3)

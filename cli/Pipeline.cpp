@@ -12,6 +12,9 @@
 #include <optional>
 #include <sstream>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <Eigen/Dense>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
@@ -622,6 +625,61 @@ nlohmann::json topologyJson(const std::vector<octree::RegionTopology>& topo) {
     return out;
 }
 
+// The mesh's size before any of it is built. A --size far below the voxel
+// spacing (the sphere phantom at 0.1 made 34.5 M hexes and a 4 GB file in
+// 400 s) would otherwise run until the machine runs out of memory. The hex
+// count is the selected volume over the element volume (the whole grid with
+// --mesh-exterior), plus a sixth for the sheet. Each hex costs about 420
+// bytes at peak on top of what is already in memory (the sphere phantom's
+// `peak_memory_mb` at --size 0.5 and 0.25: 242 and 1045 MB for 0.30 and
+// 2.28 M hexes); the estimate takes 450 and adds the process's peak so far.
+void checkMeshMemory(const std::string& input, const imaging::Volume& vol, const imaging::Selection& sel,
+                     const octree::Grid& g, const MeshSettings& settings) {
+    const auto sp = g.spacing();
+    const double element = sp[0] * sp[1] * sp[2];
+    const double voxel = vol.spacing[0] * vol.spacing[1] * vol.spacing[2];
+    double voxels = 0;
+    for (const auto& m : sel.materials) voxels += double(m.voxels);
+    double hexes = voxels * voxel / element;
+    if (settings.meshExterior) hexes = double(g.size());
+    if (settings.pillow) hexes *= 7.0 / 6.0;
+    constexpr double bytesPerHex = 450.0;
+    struct rusage ru {};
+    getrusage(RUSAGE_SELF, &ru);
+    const double already = double(ru.ru_maxrss) * 1024.0;
+    const double need = already + hexes * bytesPerHex + double(g.size()) * 8.0;
+    double budget = settings.load.maxMemoryMB * 1024.0 * 1024.0;
+    std::string what = "the --max-memory budget";
+    if (!(settings.load.maxMemoryMB > 0.0)) {
+        budget = 0.8 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+        what = "80% of this machine's memory";
+    }
+    if (need <= budget) return;
+    // the element size that would fit, in steps of the usual knob
+    // The element size whose mesh would fit, rounded up to two digits (none
+    // when what is loaded already takes most of the budget).
+    std::string fitting;
+    if (already < 0.9 * budget) {
+        double fit = std::cbrt((need - already) / (budget - already)) * std::cbrt(element);
+        const double unit = std::pow(10.0, std::floor(std::log10(fit)) - 1);
+        fitting = "Use a --size of at least " + shortNumber(std::ceil(fit / unit) * unit) + ", or raise";
+    } else {
+        std::ostringstream a;
+        a.precision(3);
+        a << "The input alone takes " << already / double(1 << 30) << " GiB; raise";
+        fitting = a.str();
+    }
+    std::ostringstream m;
+    m.precision(3);
+    m << input << ": at this element size (" << shortNumber(sp[0]) << " x " << shortNumber(sp[1]) << " x "
+      << shortNumber(sp[2]) << " world units; the scan's voxels are " << shortNumber(vol.spacing[0]) << " x "
+      << shortNumber(vol.spacing[1]) << " x " << shortNumber(vol.spacing[2]) << ") the mesh would have about "
+      << hexes / 1e6 << " million hexes and need about " << need / double(1 << 30) << " GiB (estimate), more than "
+      << what << " (" << budget / double(1 << 30) << " GiB). " << fitting
+      << " --max-memory if the machine has the memory.";
+    throw Error(m.str());
+}
+
 nlohmann::json gridJson(const octree::Grid& g) {
     const auto s = g.spacing();
     return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
@@ -762,6 +820,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         grid["rejected"] = choice.notes;
     }
     const octree::Grid g = gridFor(vol, solid, step, pad);
+    checkMeshMemory(input, vol, sel, g, settings);
     p.labels = octree::sampleLabels(*domain, g);
     const octree::Labels sampled = p.labels;
     if (settings.keepLargest) {

@@ -289,6 +289,29 @@ class FailurePaths(unittest.TestCase):
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertTrue(os.path.exists(out))
 
+    def test_an_element_size_whose_mesh_cannot_fit_in_memory_is_refused_before_meshing(self):
+        # --size 0.05 on the 1 mm sphere is about 300 M hexes: refused at once
+        # (it used to run until memory ran out), with a size that would fit.
+        src = os.path.join(self.dir, "sphere.nii.gz")
+        out = os.path.join(self.dir, "fine.vtu")
+        p = run(["mesh", src, "--size", "0.05", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("sphere.nii.gz: at this element size", p.stderr)
+        self.assertIn("--size of at least", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        # --max-memory is the budget; the estimated hex count is the real one's
+        p = run(["mesh", src, "--size", "0.5", "--max-memory", "200", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("--max-memory budget", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        estimate = float(p.stderr.split("about ")[1].split(" million")[0]) * 1e6
+        rep = os.path.join(self.dir, "fine.json")
+        run(["mesh", src, "--size", "0.5", "--max-memory", "400", "-o", out, "--report", rep, "--force", "-q"])
+        with open(rep) as f:
+            r = json.load(f)
+        self.assertLess(abs(estimate - r["hexes"]) / r["hexes"], 0.15, (estimate, r["hexes"]))
+        self.assertLess(r["peak_memory_mb"], 400)
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)
