@@ -672,7 +672,7 @@ void checkMeshMemory(const std::string& input, const imaging::Volume& vol, const
     std::ostringstream m;
     m.precision(3);
     m << input << ": at this element size (" << shortNumber(sp[0]) << " x " << shortNumber(sp[1]) << " x "
-      << shortNumber(sp[2]) << " world units; the scan's voxels are " << shortNumber(vol.spacing[0]) << " x "
+      << shortNumber(sp[2]) << " world units; the input's voxels are " << shortNumber(vol.spacing[0]) << " x "
       << shortNumber(vol.spacing[1]) << " x " << shortNumber(vol.spacing[2]) << ") the mesh would have about "
       << hexes / 1e6 << " million hexes and need about " << need / double(1 << 30) << " GiB (estimate), more than "
       << what << " (" << budget / double(1 << 30) << " GiB). " << fitting
