@@ -1316,7 +1316,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         const int maxRetries = settings.method == "dual" ? settings.retries.value_or(kDefaultRetries) : 0;
         const double floor = settings.method == "dual" ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
         Stuck stuck;
-        if (maxRetries > 0) stuck = stuckHexes(out.mesh, floor);
+        if (floor > 0) stuck = stuckHexes(out.mesh, floor);
         else stuck.inverted = invertedHexes(out.mesh);
         nlohmann::json attempts = nlohmann::json::array();
         std::size_t editsKept = 0, meshedAgain = 0;
@@ -1402,6 +1402,20 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
                                                      " time(s) with grid edits)",
                          settings.fixBoundary);
         if (!left.empty()) warnings.push_back(left);
+        if (!stuck.flat.empty()) {
+            // Not inverted, but nearly flat: a solver accepts them and its
+            // accuracy suffers there (JHU at --size 1 ended at 0.027 after
+            // three retries without a word).
+            const Vec3 c = hexCentre(out.mesh, stuck.flat.front());
+            std::string msg = std::to_string(stuck.flat.size()) + " hex(es) stay nearly flat (scaled Jacobian below " +
+                              shortNumber(floor) + ", lowest " + shortNumber(stuck.minValid) + " at (" +
+                              shortNumber(c[0]) + ", " + shortNumber(c[1]) + ", " + shortNumber(c[2]) + "))" +
+                              (meshedAgain == 0 ? "" : " after meshing again " + std::to_string(meshedAgain) + " time(s)") +
+                              (maxRetries == 0 ? "; --retries would try grid edits there, or another --size may avoid them"
+                                               : "; another --size may avoid them");
+            sink.note("warning", msg);
+            warnings.push_back(msg);
+        }
     }
     {
         Stage st(sink, "fidelity");
