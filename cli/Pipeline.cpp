@@ -1359,6 +1359,11 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
                 attempts.push_back(tried);
                 break;
             }
+            // the stages' progress starts over: say why
+            sink.note("info", "meshing again (retry " + std::to_string(attempt) + " of " + std::to_string(maxRetries) +
+                                  "): " + std::to_string(edits.size()) + " grid point(s) next to " +
+                                  std::to_string(work.size()) + (stuck.inverted.empty() ? " nearly flat" : " inverted") +
+                                  " hex(es) change material");
             if (!sampled) sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, g));
             auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *sampled, q.labels);
             const std::size_t repairedPoints = repaired->changedPoints();

@@ -429,6 +429,38 @@ class SmoothingOnRealInputs(unittest.TestCase):
                 self.assertIn(opt[0], p.stderr)
                 self.assertFalse(os.path.exists(bad))
 
+    def test_hexes_left_nearly_flat_are_warned_about_and_retries_are_named(self):
+        # JHU at 3.5 mm with one retry: the retry clears the inverted hex and
+        # five hexes stay below 0.05. Both used to pass without a word (the
+        # stages' progress just started over for the retry).
+        src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
+        out = os.path.join(self.dir, "jhu_35_flat.vtu")
+        p = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "-o", out, "--report", out + ".json",
+                 "--force"])
+        with open(out + ".json") as f:
+            rep = json.load(f)
+        sj = vtk_sj(out)
+        flat = int(((sj > 0) & (sj < 0.05)).sum())
+        print(f"JHU 3.5 mm --retries 1: {flat} hexes below 0.05 (VTK), min {sj.min():.4f}")
+        self.assertGreater(flat, 0)  # the case this test is about
+        self.assertIn("meshing again (retry 1 of 1)", p.stderr)
+        warned = [w for w in rep["warnings"] if "stay nearly flat" in w]
+        self.assertEqual(len(warned), 1, rep["warnings"])
+        self.assertIn("stay nearly flat", p.stderr)
+        self.assertTrue(warned[0].startswith(f"{flat} hex(es) stay nearly flat"), warned[0])
+        self.assertIn(f"lowest {sj.min():.4f}"[:-1], warned[0])
+        # where: the centre of a hex whose VTK value is the lowest
+        at = np.array([float(v) for v in warned[0].split(" at (")[1].split(")")[0].split(",")])
+        g = read_vtu(out)
+        pts = ns.vtk_to_numpy(g.GetPoints().GetData())
+        conn = ns.vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(-1, 8)
+        worst = int(np.argmin(sj))
+        self.assertLess(np.linalg.norm(pts[conn[worst]].mean(axis=0) - at), 1e-3)
+        # --retry-below 0: only inverted hexes count as stuck, and no flat warning
+        q = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--retry-below", "0", "-o", out,
+                 "--force", "-q"])
+        self.assertNotIn("nearly flat", q.stderr)
+
     def test_output_is_identical_for_one_and_two_threads(self):
         # The skull exercises every stage: untangling rounds, the release of
         # surface nodes and the mean-ratio sweeps.
