@@ -9,6 +9,8 @@
 // C3D8 (1-based corners): S1 = 1-2-3-4, S2 = 5-8-7-6, S3 = 1-5-6-2,
 // S4 = 2-6-7-3, S5 = 3-7-8-4, S6 = 4-8-5-1.
 #include <array>
+#include <charconv>
+#include <cstdio>
 #include <string>
 
 #include "MeshIODetail.hpp"
@@ -44,6 +46,23 @@ std::string materialLabel(std::int32_t m) {
 // Data lines are kept well under CalculiX's 132-character limit.
 constexpr int kIdsPerLine = 8;
 
+// CalculiX reads a number of at most 20 characters per field (a longer one
+// stops it with "*ERROR reading *NODE"). The shortest text that reads back
+// to the same double fits for most coordinates ("-39.523961133177562" is 19);
+// near zero it is in exponent form and can be 22 ("-1.813617615035761e-05"),
+// so those take 14 significant digits (13 with a three-digit exponent): a
+// relative change below 1e-13.
+std::string abaqusNumber(double v) {
+    char buf[32];
+    const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+    if (ec == std::errc() && end - buf <= 20) return std::string(buf, end);
+    for (int digits = 13; digits >= 10; --digits) {
+        const int n = std::snprintf(buf, sizeof buf, "%.*e", digits, v);
+        if (n > 0 && n <= 20) return std::string(buf, static_cast<std::size_t>(n));
+    }
+    return std::string(buf);  // not reached for finite doubles
+}
+
 }  // namespace
 
 void writeAbaqus(const HexMesh& mesh, const std::string& tmpPath, const std::string& path) {
@@ -55,7 +74,8 @@ void writeAbaqus(const HexMesh& mesh, const std::string& tmpPath, const std::str
     out << "*NODE\n";
     for (std::size_t i = 0; i < mesh.nodeCount(); ++i) {
         const Vec3& p = mesh.nodes[i];
-        out << static_cast<std::int64_t>(i + 1) << ", " << p[0] << ", " << p[1] << ", " << p[2] << '\n';
+        out << static_cast<std::int64_t>(i + 1) << ", " << abaqusNumber(p[0]) << ", " << abaqusNumber(p[1]) << ", "
+            << abaqusNumber(p[2]) << '\n';
     }
 
     const std::vector<std::int32_t> mats = materialsOf(mesh);
