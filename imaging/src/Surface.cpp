@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <unordered_map>
+#include <vector>
 
 #include <unistd.h>
 
@@ -172,6 +173,64 @@ void checkClosedManifold(TriangleSurface& s) {
     }
 }
 
+// Assimp 5.2 (Debian's build has its internal asserts on) aborts the whole
+// process when an OFF file holds fewer vertex or face lines than its header
+// promises, and reads a face index beyond the vertices as some other vertex.
+// So the comment-free text is checked first: the counts on the header, one
+// line of at least three numbers per vertex, and per face a corner count of
+// at least 3 followed by that many indices below the vertex count.
+static void checkOffCounts(const std::string& file, const std::string& text) {
+    std::istringstream in(text);
+    std::string line;
+    std::vector<std::string> lines;
+    while (std::getline(in, line)) lines.push_back(line);
+    auto fail = [&](const std::string& what) {
+        throw Error(file + ": " + what + ". The file is truncated or not a valid OFF file; re-export it.");
+    };
+    if (lines.empty()) fail("the file is empty");
+    std::istringstream head(lines[0]);
+    std::string magic;
+    head >> magic;
+    if (magic.size() < 3 || magic.compare(magic.size() - 3, 3, "OFF") != 0) fail("the first line is not an OFF header");
+    long long nv = -1, nf = -1;
+    std::size_t next = 1;
+    if (!(head >> nv >> nf)) {  // the counts on the next line
+        if (lines.size() < 2) fail("the header has no vertex and face counts");
+        std::istringstream counts(lines[1]);
+        if (!(counts >> nv >> nf)) fail("the line after the header does not hold the vertex and face counts");
+        next = 2;
+    }
+    if (nv < 3 || nf < 1) fail("the header promises " + std::to_string(nv) + " vertices and " + std::to_string(nf) + " faces");
+    const std::size_t have = lines.size() - next;
+    if (have < static_cast<std::size_t>(nv + nf)) {
+        const std::size_t vertexLines = std::min<std::size_t>(have, static_cast<std::size_t>(nv));
+        fail("the header promises " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+             " faces but the file has " + std::to_string(vertexLines) + " vertex line(s) and " +
+             std::to_string(have - vertexLines) + " face line(s)");
+    }
+    for (long long i = 0; i < nv; ++i) {
+        std::istringstream v(lines[next + static_cast<std::size_t>(i)]);
+        double x, y, z;
+        if (!(v >> x >> y >> z))
+            fail("vertex " + std::to_string(i) + " (line " + std::to_string(next + i + 1) +
+                 " not counting comment and blank lines) does not hold three numbers");
+    }
+    for (long long f = 0; f < nf; ++f) {
+        const std::size_t at = next + static_cast<std::size_t>(nv + f);
+        std::istringstream fl(lines[at]);
+        long long n = 0;
+        if (!(fl >> n) || n < 3) fail("face " + std::to_string(f) + " (line " + std::to_string(at + 1) +
+                                      " not counting comment and blank lines) does not start with a corner count of 3 or more");
+        for (long long k = 0; k < n; ++k) {
+            long long idx = -1;
+            if (!(fl >> idx)) fail("face " + std::to_string(f) + " has fewer than its " + std::to_string(n) + " corners");
+            if (idx < 0 || idx >= nv)
+                fail("face " + std::to_string(f) + " uses vertex " + std::to_string(idx) + " but there are only " +
+                     std::to_string(nv) + " vertices (0 to " + std::to_string(nv - 1) + ")");
+        }
+    }
+}
+
 TriangleSurface loadSurface(const std::filesystem::path& path) {
     const std::string file = path.string();
     std::error_code ec;
@@ -200,6 +259,7 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
             text += line;
             text += '\n';
         }
+        checkOffCounts(file, text);
         scene = importer.ReadFileFromMemory(text.data(), text.size(), flags, "off");
     } else {
         scene = importer.ReadFile(file, flags);

@@ -312,6 +312,36 @@ class FailurePaths(unittest.TestCase):
         self.assertLess(abs(estimate - r["hexes"]) / r["hexes"], 0.15, (estimate, r["hexes"]))
         self.assertLess(r["peak_memory_mb"], 400)
 
+    def test_an_off_file_that_breaks_its_header_is_a_clear_error_not_an_abort(self):
+        # Assimp aborted the process (exit 134, taking a whole batch with it)
+        # on an OFF file with fewer face lines than its header says, and read
+        # a face index past the vertices as something else.
+        tet = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+        cases = {
+            "short.off": ("OFF\n4 4 0\n" + tet + "3 0 2 1\n", "the header promises 4 vertices and 4 faces"),
+            "index.off": ("OFF\n4 4 0\n" + tet + "3 0 2 1\n3 0 1 3\n3 0 3 9\n3 1 2 3\n", "uses vertex 9"),
+        }
+        good = os.path.join(self.dir, "tet.off")
+        with open(good, "w") as f:
+            f.write("OFF\n4 4 0\n" + tet + "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n")
+        outdir = os.path.join(self.dir, "off_out")
+        for name, (text, message) in cases.items():
+            src = os.path.join(self.dir, name)
+            with open(src, "w") as f:
+                f.write(text)
+            for method in ("dual", "sheets"):
+                out = os.path.join(self.dir, "off.vtu")
+                p = run(["mesh", src, "--method", method, "-o", out, "-q"], check=False)
+                self.assertEqual(p.returncode, 1, (name, method, p.stderr))
+                self.assertIn(f"{name}: {message}", p.stderr)
+                self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+                self.assertFalse(os.path.exists(out))
+        # several inputs: the bad one fails, the good one is meshed, exit 1
+        p = run(["mesh", os.path.join(self.dir, "short.off"), good, "--out-dir", outdir, "--force"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertTrue(os.path.exists(os.path.join(outdir, "tet.vtu")))
+        self.assertFalse(os.path.exists(os.path.join(outdir, "short.vtu")))
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)
