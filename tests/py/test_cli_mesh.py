@@ -319,7 +319,7 @@ class FailurePaths(unittest.TestCase):
         tet = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
         cases = {
             "short.off": ("OFF\n4 4 0\n" + tet + "3 0 2 1\n", "the header promises 4 vertices and 4 faces"),
-            "index.off": ("OFF\n4 4 0\n" + tet + "3 0 2 1\n3 0 1 3\n3 0 3 9\n3 1 2 3\n", "uses vertex 9"),
+            "index.off": ("OFF\n4 4 0\n" + tet + "3 0 2 1\n3 0 1 3\n3 0 3 9\n3 1 2 3\n", "face 2 uses vertex 9"),
         }
         good = os.path.join(self.dir, "tet.off")
         with open(good, "w") as f:
