@@ -30,6 +30,29 @@ std::string stemOf(const std::string& input) {
     return name;
 }
 
+std::vector<bool> checkOutputPaths(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
+                                   bool force) {
+    std::vector<bool> existed;
+    std::set<fs::path> seen;
+    for (const auto& o : outputs) {
+        std::error_code ec;
+        const fs::path path(o);
+        if (!seen.insert(fs::absolute(path, ec).lexically_normal()).second)
+            throw Error(o + ": named twice among the outputs; give each output its own path");
+        if (fs::is_directory(path, ec)) throw Error(o + ": is a folder; give an output file name");
+        for (const auto& in : inputs)
+            if (fs::exists(path, ec) && fs::equivalent(path, fs::path(in), ec))
+                throw Error(o + ": is the input " + in + "; writing there would replace it, choose another output path");
+        const fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+        if (!fs::is_directory(dir, ec))
+            throw Error(o + ": the folder " + dir.string() + " does not exist; create it or choose another output path");
+        existed.push_back(fs::exists(path, ec));
+        if (existed.back() && !force)
+            throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");
+    }
+    return existed;
+}
+
 bool upToDate(const Job& job) {
     std::error_code ec;
     const auto inTime = fs::last_write_time(job.input, ec);
@@ -54,21 +77,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     std::vector<std::string> files = job.outputs;  // in the order they are written
     if (!job.plot.empty()) files.push_back(job.plot);
     if (!job.report.empty()) files.push_back(job.report);
-    std::vector<bool> existed;
-    std::set<fs::path> seen;
-    for (const auto& o : files) {
-        std::error_code ec;
-        const fs::path path(o);
-        if (!seen.insert(fs::absolute(path, ec).lexically_normal()).second)
-            throw Error(o + ": named twice among the outputs; give each output its own path");
-        if (fs::is_directory(path, ec)) throw Error(o + ": is a folder; give an output file name");
-        const fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
-        if (!fs::is_directory(dir, ec))
-            throw Error(o + ": the folder " + dir.string() + " does not exist; create it or choose another output path");
-        existed.push_back(fs::exists(path, ec));
-        if (existed.back() && !args.force)
-            throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");
-    }
+    const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
     MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
     const auto tq = std::chrono::steady_clock::now();

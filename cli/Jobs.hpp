@@ -32,6 +32,13 @@ struct JobResult {
 // (after which no output of the job is half-written: each file is atomic).
 JobResult runJob(const Job& job, ProgressSink& sink);
 
+// Every file a command will write, checked before any work: not named twice,
+// not a folder, in a folder that exists, not one of the inputs, and not an
+// existing file unless force. Throws isohex::Error naming the path; returns,
+// per output, whether it existed (so a failed job removes only what it made).
+std::vector<bool> checkOutputPaths(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
+                                   bool force);
+
 // Outputs that exist and are newer than the input, so a rerun can skip the job.
 bool upToDate(const Job& job);
 // The file name of `input` without its extension(s): "ct.nii.gz" -> "ct".

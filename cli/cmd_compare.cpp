@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Commands.hpp"
+#include "Jobs.hpp"
 #include "MeshOptions.hpp"
 #include "Report.hpp"
 #include "Svg.hpp"
@@ -120,8 +121,20 @@ void addCompareCommand(CLI::App& app) {
                         " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
                         "one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;
-        if (!c->json.empty() && !args.force && std::filesystem::exists(c->json))
-            throw Error(c->json + ": file exists; refusing to overwrite it (use --force to replace it)");
+        {
+            // every output before the four meshings (the variant meshes too)
+            std::vector<std::string> outputs;
+            if (!c->json.empty()) outputs.push_back(c->json);
+            if (!c->plot.empty()) outputs.push_back(c->plot);
+            if (!c->meshDir.empty()) {
+                std::error_code ec;
+                std::filesystem::create_directories(c->meshDir, ec);
+                if (ec) throw Error(c->meshDir + ": cannot create the folder for the variant meshes: " + ec.message());
+                for (const char* k : {"a", "b", "c", "d"})
+                    outputs.push_back((std::filesystem::path(c->meshDir) / ("variant_" + std::string(k) + ".vtu")).string());
+            }
+            checkOutputPaths(outputs, {c->input}, args.force);
+        }
         ProgressSink sink(args.progressMode());
         Prepared p = prepare(c->input, s, sink);
         HexMesh base = extract(p, s, sink);

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "Commands.hpp"
+#include "Jobs.hpp"
 #include "isohex/core/MeshIO.hpp"
 
 namespace isohex::cli {
@@ -32,6 +33,7 @@ void addConvertCommand(CLI::App& app) {
     cmd->add_flag("--force", args->force, "Replace the output file if it exists");
     cmd->callback([args] {
         io::formatFromPath(args->output);  // reject a bad output name before reading a large input
+        checkOutputPaths({args->output}, {args->input}, args->force);
         const HexMesh mesh = io::read(args->input);
         io::WriteOptions opt;
         opt.overwrite = args->force;

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "Commands.hpp"
+#include "Jobs.hpp"
 #include "Progress.hpp"
 #include "SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
@@ -52,8 +53,11 @@ void addInsertSheetCommand(CLI::App& app) {
         applyThreads(a->threads);
         const auto t0 = std::chrono::steady_clock::now();
         io::formatFromPath(a->output);
-        if (!a->force && std::filesystem::exists(a->output))
-            throw Error(a->output + ": file exists; refusing to overwrite it (use --force to replace it)");
+        {
+            std::vector<std::string> inputs = a->surfaces;
+            inputs.push_back(a->mesh);
+            checkOutputPaths({a->output}, inputs, a->force);
+        }
         if (!std::filesystem::exists(a->mesh)) throw Error(a->mesh + ": no such file; check the path");
         // Every surface is read and checked before any work.
         std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;

@@ -1,5 +1,6 @@
 // isohex mesh INPUT -o OUTPUT: the whole pipeline; several inputs with --out-dir.
 #include <filesystem>
+#include <map>
 #include <memory>
 
 #include <tbb/global_control.h>
@@ -71,6 +72,18 @@ void addMeshCommand(CLI::App& app) {
         std::error_code ec;
         std::filesystem::create_directories(c->outDir, ec);
         if (ec) throw Error(c->outDir + ": cannot create the output folder: " + ec.message());
+        // Outputs are named after the inputs: two inputs with one name would
+        // write the same files (the second replacing the first, or skipped as
+        // "up to date" without --force).
+        std::map<std::string, std::string> byStem;
+        for (const auto& in : c->inputs) {
+            const auto [it, fresh] = byStem.emplace(stemOf(in), in);
+            if (!fresh)
+                throw Error(it->second + " and " + in + " would both write " +
+                            (std::filesystem::path(c->outDir) / it->first).string() +
+                            ".*; mesh them in separate runs (or --out-dir folders), or use `isohex batch` to name "
+                            "each output");
+        }
         for (const auto& in : c->inputs) {
             Job j{in, {}, {}, {}, c->args};
             const std::string base = (std::filesystem::path(c->outDir) / stemOf(in)).string();

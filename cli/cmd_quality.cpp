@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Commands.hpp"
+#include "Jobs.hpp"
 #include "Report.hpp"
 #include "Versions.hpp"
 #include "isohex/core/MeshIO.hpp"
@@ -38,6 +39,13 @@ void addQualityCommand(CLI::App& app) {
     cmd->add_flag("--strict", args->strict,
                   "Exit with status 3 if the mesh has a validity defect or an inverted or degenerate hex");
     cmd->callback([args] {
+        std::vector<std::string> outputs;
+        if (!args->reportPath.empty()) outputs.push_back(args->reportPath);
+        if (!args->annotated.empty()) {
+            io::formatFromPath(args->annotated);
+            outputs.push_back(args->annotated);
+        }
+        checkOutputPaths(outputs, {args->mesh}, args->force);
         const HexMesh mesh = io::read(args->mesh);
         const HexQuality q = computeQuality(mesh);
         const QualitySummary s = summarize(mesh, q);

@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "Commands.hpp"
+#include "Jobs.hpp"
 #include "Progress.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
@@ -32,6 +33,7 @@ void addSmoothCommand(CLI::App& app) {
     cmd->callback([a] {
         applyThreads(a->threads);
         io::formatFromPath(a->output);
+        checkOutputPaths({a->output}, {a->input}, a->force);
         HexMesh mesh = io::read(a->input);
         classifyBoundaryNodes(mesh);
         const QualitySummary before = summarize(mesh, computeQuality(mesh));

@@ -342,6 +342,63 @@ class FailurePaths(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(outdir, "tet.vtu")))
         self.assertFalse(os.path.exists(os.path.join(outdir, "short.vtu")))
 
+    def test_every_command_checks_its_outputs_before_working_and_never_writes_over_an_input(self):
+        # compare wrote two variant meshes and then stopped on an existing
+        # third; quality wrote its report and then refused the mesh; --report
+        # could name the input (replaced by JSON); two inputs of one name
+        # under --out-dir wrote one file, the second run's.
+        d = os.path.join(self.dir, "outs_all")
+        os.makedirs(d, exist_ok=True)
+        src = os.path.join(self.dir, "sphere.nii.gz")
+        mesh = os.path.join(d, "m.vtu")
+        run(["mesh", src, "--size", "4", "-o", mesh, "-q", "--force"])
+        with open(mesh, "rb") as f:
+            original = f.read()
+        existing = os.path.join(d, "old.json")
+        with open(existing, "w") as f:
+            f.write("keep")
+        new = os.path.join(d, "new.vtu")
+        pdir = os.path.join(d, "variants")
+        os.makedirs(pdir, exist_ok=True)
+        with open(os.path.join(pdir, "variant_c.vtu"), "w") as f:
+            f.write("keep")
+        cases = [
+            (["quality", mesh, "--report", mesh, "--force"], "is the input"),
+            (["quality", mesh, "--report", existing, "-o", new], "file exists"),
+            (["quality", mesh, "-o", os.path.join(d, "nope", "a.vtu")], "does not exist"),
+            (["smooth", mesh, "-o", mesh, "--force"], "is the input"),
+            (["convert", mesh, os.path.join(d, ".", "m.vtu"), "--force"], "is the input"),
+            (["mesh", src, "--size", "4", "-o", new, "--report", src, "--force"], "is the input"),
+            (["compare", src, "--size", "4", "--mesh-dir", pdir, "--json", os.path.join(d, "c.json")], "file exists"),
+            (["compare", src, "--size", "4", "--json", os.path.join(d, "nope", "c.json")], "does not exist"),
+            (["insert-sheet", "--mesh", mesh, "--surface", os.path.join(SHARED_DATA, "sphere966.off"), "-o", mesh,
+              "--force"], "is the input"),
+        ]
+        for args, message in cases:
+            p = run([*args, "-q"] if args[0] in ("mesh", "compare", "smooth", "insert-sheet") else args, check=False)
+            self.assertEqual(p.returncode, 1, (args, p.stderr))
+            self.assertIn(message, p.stderr, args)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertFalse(os.path.exists(new), args)
+            self.assertFalse(os.path.exists(os.path.join(d, "c.json")), args)
+            self.assertEqual(sorted(os.listdir(pdir)), ["variant_c.vtu"], args)
+        with open(mesh, "rb") as f:
+            self.assertEqual(f.read(), original)
+        with open(existing) as f:
+            self.assertEqual(f.read(), "keep")
+        with open(src, "rb") as f:
+            self.assertEqual(f.read(2), b"\x1f\x8b")  # still the gzip scan
+        # two inputs of one name into one --out-dir
+        other = os.path.join(d, "elsewhere")
+        os.makedirs(other, exist_ok=True)
+        shutil.copyfile(src, os.path.join(other, "sphere.nii.gz"))
+        out = os.path.join(d, "both")
+        p = run(["mesh", src, os.path.join(other, "sphere.nii.gz"), "--size", "4", "--out-dir", out, "--force", "-q"],
+                check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("would both write", p.stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "sphere.vtu")))
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)
