@@ -101,6 +101,14 @@ HexMesh read(const std::string& path) {
     detail::requireReadableFile(path);
     HexMesh mesh = format == Format::Vtu ? detail::readVtu(path) : detail::readMsh(path);
     mesh.checkConsistent(path);
+    // Surfaces are named by material pairs, and a pair's negative side means
+    // the outside: a negative material id would be taken for it (interfaces
+    // written as boundaries, duplicate surface names).
+    for (std::size_t h = 0; h < mesh.material.size(); ++h)
+        if (mesh.material[h] < 0)
+            throw Error(path + ": hex " + std::to_string(h) + " has material id " + std::to_string(mesh.material[h]) +
+                        "; isohex needs material ids of 0 or more (negative ids mean the outside). Renumber the "
+                        "materials and retry.");
     return mesh;
 }
 

@@ -169,5 +169,26 @@ class SmoothCommand(unittest.TestCase):
         self.assertFalse(os.path.exists(bad_out))
 
 
+    def test_negative_material_ids_are_refused_on_reading(self):
+        # A negative material id was taken for the outside: interfaces were
+        # written as boundary surfaces with duplicate names (a CalculiX
+        # pressure on one loaded internal faces).
+        import meshio
+        import numpy as np
+        d = workdir("negative_material")
+        m = meshio.read(SAMPLE)
+        hexes = m.cells_dict["hexahedron"]
+        mat = np.where(np.arange(len(hexes)) % 2 == 0, -3, 2).astype(np.int32)
+        bad = os.path.join(d, "negative.vtu")
+        meshio.write(bad, meshio.Mesh(m.points, [("hexahedron", hexes)], cell_data={"material": [mat]}))
+        for args in (["convert", bad, os.path.join(d, "n.exo")], ["quality", bad],
+                     ["smooth", bad, "-o", os.path.join(d, "n.vtu")]):
+            p = run(args, check=False)
+            self.assertEqual(p.returncode, 1, (args, p.stderr))
+            self.assertIn("negative.vtu: hex 0 has material id -3", p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertEqual(os.listdir(d), ["negative.vtu"])
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
