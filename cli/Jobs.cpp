@@ -11,6 +11,7 @@
 #include "Report.hpp"
 #include "Svg.hpp"
 #include "Versions.hpp"
+#include "isohex/core/AtomicFile.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
@@ -101,11 +102,24 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     // so a failed job leaves none of its outputs behind (files it replaced
     // under --force are gone either way).
     std::size_t written = 0;
+    // and if the process is interrupted meanwhile, the signal handler
+    // removes them (the files a job creates, never ones it replaces)
+    std::vector<int> onSignal;
+    struct Release {
+        std::vector<int>& handles;
+        ~Release() {
+            for (int h : handles) io::releaseOnSignal(h);
+        }
+    } release{onSignal};
+    auto track = [&](std::size_t i) {
+        if (!existed[i]) onSignal.push_back(io::removeOnSignal(files[i]));
+    };
     try {
         for (const auto& o : job.outputs) {
             const auto t = std::chrono::steady_clock::now();
             sink.begin("write");
             io::write(out.mesh, o, w);
+            track(written);
             ++written;
             sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
         }
@@ -120,6 +134,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
             writeHistogramSvg(job.plot, args.force, "Scaled Jacobian of " + stemOf(job.input),
                               {{out.report["pillow"].value("enabled", false) ? "with fundamental sheet" : "without sheet",
                                 s.histogram, s.degenerate}});
+            track(written);
             ++written;
         }
         if (!job.report.empty()) writeJsonFile(report, job.report, args.force);

@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "Commands.hpp"
+#include "isohex/core/AtomicFile.hpp"
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
 
@@ -51,6 +52,7 @@ void restartWithHugePages(char** argv) {
 int main(int argc, char** argv) {
     using namespace isohex::cli;
     restartWithHugePages(argv);
+    isohex::io::removeTemporariesOnSignal();  // an interrupted write leaves no hidden temporary
     CLI::App app{"isohex: turns volumetric scans into all-hexahedral finite-element meshes\n"
                  "whose every element is convex with positive volume, and reports their quality."};
     app.set_version_flag("--version", versionText());

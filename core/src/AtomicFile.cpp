@@ -1,5 +1,8 @@
 #include "isohex/core/AtomicFile.hpp"
 
+#include <atomic>
+#include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <system_error>
@@ -11,6 +14,59 @@
 namespace isohex::io {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// Temporaries being written, for the signal handler: fixed slots (a handler
+// may not allocate or lock). A slot is free (0), being filled (1) or holds a
+// path the handler removes (2).
+constexpr int kSlots = 32;
+constexpr std::size_t kPathMax = 4096;
+char gTemporary[kSlots][kPathMax];
+std::atomic<int> gState[kSlots];
+
+int claimSlot(const std::string& path) {
+    if (path.size() >= kPathMax) return -1;
+    for (int i = 0; i < kSlots; ++i) {
+        int expected = 0;
+        if (gState[i].compare_exchange_strong(expected, 1)) {
+            std::memcpy(gTemporary[i], path.c_str(), path.size() + 1);
+            gState[i].store(2);
+            return i;
+        }
+    }
+    return -1;  // more writes at once than slots: that one is not cleaned up
+}
+
+void releaseSlot(int i) {
+    if (i >= 0) gState[i].store(0);
+}
+
+extern "C" void removeTemporariesAndExit(int sig) {
+    for (int i = 0; i < kSlots; ++i)
+        if (gState[i].load() == 2) ::unlink(gTemporary[i]);
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+}
+
+}  // namespace
+
+int removeOnSignal(const std::string& path) {
+    std::error_code ec;
+    return claimSlot(fs::absolute(fs::path(path), ec).string());
+}
+
+void releaseOnSignal(int handle) { releaseSlot(handle); }
+
+void removeTemporariesOnSignal() {
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+        struct sigaction sa {};
+        sa.sa_handler = removeTemporariesAndExit;
+        sigemptyset(&sa.sa_mask);
+        sa.sa_flags = SA_RESETHAND;
+        sigaction(sig, &sa, nullptr);
+    }
+}
 
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string&)>& produce) {
@@ -28,15 +84,20 @@ void writeAtomically(const std::string& path, bool overwrite,
     const std::string tmpName = "." + target.stem().string() + ".tmp" + std::to_string(::getpid()) + "_" +
                                 std::to_string(rd() % 1000000) + target.extension().string();
     const fs::path tmp = dir / tmpName;
+    const int slot = claimSlot(fs::absolute(tmp, ec).string());
     try {
         produce(tmp.string());
     } catch (...) {
         fs::remove(tmp, ec);
+        releaseSlot(slot);
         throw;
     }
-    if (!fs::exists(tmp, ec))
+    if (!fs::exists(tmp, ec)) {
+        releaseSlot(slot);
         throw Error(path + ": the writer produced no file");
+    }
     fs::rename(tmp, target, ec);
+    releaseSlot(slot);
     if (ec) {
         fs::remove(tmp, ec);
         throw Error(path + ": could not move the finished file into place: " + ec.message());

@@ -399,6 +399,31 @@ class FailurePaths(unittest.TestCase):
         self.assertIn("would both write", p.stderr)
         self.assertFalse(os.path.exists(os.path.join(out, "sphere.vtu")))
 
+    def test_an_interrupted_job_leaves_no_output_and_no_temporary(self):
+        # SIGINT while the second of three outputs was being written left the
+        # first output and a hidden .<name>.tmp<pid>_<n> file behind, and a
+        # rerun without --force then refused the output it found.
+        import signal
+        import time
+        d = os.path.join(self.dir, "interrupt")
+        os.makedirs(d, exist_ok=True)
+        outs = [os.path.join(d, "big" + e) for e in (".exo", ".msh", ".inp")]
+        args = [ISOHEX, "mesh", os.path.join(self.dir, "sphere.nii.gz"), "--size", "0.5", "--no-optimize", "-q"]
+        for o in outs:
+            args += ["-o", o]
+        p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        while not os.path.exists(outs[0]) and p.poll() is None:
+            time.sleep(0.002)
+        self.assertIsNone(p.poll(), "finished before the first output appeared: nothing to interrupt")
+        p.send_signal(signal.SIGINT)
+        p.communicate()
+        self.assertEqual(p.returncode, -signal.SIGINT)
+        self.assertEqual(os.listdir(d), [])
+        # the same job then runs without --force
+        q = subprocess.run(args, capture_output=True, text=True)
+        self.assertEqual(q.returncode, 0, q.stderr)
+        self.assertEqual(sorted(os.listdir(d)), sorted(os.path.basename(o) for o in outs))
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)

@@ -13,4 +13,16 @@ namespace isohex::io {
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string& tmpPath)>& produce);
 
+// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the temporary
+// files of writes in progress, then let the signal end the process as it
+// would have (for programs: call once at start-up).
+void removeTemporariesOnSignal();
+
+// A finished file the signal handler also removes until released: the
+// outputs a job has written while its later ones are still being made, so an
+// interrupted job leaves none of them (a rerun redoes it instead of refusing
+// the files it left). Returns a handle for releaseOnSignal (-1: not tracked).
+int removeOnSignal(const std::string& path);
+void releaseOnSignal(int handle);
+
 }  // namespace isohex::io
