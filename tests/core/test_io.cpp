@@ -143,10 +143,20 @@ TEST_F(IoTest, MshRoundTripKeepsGeometryConnectivityAndMaterials) {
     expectSameGeometryAndMaterials(mesh, back);
 }
 
-TEST_F(IoTest, MshRoundTripKeepsMaterialZeroAndNegative) {
-    const HexMesh mesh = iotest::makeTwoMaterialBlock(2, 2, 2, 1.0, 0, -3);
+TEST_F(IoTest, MshRoundTripKeepsMaterialZeroAndRefusesNegativeOnReading) {
+    const HexMesh mesh = iotest::makeTwoMaterialBlock(2, 2, 2, 1.0, 0, 3);
     io::write(mesh, file("z.msh"));
     expectSameGeometryAndMaterials(mesh, io::read(file("z.msh")));
+    // A negative id would be taken for the outside by the surface naming
+    // (SurfaceTag::outside < 0), so reading refuses it with a clear error.
+    io::write(iotest::makeTwoMaterialBlock(2, 2, 2, 1.0, 0, -3), file("n.msh"));
+    try {
+        io::read(file("n.msh"));
+        FAIL() << "a negative material id was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("material id -3"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("n.msh"), std::string::npos) << e.what();
+    }
 }
 
 TEST_F(IoTest, MshNamesMaterialAndSurfaceGroups) {
