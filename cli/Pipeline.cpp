@@ -602,16 +602,19 @@ Vec3 hexCentre(const HexMesh& mesh, Index h) {
 // The warning for hexes still inverted at the end (none: no warning);
 // returns its text (empty when none) for the report.
 std::string warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector<Index>& left,
-                         std::size_t afterUntangling, const std::string& more, bool fixedBoundary) {
+                         std::size_t afterUntangling, const std::string& more, bool fixedBoundary,
+                         bool byCompare = false) {
     if (left.empty()) return {};
     const Vec3 c = hexCentre(mesh, left.front());
     std::string msg = std::to_string(left.size()) + " hex(es) stay inverted after optimisation";
     if (left.size() != afterUntangling) msg += " (" + std::to_string(afterUntangling) + " after untangling)";
     msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")" +
            more +
-           (fixedBoundary ? "; --fix-boundary keeps every surface node where extraction put it, and hexes on a folded "
-                            "surface can only be untangled by moving those: drop it, or try another --size"
-                          : "; another --size may avoid them");
+           (!fixedBoundary ? "; another --size may avoid them"
+            : byCompare ? "; compare keeps every surface node where extraction put it (the seed's protocol), and hexes "
+                          "on a folded surface can only be untangled by moving those: --move-boundary lets them move"
+                        : "; --fix-boundary keeps every surface node where extraction put it, and hexes on a folded "
+                          "surface can only be untangled by moving those: drop it, or try another --size");
     sink.note("warning", msg);
     return msg;
 }
@@ -1067,7 +1070,8 @@ nlohmann::json optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     // (runMeshPipeline counts and warns itself, after its retries.)
     j["inverted_after_untangling"] = r.untangleFailures.size();
     if (warnLeftInverted && !r.untangleFailures.empty())
-        warnInverted(sink, mesh, invertedHexes(mesh), r.untangleFailures.size(), "", settings.fixBoundary);
+        warnInverted(sink, mesh, invertedHexes(mesh), r.untangleFailures.size(), "", settings.fixBoundary,
+                     settings.fixBoundaryByCompare);
     st.finish();
     return j;
 }

@@ -45,6 +45,8 @@ struct MeshSettings {
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     bool fixBoundary = false;
+    // compare fixes the boundary unless --move-boundary (its warnings say so)
+    bool fixBoundaryByCompare = false;
     bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
     double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
     // How far (voxels) the max-min pass may leave a surface node off its

@@ -121,6 +121,7 @@ void addCompareCommand(CLI::App& app) {
                         " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
                         "one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;
+        s.fixBoundaryByCompare = s.fixBoundary;
         {
             // every output before the four meshings (the variant meshes too)
             std::vector<std::string> outputs;

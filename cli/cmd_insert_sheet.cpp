@@ -34,7 +34,7 @@ void addInsertSheetCommand(CLI::App& app) {
     auto a = std::make_shared<InsertSheetArgs>();
     CLI::App* cmd = app.add_subcommand(
         "insert-sheet", "Insert two hex sheets along closed triangle surfaces into a hex mesh (seed 5.4, chapter 6)");
-    cmd->add_option("--mesh", a->mesh, "Hex mesh to cut (.vtu .msh .exo .inp .mesh)")->required();
+    cmd->add_option("--mesh", a->mesh, "Hex mesh to cut (.vtu .msh)")->required();
     cmd->add_option("--surface", a->surfaces,
                     "Closed triangle surface (.stl .obj .ply .off); repeat to insert several in turn")
         ->required();

@@ -328,6 +328,9 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
                         " is out of range; the file holds " + what.str() + ", so use 0.." +
                         std::to_string(choices - 1) + ".");
         }
+    } else if (options.volumeIndex > 0) {
+        throw Error(file + ": volume index " + std::to_string(options.volumeIndex) +
+                    " does not exist: the file holds one scalar volume (index 0). Leave the option out.");
     }
     checkMemoryBudget(file, header, options.maxMemoryMB);
     {

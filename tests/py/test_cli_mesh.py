@@ -128,6 +128,17 @@ class Phantoms(unittest.TestCase):
         for key in "abcd":
             self.assertIn(f"{key}: ", text)
 
+    def test_compare_warnings_name_its_own_option(self):
+        # compare fixes the boundary unless --move-boundary; its warnings told
+        # the user to drop --fix-boundary, an option they never passed.
+        p = run(["compare", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), "--iso", "2.9", "--size", "6", "--json",
+                 os.path.join(self.dir, "skull_cmp.json"), "--force"])
+        left = [line for line in p.stderr.splitlines() if "stay inverted" in line]
+        self.assertGreater(len(left), 0)  # the case this test is about
+        for line in left:
+            self.assertIn("--move-boundary lets them move", line)
+            self.assertNotIn("--fix-boundary", line)
+
 
 def off_topology(path):
     """Components and Euler characteristic V - E + F of an .off surface, counted
@@ -423,6 +434,16 @@ class FailurePaths(unittest.TestCase):
         q = subprocess.run(args, capture_output=True, text=True)
         self.assertEqual(q.returncode, 0, q.stderr)
         self.assertEqual(sorted(os.listdir(d)), sorted(os.path.basename(o) for o in outs))
+
+    def test_a_volume_index_the_file_does_not_have_is_refused(self):
+        # --volume-index 5 on a 3-D scan was silently ignored (volume 0 meshed)
+        out = os.path.join(self.dir, "vi.vtu")
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--volume-index", "5", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("sphere.nii.gz: volume index 5 does not exist", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--volume-index", "0", "--size", "4", "-o", out, "-q"])
+        self.assertTrue(os.path.exists(out))
 
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
