@@ -65,6 +65,9 @@ void addQualityCommand(CLI::App& app) {
                             {"edge_ratio", q.edgeRatio},
                             {"volume", q.volume}};
             io::write(mesh, args->annotated, w);
+            if (io::formatFromPath(args->annotated) != io::Format::Vtu)
+                std::cerr << "isohex: note: " << args->annotated
+                          << ": the per-hex quality fields are written to .vtu files only; this file holds the mesh\n";
         }
         if (args->json) std::cout << j.dump(2) << "\n";
         else std::cout << args->mesh << "\n" << formatQuality(s, v);

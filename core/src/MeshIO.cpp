@@ -101,6 +101,9 @@ HexMesh read(const std::string& path) {
     detail::requireReadableFile(path);
     HexMesh mesh = format == Format::Vtu ? detail::readVtu(path) : detail::readMsh(path);
     mesh.checkConsistent(path);
+    if (mesh.hexCount() == 0)
+        throw Error(path + ": the mesh holds no hexahedra, so there is nothing to judge, smooth or convert; check "
+                           "that this is the right file");
     // Surfaces are named by material pairs, and a pair's negative side means
     // the outside: a negative material id would be taken for it (interfaces
     // written as boundaries, duplicate surface names).

@@ -190,5 +190,32 @@ class SmoothCommand(unittest.TestCase):
         self.assertEqual(os.listdir(d), ["negative.vtu"])
 
 
+    def test_a_mesh_without_hexes_is_an_error_and_other_formats_say_they_drop_the_fields(self):
+        # quality judged a file of one point and no cells (exit 0, "unused
+        # node"); -o x.msh silently left out the per-hex quality fields.
+        import vtk
+        d = workdir("nohex")
+        g = vtk.vtkUnstructuredGrid()
+        pts = vtk.vtkPoints()
+        pts.InsertNextPoint(0, 0, 0)
+        g.SetPoints(pts)
+        empty = os.path.join(d, "nohex.vtu")
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        w.SetFileName(empty)
+        w.SetInputData(g)
+        w.Write()
+        for args in (["quality", empty], ["convert", empty, os.path.join(d, "x.msh")],
+                     ["smooth", empty, "-o", os.path.join(d, "y.vtu")]):
+            p = run(args, check=False)
+            self.assertEqual(p.returncode, 1, (args, p.stderr))
+            self.assertIn("nohex.vtu: the mesh holds no hexahedra", p.stderr)
+        out = os.path.join(d, "annotated.msh")
+        p = run(["quality", SAMPLE, "-o", out])
+        self.assertIn("annotated.msh: the per-hex quality fields are written to .vtu files only", p.stderr)
+        self.assertTrue(os.path.exists(out))
+        p = run(["quality", SAMPLE, "-o", os.path.join(d, "annotated.vtu")])
+        self.assertNotIn("written to .vtu files only", p.stderr)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)
