@@ -39,7 +39,8 @@ void addSmoothCommand(CLI::App& app) {
         checkOutputPaths({a->output}, {a->input}, a->force);
         HexMesh mesh = io::read(a->input);
         classifyBoundaryNodes(mesh);
-        const QualitySummary before = summarize(mesh, computeQuality(mesh));
+        const HexQuality qBefore = computeQuality(mesh);
+        const QualitySummary before = summarize(mesh, qBefore);
         if (2 * before.inverted > mesh.hexCount())
             throw Error(a->input + ": " + std::to_string(before.inverted) + " of " + std::to_string(mesh.hexCount()) +
                         " hexes are inverted, so the corner order is probably mirrored: isohex reads VTK's hexahedron "
@@ -57,7 +58,8 @@ void addSmoothCommand(CLI::App& app) {
         // pass after them, as isohex mesh runs it, with the boundary fixed.
         smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{});
         sink.end("optimize", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        QualitySummary after = summarize(mesh, computeQuality(mesh));
+        HexQuality q = computeQuality(mesh);
+        QualitySummary after = summarize(mesh, q);
         // Never hand back a worse mesh: fewer inverted hexes, or as many and a
         // minimum no lower, or the input's positions stay.
         const bool worse = after.inverted > before.inverted ||
@@ -69,9 +71,9 @@ void addSmoothCommand(CLI::App& app) {
                                      std::to_string(before.inverted) + " -> " + std::to_string(after.inverted) +
                                      "); the input's node positions are written unchanged");
             mesh.nodes = original;
+            q = qBefore;
+            after = before;
         }
-        const HexQuality q = computeQuality(mesh);
-        after = summarize(mesh, q);
         if (after.inverted > 0) {
             sink.note("warning", std::to_string(after.inverted) + " of " + std::to_string(mesh.hexCount()) +
                                      " hexes stay inverted; the boundary nodes are fixed, so hexes folded at the "

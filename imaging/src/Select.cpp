@@ -182,8 +182,7 @@ Selection selectLabels(const Volume& vol, const SelectOptions& o) {
     // repair then spends minutes and fails, or the mesh is hundreds of
     // specks. Refuse it up front. In a segmentation only voxels on a label's
     // boundary differ from a neighbour (the JHU atlas: 5.5% of pairs, ch2bet
-    // 88%);
-    // the threshold leaves room for labels a few voxels wide.
+    // 88%); the threshold leaves room for labels a few voxels wide.
     if (all.pairs >= 1000 && 2 * all.differing > all.pairs) {
         std::ostringstream m;
         m << src << ": this does not look like a label map: " << (stats.size() - stats.count(0))

@@ -382,6 +382,30 @@ def run_ccx(folder, job):
         return f.read()
 
 
+def compression_deck(include, pos, o, side, strain, materials, stresses):
+    """A CalculiX deck that includes the mesh `include` (node positions `pos`,
+    the block's corner at (o, o, o)) and compresses it by `strain` in z:
+    bottom fixed in z, two corner nodes holding it in x and y."""
+    def where(sel):
+        return [int(i) for i in np.where(sel)[0]]
+    # No *HEADING here: the included mesh has one and CalculiX allows only one per deck.
+    return ("** isohex io test: uniaxial compression of " + include + "\n*INCLUDE, INPUT=" + include + "\n" +
+            materials + write_nset("BOTTOM", where(np.abs(pos[:, 2] - o) < 1e-9)) +
+            write_nset("TOP", where(np.abs(pos[:, 2] - side - o) < 1e-9)) +
+            write_nset("PA", where(np.all(np.abs(pos - [o, o, o]) < 1e-9, axis=1))) +
+            write_nset("PB", where(np.all(np.abs(pos - [side + o, o, o]) < 1e-9, axis=1))) +
+            "*BOUNDARY\nBOTTOM, 3, 3, 0.\nPA, 1, 2, 0.\nPB, 2, 2, 0.\n"
+            "*STEP\n*STATIC\n*BOUNDARY\nTOP, 3, 3, %g\n" % (strain * side) +
+            "*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n" + ("*EL PRINT, ELSET=MAT_1\nS\n" if stresses else "") +
+            "*END STEP\n")
+
+
+def top_reaction(dat):
+    """The z reaction force summed over the TOP node set in a CalculiX .dat, or None."""
+    m = re.search(r"total force \(fx,fy,fz\) for set TOP.*?\n\s*\n\s*(\S+)\s+(\S+)\s+(\S+)", dat, re.S)
+    return float(m.group(3)) if m else None
+
+
 def test_calculix():
     folder = tempfile.mkdtemp(prefix="isohex_ccx_")
     truth = make_meshes(folder, [4, 4, 4, 1.0])
@@ -397,23 +421,13 @@ def test_calculix():
 
     # 1) Uniaxial compression: bottom fixed in z, top pushed down by 0.25% strain.
     strain = -0.0025
-    bottom = [int(i) for i in np.where(np.abs(x[:, 2]) < 1e-9)[0]]
-    top = [int(i) for i in np.where(np.abs(x[:, 2] - side) < 1e-9)[0]]
-    # No *HEADING here: the included mesh has one and CalculiX allows only one per deck.
-    deck = ("** isohex io test: uniaxial compression\n*INCLUDE, INPUT=block.inp\n" + materials +
-            write_nset("BOTTOM", bottom) + write_nset("TOP", top) + write_nset("PA", at(0, 0, 0)) +
-            write_nset("PB", at(side, 0, 0)) +
-            "*BOUNDARY\nBOTTOM, 3, 3, 0.\nPA, 1, 2, 0.\nPB, 2, 2, 0.\n"
-            "*STEP\n*STATIC\n*BOUNDARY\nTOP, 3, 3, %g\n" % (strain * side) +
-            "*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n*EL PRINT, ELSET=MAT_1\nS\n*END STEP\n")
     with open(os.path.join(folder, "compress.inp"), "w") as f:
-        f.write(deck)
+        f.write(compression_deck("block.inp", x, 0.0, side, strain, materials, stresses=True))
     dat = run_ccx(folder, "compress")
     if dat is not None:
-        m = re.search(r"total force \(fx,fy,fz\) for set TOP.*?\n\s*\n\s*(\S+)\s+(\S+)\s+(\S+)", dat, re.S)
+        fz = top_reaction(dat)
         expected = E * strain * side * side  # -40 N
-        if check(m is not None, "calculix compression: total reaction force at the top face printed"):
-            fz = float(m.group(3))
+        if check(fz is not None, "calculix compression: total reaction force at the top face printed"):
             check(fz < 0, f"calculix compression: reaction force is compressive (Fz = {fz:.4g} N)")
             check(abs(fz - expected) <= 0.01 * abs(expected),
                   f"calculix compression: |Fz| = E*strain*area = {abs(expected):.4g} N within 1% (got {fz:.6g})")
@@ -460,23 +474,13 @@ def test_calculix():
         node_lines = text.split("*NODE\n")[1].split("*")[0].strip().splitlines()
         longest = max(len(field.strip()) for line in node_lines for field in line.split(","))
         check(longest <= 20, f"calculix near-zero coordinates: every *NODE field at most 20 characters ({longest})")
-        xs = x + shift
-        near = lambda sel: [int(i) for i in np.where(sel)[0]]
-        deck = ("** isohex io test: compression of the shifted block\n*INCLUDE, INPUT=shifted.inp\n" + materials +
-                write_nset("BOTTOM", near(np.abs(xs[:, 2] - shift) < 1e-9)) +
-                write_nset("TOP", near(np.abs(xs[:, 2] - side - shift) < 1e-9)) +
-                write_nset("PA", near(np.all(np.abs(xs - shift) < 1e-9, axis=1))) +
-                write_nset("PB", near(np.all(np.abs(xs - [side + shift, shift, shift]) < 1e-9, axis=1))) +
-                "*BOUNDARY\nBOTTOM, 3, 3, 0.\nPA, 1, 2, 0.\nPB, 2, 2, 0.\n"
-                "*STEP\n*STATIC\n*BOUNDARY\nTOP, 3, 3, %g\n" % (strain * side) +
-                "*NODE PRINT, NSET=TOP, TOTALS=ONLY\nRF\n*END STEP\n")
         with open(os.path.join(folder, "shifted_run.inp"), "w") as f:
-            f.write(deck)
+            f.write(compression_deck("shifted.inp", x + shift, shift, side, strain, materials, stresses=False))
         dat = run_ccx(folder, "shifted_run")
         if dat is not None:
-            m = re.search(r"total force \(fx,fy,fz\) for set TOP.*?\n\s*\n\s*(\S+)\s+(\S+)\s+(\S+)", dat, re.S)
+            fz = top_reaction(dat)
             expected = E * strain * side * side
-            check(m is not None and abs(float(m.group(3)) - expected) <= 0.01 * abs(expected),
+            check(fz is not None and abs(fz - expected) <= 0.01 * abs(expected),
                   f"calculix near-zero coordinates: reaction force {expected:.4g} N within 1%")
     shutil.rmtree(folder, ignore_errors=True)
 
