@@ -156,19 +156,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     r.seconds = timings["total"];
     if (!v.ok()) {
         // one readable line; the report's validity block has every example
-        std::string m = "validity defects:";
-        bool first = true;
-        for (const auto& [key, d] : v.defects) {
-            m += std::string(first ? " " : "; ") + key + " x" + std::to_string(d.count) + " (" + d.description;
-            if (!d.where.empty()) {
-                char at[96];
-                std::snprintf(at, sizeof at, ", first at (%.4g, %.4g, %.4g)", d.where[0][0], d.where[0][1],
-                              d.where[0][2]);
-                m += at;
-            }
-            m += ")";
-            first = false;
-        }
+        const std::string m = describeDefects(v);
         r.message = m + (job.report.empty() ? "" : "; every example in the report's validity block");
     }
     return r;

@@ -40,7 +40,14 @@ std::string statsLine(const char* name, const Stats& s) {
 std::string formatQuality(const QualitySummary& q, const ValidityReport& v) {
     std::ostringstream o;
     o << "hexes " << q.hexes << ", nodes " << q.nodes << "\n";
-    o << statsLine("scaled Jacobian", q.scaledJacobian);
+    std::string sj = statsLine("scaled Jacobian", q.scaledJacobian);
+    // A degenerate hex (a zero-length edge at a corner) has no scaled
+    // Jacobian (VTK gives it 1e30); the statistics leave it out, so say so
+    // next to them rather than let a minimum of 1 read as a perfect mesh.
+    if (q.degenerate > 0 && q.scaledJacobian.count > 0)
+        sj.insert(sj.size() - 1, "  (of the " + std::to_string(q.scaledJacobian.count) +
+                                     " hexes that are not degenerate)");
+    o << sj;
     o << "  below 0.2: " << q.below02 << "   inverted (< 0): " << q.inverted << "   degenerate: " << q.degenerate
       << "\n";
     o << "  histogram:";
@@ -74,6 +81,22 @@ std::string formatQuality(const QualitySummary& q, const ValidityReport& v) {
         }
     }
     return o.str();
+}
+
+std::string describeDefects(const ValidityReport& v) {
+    std::string m = "validity defects:";
+    bool first = true;
+    for (const auto& [key, d] : v.defects) {
+        m += std::string(first ? " " : "; ") + key + " x" + std::to_string(d.count) + " (" + d.description;
+        if (!d.where.empty()) {
+            char at[96];
+            std::snprintf(at, sizeof at, ", first at (%.4g, %.4g, %.4g)", d.where[0][0], d.where[0][1], d.where[0][2]);
+            m += at;
+        }
+        m += ")";
+        first = false;
+    }
+    return m;
 }
 
 void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwrite) {

@@ -15,6 +15,9 @@ double peakMemoryMb();
 bool hugePagesRequested();
 // Human-readable quality and validity summary for a terminal.
 std::string formatQuality(const QualitySummary& q, const ValidityReport& v);
+// The defects of v on one readable line: "validity defects: inverted_hex x1
+// (description, first at (x, y, z)); ..." (the JSON has every example).
+std::string describeDefects(const ValidityReport& v);
 // Writes JSON text to `path` atomically (refusing to clobber unless overwrite).
 void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwrite);
 

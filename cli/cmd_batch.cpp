@@ -350,6 +350,7 @@ struct CsvState {
     std::size_t line = 1;            // line being fed to the parser
     std::vector<std::string> cells;  // fields of the record being read
     std::size_t recordLine = 0;      // line of its first field
+    std::size_t lastEnd = 0;         // line on which the last record ended (0: none yet)
     std::vector<std::pair<std::size_t, std::vector<std::string>>> records;
 };
 
@@ -364,6 +365,7 @@ void csvRecord(int, void* user) {
     const bool blank = std::all_of(st->cells.begin(), st->cells.end(), [](const std::string& c) { return c.empty(); });
     if (!st->cells.empty() && !blank) st->records.emplace_back(st->recordLine, std::move(st->cells));
     st->cells.clear();
+    st->lastEnd = st->line;
 }
 
 std::vector<Row> readCsv(const std::string& file) {
@@ -385,9 +387,26 @@ std::vector<Row> readCsv(const std::string& file) {
         pos += len;
         if (nl != std::string::npos) ++st.line;
     }
-    if (csv_fini(&p, csvField, csvRecord, &st) != 0)
-        fail(file, st.recordLine,
+    // The open record's line: that of its first field if one was read, else
+    // (the quote opens its first field) the first non-blank line after the
+    // last record's end.
+    std::size_t openLine = st.recordLine;
+    const bool fieldsRead = !st.cells.empty();
+    if (csv_fini(&p, csvField, csvRecord, &st) != 0) {
+        if (!fieldsRead) {
+            std::size_t line = 1, start = 0;
+            openLine = st.lastEnd + 1;
+            for (; start < text.size() && line <= st.lastEnd; ++line) start = text.find('\n', start) + 1;
+            while (start < text.size()) {
+                const std::size_t end = std::min(text.find('\n', start), text.size());
+                if (text.find_first_not_of(" \t\r", start) < end) break;
+                start = end + 1;
+                ++openLine;
+            }
+        }
+        fail(file, openLine,
              "malformed CSV (" + std::string(csv_strerror(csv_error(&p))) + "): a quoted field is not closed");
+    }
     if (st.records.empty()) fail(file, 0, "empty manifest: expected a header row such as 'input,output,size'");
     const auto& [headerLine, header] = st.records.front();
     std::vector<const Column*> cols;

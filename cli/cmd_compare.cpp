@@ -4,6 +4,7 @@
 //   b  the fundamental sheet pillowed in
 //   c  no sheet, random sheets diced in until the element count matches b
 //   d  the fundamental sheet, random other sheets extracted until the count matches a
+#include <charconv>
 #include <chrono>
 #include <filesystem>
 #include <cstdio>
@@ -103,7 +104,16 @@ void addCompareCommand(CLI::App& app) {
     cmd->add_option("--json", c->json, "Write the comparison as JSON here");
     cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian per variant here");
     cmd->add_option("--mesh-dir", c->meshDir, "Also write each variant's mesh (variant_a.vtu ...) into this folder");
-    cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)");
+    cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)")
+        ->check(CLI::Validator(
+            [](const std::string& v) {
+                std::uint64_t n = 0;
+                const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+                return !v.empty() && ec == std::errc() && end == v.data() + v.size()
+                           ? std::string()
+                           : "--seed takes a whole number from 0 to 18446744073709551615 (got '" + v + "')";
+            },
+            "", "whole number"));
     cmd->add_flag("--move-boundary", c->moveBoundary,
                   "Let surface nodes slide on the isosurface (default: fixed, the seed's protocol)");
     addMeshOptions(cmd, c->args);

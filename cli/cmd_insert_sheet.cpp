@@ -5,11 +5,13 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <iostream>
 #include <memory>
 
 #include "Commands.hpp"
 #include "Jobs.hpp"
 #include "Progress.hpp"
+#include "Report.hpp"
 #include "SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
@@ -93,13 +95,20 @@ void addInsertSheetCommand(CLI::App& app) {
         w.overwrite = a->force;
         w.scaledJacobian = q.scaledJacobian;
         io::write(mesh, a->output, w);
-        std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu inverted (%zu before smoothing), %s, %.1f s\n",
-                    a->output.c_str(), s.hexes, s.scaledJacobian.min, s.scaledJacobian.mean, s.inverted,
-                    invertedBefore, v.ok() ? "valid" : "validity defects",
+        // Without the optimiser the hexes are as inserted: there is no
+        // "before smoothing" to compare with.
+        const std::string inverted =
+            a->optimize ? std::to_string(s.inverted) + " inverted (" + std::to_string(invertedBefore) + " before smoothing)"
+                        : std::to_string(s.inverted) + " inverted (not smoothed: --no-optimize)";
+        std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %s, %s, %.1f s\n", a->output.c_str(), s.hexes,
+                    s.scaledJacobian.min, s.scaledJacobian.mean, inverted.c_str(), v.ok() ? "valid" : "validity defects",
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         (void)invertedAfter;
         std::printf("wrote %s\n", a->output.c_str());
-        if (!v.ok()) std::printf("warning: validity defects: %s\n", toJson(v)["defects"].dump().c_str());
+        if (!v.ok())
+            std::cerr << "isohex: warning: " << a->output << ": " << describeDefects(v)
+                      << (a->optimize ? "" : "; run without --no-optimize to untangle them")
+                      << "; isohex quality " << a->output << " lists them\n";
     });
 }
 

@@ -23,12 +23,16 @@ struct QualityArgs {
     std::string reportPath;
     std::string annotated;
     bool force = false;
+    int threads = 0;
 };
 }  // namespace
 
 void addQualityCommand(CLI::App& app) {
     auto args = std::make_shared<QualityArgs>();
-    CLI::App* cmd = app.add_subcommand("quality", "Report element quality and validity of a hex mesh (.vtu, .msh)");
+    std::string formats;
+    for (const auto& e : io::readableExtensions()) formats += (formats.empty() ? "" : ", ") + e;
+    CLI::App* cmd =
+        app.add_subcommand("quality", "Report element quality and validity of a hex mesh (" + formats + ")");
     cmd->add_option("mesh", args->mesh, "Mesh file to judge")->required();
     cmd->add_flag("--json", args->json, "Print the report as JSON on stdout instead of text");
     cmd->add_option("--report", args->reportPath, "Also write the JSON report to this file");
@@ -38,7 +42,10 @@ void addQualityCommand(CLI::App& app) {
     cmd->add_flag("--force", args->force, "Overwrite existing output files");
     cmd->add_flag("--strict", args->strict,
                   "Exit with status 3 if the mesh has a validity defect or an inverted or degenerate hex");
+    cmd->add_option("--threads", args->threads, "Worker threads (default: all cores); results do not depend on it")
+        ->check(CLI::Range(1, 1024));
     cmd->callback([args] {
+        applyThreads(args->threads);
         std::vector<std::string> outputs;
         if (!args->reportPath.empty()) outputs.push_back(args->reportPath);
         if (!args->annotated.empty()) {

@@ -94,7 +94,15 @@ void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt
 }
 
 HexMesh read(const std::string& path) {
-    const Format format = formatFromPath(path);
+    Format format{};
+    try {
+        format = formatFromPath(path);
+    } catch (const Error&) {
+        // formatFromPath lists every format isohex writes; a reader wants
+        // the ones it can read.
+        std::string ext = std::filesystem::path(path).extension().string();
+        throw Error(path + ": unknown mesh file type '" + ext + "'; isohex reads " + joined(readableExtensions()));
+    }
     if (!canRead(format))
         throw Error(path + ": isohex writes this format but cannot read it; read one of " +
                     joined(readableExtensions()));

@@ -218,6 +218,10 @@ class ManifestErrors(unittest.TestCase):
                    "3 field(s)", "2 column(s)")
         self.check("quote.csv", 'input,output\na.nii.gz,x.vtu\nb.nii.gz,"y.vtu"z\n', "quote.csv:3:", "malformed CSV")
         self.check("unclosed.csv", 'input,output\na.nii.gz,"x.vtu\n', "unclosed.csv:2:", "not closed")
+        # the quote opens a record's first field after a blank line: that record's line, not the last
+        # complete record's
+        self.check("unclosedfirst.csv", 'input,output\na.nii.gz,x.vtu\n\n"b.nii.gz,y.vtu\nc.nii.gz,z.vtu\n',
+                   "unclosedfirst.csv:4:", "not closed")
         self.check("empty.csv", "", "empty.csv", "header")
         self.check("dupcol.csv", "input,output,size,Size\n", "dupcol.csv:1:", "twice")
 

@@ -445,6 +445,17 @@ class FailurePaths(unittest.TestCase):
         run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--volume-index", "0", "--size", "4", "-o", out, "-q"])
         self.assertTrue(os.path.exists(out))
 
+    def test_compare_refuses_a_seed_that_is_not_a_whole_number(self):
+        # --seed -1 was taken as 18446744073709551615 (an unsigned wrap) and 1.5 as 1
+        js = os.path.join(self.dir, "seed.json")
+        for seed in ("-1", "1.5", "99999999999999999999999"):
+            p = run(["compare", os.path.join(self.dir, "sphere.nii.gz"), "--size", "4", "--seed", seed, "--json", js,
+                     "-q"], check=False)
+            self.assertEqual(p.returncode, 2, (seed, p.stderr))
+            self.assertIn("--seed takes a whole number", p.stderr)
+            self.assertIn("(got '%s')" % seed, p.stderr)
+            self.assertFalse(os.path.exists(js))
+
     def test_unknown_output_format_fails_before_meshing(self):
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "-o", os.path.join(self.dir, "z.stp"), "-q"],
                 check=False)

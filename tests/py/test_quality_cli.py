@@ -74,6 +74,49 @@ class QualityCommand(unittest.TestCase):
             f.write("x")
         line = self.one_line_error(["quality", path], "mesh.stp")
         self.assertIn(".vtu", line)
+        self.assertIn(".msh", line)
+        # formats isohex writes but cannot read are not offered to a reader
+        self.assertNotIn(".exo", line)
+        self.assertNotIn(".inp", line)
+
+    def test_degenerate_hexes_are_named_beside_the_statistics_that_leave_them_out(self):
+        # A hex with a zero-length edge has no scaled Jacobian (VTK gives it
+        # 1e30); the statistics leave it out, so a minimum of 1 beside
+        # "degenerate: 1" read as a perfect mesh.
+        import vtk
+        from vtk.util.numpy_support import vtk_to_numpy
+        r = vtk.vtkXMLUnstructuredGridReader()
+        r.SetFileName(SAMPLE)
+        r.Update()
+        g = r.GetOutput()
+        ids = g.GetCell(0).GetPointIds()
+        g.GetPoints().SetPoint(ids.GetId(1), g.GetPoint(ids.GetId(0)))  # collapse edge 0-1
+        bad = os.path.join(self.dir, "collapsed.vtu")
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        w.SetFileName(bad)
+        w.SetInputData(g)
+        w.Write()
+        q = vtk.vtkMeshQuality()
+        q.SetInputData(g)
+        q.SetHexQualityMeasureToScaledJacobian()
+        q.Update()
+        sj = vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality"))
+        degenerate = int((sj > 1).sum())
+        self.assertGreaterEqual(degenerate, 1)
+        j = json.loads(run(["quality", bad, "--json"]).stdout)
+        self.assertEqual(j["scaled_jacobian"]["degenerate"], degenerate)
+        self.assertAlmostEqual(j["scaled_jacobian"]["min"], float(sj[sj <= 1].min()), places=6)
+        text = run(["quality", bad]).stdout
+        self.assertIn("(of the %d hexes that are not degenerate)" % (len(sj) - degenerate), text)
+        self.assertNotIn("not degenerate", run(["quality", SAMPLE]).stdout)
+
+    def test_threads_do_not_change_the_report(self):
+        one = json.loads(run(["quality", SAMPLE, "--json", "--threads", "1"]).stdout)
+        two = json.loads(run(["quality", SAMPLE, "--json", "--threads", "2"]).stdout)
+        for j in (one, two):
+            j.pop("peak_memory_mb")
+        self.assertEqual(one, two)
+        self.assertEqual(run(["quality", SAMPLE, "--threads", "0"], check=False).returncode, 2)
 
     def test_strict_fails_on_an_inverted_hex(self):
         import vtk

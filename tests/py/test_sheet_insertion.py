@@ -142,6 +142,25 @@ class BlockWithSphericalCuts(unittest.TestCase):
         expected = 0.5 - cap(0.24, 0.12) - cap(0.20, 0.10)
         self.assertLess(abs(vtk_hex_quality(grid, "Volume").sum() / expected - 1), 0.01)
 
+    def test_without_the_optimiser_the_inverted_hexes_are_reported_readably(self):
+        # --no-optimize printed "60 inverted (0 before smoothing)" (nothing was
+        # smoothed) and the defects as raw JSON on stdout
+        d = workdir("cuts_noopt")
+        out = os.path.join(d, "cut.vtu")
+        p = run(["insert-sheet", "--mesh", os.path.join(SAMPLES, "spherical_cuts_block.vtu"),
+                 "--surface", os.path.join(SAMPLES, "spherical_cut_1.off"),
+                 "--surface", os.path.join(SAMPLES, "spherical_cut_2.off"),
+                 "--keep", "outside", "-o", out, "-q", "--no-optimize"])
+        inverted = int((vtk_hex_quality(read_vtu(out), "ScaledJacobian") <= 0).sum())
+        self.assertGreater(inverted, 0)  # the case the messages are for
+        self.assertIn("%d inverted (not smoothed: --no-optimize)" % inverted, p.stdout)
+        self.assertNotIn("before smoothing", p.stdout)
+        self.assertNotIn("{", p.stdout + p.stderr)
+        warning = [l for l in p.stderr.splitlines() if "warning" in l]
+        self.assertEqual(len(warning), 1, p.stderr)
+        self.assertIn("isohex: warning: %s: validity defects: inverted_hex x%d" % (out, inverted), warning[0])
+        self.assertIn("run without --no-optimize", warning[0])
+
 
 class BadInput(unittest.TestCase):
     def expect_error(self, args, *words):
