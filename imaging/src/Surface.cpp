@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <map>
 #include <cctype>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <unordered_map>
 #include <vector>
@@ -231,6 +233,135 @@ static void checkOffCounts(const std::string& file, const std::string& text) {
     }
 }
 
+// Debian's Assimp 5.2.5 crashes (segmentation fault) on a binary PLY file
+// cut short, and reads an ASCII one cut short, or a face index beyond the
+// vertices, as a surface with holes, which the closed-surface check then
+// blames on the surface. So the file is walked first as its header
+// describes it: every element's items, list lengths included, must be in the
+// file, and the face lists' indices below the vertex count. Only the layout
+// is checked; Assimp still does the reading.
+static void checkPlyLayout(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto fail = [&](const std::string& what) {
+        throw Error(file + ": " + what + ". The file is truncated or not a valid PLY file; re-export it.");
+    };
+    struct Property {
+        int countSize = 0;   // list: bytes of the length; 0 for a scalar
+        int size = 0;        // bytes of the value (of each item for a list)
+        bool integer = false, isSigned = false;
+    };
+    struct Element {
+        std::string name;
+        long long count = 0;
+        std::vector<Property> props;
+    };
+    auto typeSize = [](const std::string& t, bool& integer, bool& isSigned) {
+        integer = t != "float" && t != "float32" && t != "double" && t != "float64";
+        isSigned = t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32";
+        if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+        if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+        if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" || t == "float32") return 4;
+        if (t == "double" || t == "float64") return 8;
+        return 0;
+    };
+    // The header: lines up to end_header.
+    std::size_t pos = 0;
+    std::string format;
+    std::vector<Element> elements;
+    bool ended = false;
+    for (int lineNo = 1; pos < data.size() && !ended; ++lineNo) {
+        std::size_t nl = data.find('\n', pos);
+        if (nl == std::string::npos) nl = data.size();
+        std::istringstream line(data.substr(pos, nl - pos));
+        pos = nl + 1;
+        std::string word;
+        line >> word;
+        if (lineNo == 1) {
+            if (word != "ply") fail("the first line is not 'ply'");
+            continue;
+        }
+        if (word == "format") {
+            line >> format;
+        } else if (word == "element") {
+            Element e;
+            if (!(line >> e.name >> e.count) || e.count < 0) fail("header line " + std::to_string(lineNo) + " is not 'element NAME COUNT'");
+            elements.push_back(e);
+        } else if (word == "property") {
+            if (elements.empty()) fail("header line " + std::to_string(lineNo) + " has a property before any element");
+            std::string t;
+            line >> t;
+            Property pr;
+            if (t == "list") {
+                std::string ct, it;
+                line >> ct >> it;
+                bool ci = false, cs = false;
+                pr.countSize = typeSize(ct, ci, cs);
+                pr.size = typeSize(it, pr.integer, pr.isSigned);
+                if (pr.countSize == 0 || pr.size == 0 || !ci)
+                    fail("header line " + std::to_string(lineNo) + " has a list property of unknown types '" + ct + " " + it + "'");
+            } else {
+                pr.size = typeSize(t, pr.integer, pr.isSigned);
+                if (pr.size == 0) fail("header line " + std::to_string(lineNo) + " has a property of unknown type '" + t + "'");
+            }
+            elements.back().props.push_back(pr);
+        } else if (word == "end_header") {
+            ended = true;
+        }
+    }
+    if (!ended) fail("the header has no end_header line");
+    const bool ascii = format == "ascii";
+    const bool little = format == "binary_little_endian";
+    if (!ascii && !little && format != "binary_big_endian") fail("the header's format '" + format + "' is not ascii or binary");
+    long long vertices = -1;
+    for (const Element& e : elements)
+        if (e.name == "vertex") vertices = e.count;
+    if (vertices < 3) fail("the header declares no vertex element with at least 3 vertices");
+    // The body, element by element.
+    std::istringstream text(ascii ? data.substr(pos) : std::string());
+    auto readBinary = [&](int size, bool integer, bool isSigned, double& value) {
+        if (data.size() - pos < static_cast<std::size_t>(size)) return false;
+        unsigned char b[8];
+        for (int i = 0; i < size; ++i) b[i] = static_cast<unsigned char>(data[pos + static_cast<std::size_t>(little ? i : size - 1 - i)]);
+        pos += static_cast<std::size_t>(size);
+        std::uint64_t u = 0;
+        for (int i = size - 1; i >= 0; --i) u = (u << 8) | b[i];
+        if (!integer) {
+            value = 0;  // only integers are looked at
+        } else if (isSigned) {
+            const std::uint64_t sign = std::uint64_t{1} << (8 * size - 1);
+            value = static_cast<double>(static_cast<long long>(u ^ sign) - static_cast<long long>(sign));
+        } else {
+            value = static_cast<double>(u);
+        }
+        return true;
+    };
+    auto readAscii = [&](double& value) { return static_cast<bool>(text >> value); };
+    for (const Element& e : elements) {
+        const bool face = e.name == "face";
+        for (long long i = 0; i < e.count; ++i) {
+            auto cut = [&] {
+                fail("the header promises " + std::to_string(e.count) + " " + e.name + " item(s) but the data ends at " +
+                     e.name + " " + std::to_string(i));
+            };
+            for (const Property& pr : e.props) {
+                double n = 1, v = 0;
+                if (pr.countSize > 0) {
+                    if (!(ascii ? readAscii(n) : readBinary(pr.countSize, true, false, n))) cut();
+                    if (n < 0 || n != std::floor(n)) fail(e.name + " " + std::to_string(i) + " has a list length of " + std::to_string(n));
+                }
+                for (long long k = 0; k < static_cast<long long>(n); ++k) {
+                    if (!(ascii ? readAscii(v) : readBinary(pr.size, pr.integer, pr.isSigned, v))) cut();
+                    if (face && pr.countSize > 0 && pr.integer && (v < 0 || v >= static_cast<double>(vertices)))
+                        fail("face " + std::to_string(i) + " uses vertex " + std::to_string(static_cast<long long>(v)) +
+                             " but there are only " + std::to_string(vertices) + " vertices (0 to " +
+                             std::to_string(vertices - 1) + ")");
+                }
+            }
+        }
+    }
+}
+
 TriangleSurface loadSurface(const std::filesystem::path& path) {
     const std::string file = path.string();
     std::error_code ec;
@@ -262,6 +393,7 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
         checkOffCounts(file, text);
         scene = importer.ReadFileFromMemory(text.data(), text.size(), flags, "off");
     } else {
+        if (ext == ".ply") checkPlyLayout(file);
         scene = importer.ReadFile(file, flags);
     }
     if (!scene || !scene->mRootNode) {

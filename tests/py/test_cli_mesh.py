@@ -353,6 +353,53 @@ class FailurePaths(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(outdir, "tet.vtu")))
         self.assertFalse(os.path.exists(os.path.join(outdir, "short.vtu")))
 
+    def test_a_ply_file_cut_short_or_with_a_bad_index_is_a_clear_error_not_a_crash(self):
+        # Assimp crashed (segmentation fault) on a binary PLY cut short, and
+        # read an ASCII one cut short, or with an index past the vertices, as
+        # an open surface: the error blamed holes in the surface.
+        import struct
+        verts = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+        faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+
+        def ply(fmt, faces):
+            head = ("ply\nformat %s 1.0\ncomment a tetrahedron\nelement vertex 4\nproperty float x\n"
+                    "property float y\nproperty float z\nelement face %d\n"
+                    "property list uchar int vertex_indices\nend_header\n" % (fmt, len(faces))).encode()
+            if fmt == "ascii":
+                body = "".join("%g %g %g\n" % v for v in verts) + "".join("3 %d %d %d\n" % f for f in faces)
+                return head + body.encode()
+            e = "<" if fmt == "binary_little_endian" else ">"
+            body = b"".join(struct.pack(e + "3f", *v) for v in verts)
+            body += b"".join(struct.pack(e + "B3i", 3, *f) for f in faces)
+            return head + body
+
+        bad_index = faces[:2] + [(0, 3, 9)] + faces[3:]
+        cases = {
+            "cut_le.ply": (ply("binary_little_endian", faces)[:-7], "promises 4 face item(s) but the data ends at face 3"),
+            "cut_ascii.ply": (ply("ascii", faces)[:-8], "promises 4 face item(s) but the data ends at face 3"),
+            "index_be.ply": (ply("binary_big_endian", bad_index), "face 2 uses vertex 9"),
+            "index_ascii.ply": (ply("ascii", bad_index), "face 2 uses vertex 9"),
+        }
+        for name, (data, message) in cases.items():
+            src = os.path.join(self.dir, name)
+            with open(src, "wb") as f:
+                f.write(data)
+            out = os.path.join(self.dir, "ply.vtu")
+            p = run(["mesh", src, "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, (name, p.stderr))
+            self.assertIn(f"{name}: the header {message}" if "promises" in message else f"{name}: {message}", p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertFalse(os.path.exists(out))
+        # the same layouts whole are read and meshed, both byte orders
+        for fmt in ("ascii", "binary_little_endian", "binary_big_endian"):
+            src = os.path.join(self.dir, "tet_%s.ply" % fmt)
+            with open(src, "wb") as f:
+                f.write(ply(fmt, faces))
+            out = os.path.join(self.dir, "tet_%s.vtu" % fmt)
+            p = run(["mesh", src, "-o", out, "-q", "--force"], check=False)
+            self.assertEqual(p.returncode, 0, (fmt, p.stderr))
+            self.assertTrue(os.path.exists(out))
+
     def test_every_command_checks_its_outputs_before_working_and_never_writes_over_an_input(self):
         # compare wrote two variant meshes and then stopped on an existing
         # third; quality wrote its report and then refused the mesh; --report
