@@ -67,6 +67,17 @@ public:
     SelectionDomain(std::shared_ptr<const imaging::Volume> v, std::shared_ptr<const imaging::Selection> s)
         : volume_(std::move(v)), selection_(std::move(s)) {
         for (std::size_t i = 0; i < selection_->materials.size(); ++i) slot_[selection_->materials[i].id] = i;
+        // A flag per label from the smallest selected id to the largest, for
+        // the per-voxel "is this label selected" of unionValue and labelAt
+        // (8 map lookups per call were 7% of a label mesh's time).
+        if (!slot_.empty()) {
+            const std::int64_t lo = slot_.begin()->first, hi = slot_.rbegin()->first;
+            if (hi - lo < (std::int64_t{1} << 20)) {
+                firstLabel_ = static_cast<std::int32_t>(lo);
+                selectedFlag_.assign(static_cast<std::size_t>(hi - lo + 1), 0);
+                for (const auto& [id, i] : slot_) selectedFlag_[static_cast<std::size_t>(id - lo)] = 1;
+            }
+        }
     }
     std::int32_t materialAt(const Vec3& x) const override {
         if (volume_->kind == imaging::VolumeKind::Labels) return labelAt(x);
@@ -90,7 +101,7 @@ public:
         openvdb::Vec3d d(0, 0, 0);  // derivative of `in` in index space
         for (int c = 0; c < 8; ++c) {
             const int o[3] = {c & 1, c >> 1 & 1, c >> 2 & 1};
-            if (!slot_.count(acc.getValue(c0.offsetBy(o[0], o[1], o[2])))) continue;
+            if (!isSelected(acc.getValue(c0.offsetBy(o[0], o[1], o[2])))) continue;
             double w[3], dw[3];
             for (int a = 0; a < 3; ++a) {
                 w[a] = o[a] ? t[a] : 1.0 - t[a];
@@ -155,7 +166,7 @@ private:
     std::int32_t labelAt(const Vec3& x) const {
         const auto [c0, t] = voxelCell(x);
         openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(volume_->labels->tree());
-        auto selected = [&](std::int32_t label) { return slot_.count(label) ? label : 0; };
+        auto selected = [&](std::int32_t label) { return isSelected(label) ? label : 0; };
         std::array<std::int32_t, 8> label{};
         std::array<double, 8> weight{};
         int n = 0;
@@ -181,7 +192,15 @@ private:
 
     std::shared_ptr<const imaging::Volume> volume_;
     std::shared_ptr<const imaging::Selection> selection_;
+    bool isSelected(std::int32_t label) const {
+        if (selectedFlag_.empty()) return slot_.count(label) != 0;
+        const std::int64_t i = std::int64_t{label} - firstLabel_;
+        return i >= 0 && i < static_cast<std::int64_t>(selectedFlag_.size()) && selectedFlag_[static_cast<std::size_t>(i)];
+    }
+
     std::map<std::int32_t, std::size_t> slot_;
+    std::int32_t firstLabel_ = 0;
+    std::vector<std::uint8_t> selectedFlag_;  // empty: ids too far apart, use slot_
 };
 
 // Keeps surface nodes on their isosurface: the zero set of the inside

@@ -307,6 +307,33 @@ const FrameTable& frameTable() {
     return t;
 }
 
+// The same table without its zeros: per frame and column, the nodes with a
+// non-zero coefficient in increasing order (8 for the centre frame, 2 for a
+// corner's). Sums taken over it add the same terms in the same order as a
+// loop over all 8 nodes that skips the zeros, so the results are the same
+// to the last bit; the joint release forms every frame of its region at
+// every step, and the dense loop was a good part of its time.
+struct SparseFrameTable {
+    struct Term {
+        std::uint8_t node;
+        double coef;
+    };
+    std::array<std::array<std::array<Term, 8>, 3>, 9> terms{};
+    std::array<std::array<std::uint8_t, 3>, 9> count{};
+    SparseFrameTable() {
+        const FrameTable& t = frameTable();
+        for (std::size_t f = 0; f < 9; ++f)
+            for (std::size_t j = 0; j < 3; ++j)
+                for (std::size_t n = 0; n < 8; ++n)
+                    if (t.c[f][j][n] != 0) terms[f][j][count[f][j]++] = {static_cast<std::uint8_t>(n), t.c[f][j][n]};
+    }
+};
+
+const SparseFrameTable& sparseFrameTable() {
+    static const SparseFrameTable t;
+    return t;
+}
+
 // What the soft minimum needs of each of a hex's 9 frames: the scaled
 // Jacobian and, to differentiate it, the columns, their lengths and their
 // cross products. frameValues fills it once per step; frameGradients reuses
@@ -329,13 +356,12 @@ using HexFrames = std::array<FrameState, 9>;
 // scaled Jacobian of each of the 9 frames (-2 for a collapsed frame), or with
 // scale > 0 its scaled determinant.
 void frameValues(const HexCoords& x, HexFrames& out, double scale = 0) {
-    const FrameTable& t = frameTable();
+    const SparseFrameTable& t = sparseFrameTable();
     for (std::size_t f = 0; f < 9; ++f) {
         FrameState& st = out[f];
         for (std::size_t j = 0; j < 3; ++j) {
             Vec3 v{0, 0, 0};
-            for (std::size_t n = 0; n < 8; ++n)
-                if (t.c[f][j][n] != 0) v = v + t.c[f][j][n] * x[n];
+            for (std::size_t i = 0; i < t.count[f][j]; ++i) v = v + t.terms[f][j][i].coef * x[t.terms[f][j][i].node];
             st.col[j] = v;
         }
         st.cross = {cross(st.col[1], st.col[2]), cross(st.col[2], st.col[0]), cross(st.col[0], st.col[1])};
@@ -358,7 +384,7 @@ void frameValues(const HexCoords& x, HexFrames& out, double scale = 0) {
 // Adds weight[f] * d s_f / d x_n to grad[n] for the hex's 8 nodes (s_f as
 // frameValues computed it with the same scale).
 void frameGradients(const HexFrames& frames, const double* weight, std::array<Vec3, 8>& grad, double scale = 0) {
-    const FrameTable& t = frameTable();
+    const SparseFrameTable& t = sparseFrameTable();
     for (std::size_t f = 0; f < 9; ++f) {
         const FrameState& st = frames[f];
         if (st.collapsed || weight[f] == 0) continue;
@@ -372,8 +398,10 @@ void frameGradients(const HexFrames& frames, const double* weight, std::array<Ve
                  (1.0 / st.len) * st.cross[2] - (st.s / (st.lc * st.lc)) * st.col[2]};
         }
         for (std::size_t j = 0; j < 3; ++j)
-            for (std::size_t n = 0; n < 8; ++n)
-                if (t.c[f][j][n] != 0) grad[n] = grad[n] + (weight[f] * t.c[f][j][n]) * g[j];
+            for (std::size_t i = 0; i < t.count[f][j]; ++i) {
+                const auto& term = t.terms[f][j][i];
+                grad[term.node] = grad[term.node] + (weight[f] * term.coef) * g[j];
+            }
     }
 }
 
@@ -778,6 +806,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             const auto it = std::lower_bound(free.begin(), free.end(), v);
             return it != free.end() && *it == v ? static_cast<std::ptrdiff_t>(it - free.begin()) : std::ptrdiff_t{-1};
         };
+        // Each region hex's nodes in the local numbering (-1: not free).
+        std::vector<std::array<std::ptrdiff_t, 8>> localNodes(hexes.size());
+        for (std::size_t k = 0; k < hexes.size(); ++k)
+            for (std::size_t n = 0; n < 8; ++n) localNodes[k][n] = local(mesh.hexes[static_cast<std::size_t>(hexes[k])][n]);
         const RegionScore before = scoreHexes(mesh, hexes);
         RegionScore best = before;
         std::vector<Vec3> bestAt = start;
@@ -811,7 +843,10 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                 double total = 0;
                 for (std::size_t k = 0; k < hexes.size(); ++k)
                     for (std::size_t f = 0; f < 9; ++f) {
-                        const double e = std::exp(-(frames[k][f].s - lowest) / tau);
+                        // exp(-x) < 1e-12 for x > 27.7 (-ln 1e-12 = 27.63):
+                        // weight 0 either way, without the exp.
+                        const double x = (frames[k][f].s - lowest) / tau;
+                        const double e = x > 27.7 ? 0.0 : std::exp(-x);
                         w[9 * k + f] = e > 1e-12 ? e : 0.0;
                         total += w[9 * k + f];
                     }
@@ -821,9 +856,8 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
                     std::array<Vec3, 8> g{};
                     g.fill(Vec3{0, 0, 0});
                     frameGradients(frames[k], &w[9 * k], g, scale);
-                    const Hex& hx = mesh.hexes[static_cast<std::size_t>(hexes[k])];
                     for (std::size_t n = 0; n < 8; ++n) {
-                        const std::ptrdiff_t i = local(hx[n]);
+                        const std::ptrdiff_t i = localNodes[k][n];
                         if (i >= 0) grad[static_cast<std::size_t>(i)] = grad[static_cast<std::size_t>(i)] + g[n];
                     }
                 }
