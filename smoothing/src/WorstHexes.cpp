@@ -826,53 +826,79 @@ WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector,
             if (n > bound[i]) p = q + (bound[i] / n) * d;
         };
         std::vector<Vec3> m1(F, Vec3{0, 0, 0}), m2(F, Vec3{0, 0, 0}), grad(F);
-        std::vector<double> w(9 * hexes.size());
-        std::vector<HexFrames> frames(hexes.size());
+        const std::size_t H = hexes.size();
+        std::vector<double> w(9 * H), hexLowest(H), hexScore(H);
+        std::vector<HexFrames> frames(H);
+        std::vector<std::array<Vec3, 8>> hexGrad(H);
         double lr = opt.jointStep * L;
         const double scale = byVolume ? 1.0 / (L * L * L) : 0.0;
+        // The per-hex and per-node work of a step runs in parallel; what adds
+        // up across hexes (the weights' total, the gradient of a node shared
+        // by several hexes) is summed afterwards in the serial order, and
+        // minima and counts do not depend on order, so the steps are the
+        // serial ones to the last bit for any thread count. (A region has a
+        // few hundred hexes and a step takes about a millisecond; one or two
+        // regions per mesh are common, so this is where the second core helps.)
+        constexpr std::size_t kGrain = 16;
+        auto forHexes = [&](auto&& body) {
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, kGrain), [&](const auto& r) {
+                for (std::size_t k = r.begin(); k != r.end(); ++k) body(k);
+            });
+        };
         for (const double tau : {0.05, 0.02, 0.01, 0.005}) {
             for (int it = 0; it < iterations; ++it) {
                 // Soft-min weights over all frames of the region's hexes: the
                 // gradient of -tau log sum exp(-s/tau) is the weighted sum of
                 // the frames' gradients, weights exp(-s/tau) normalised.
-                double lowest = std::numeric_limits<double>::infinity();
-                for (std::size_t k = 0; k < hexes.size(); ++k) {
+                forHexes([&](std::size_t k) {
                     frameValues(hexCoords(mesh, hexes[k]), frames[k], scale);
-                    for (const FrameState& st : frames[k]) lowest = std::min(lowest, st.s);
-                }
-                double total = 0;
-                for (std::size_t k = 0; k < hexes.size(); ++k)
+                    double m = std::numeric_limits<double>::infinity();
+                    for (const FrameState& st : frames[k]) m = std::min(m, st.s);
+                    hexLowest[k] = m;
+                });
+                double lowest = std::numeric_limits<double>::infinity();
+                for (std::size_t k = 0; k < H; ++k) lowest = std::min(lowest, hexLowest[k]);
+                forHexes([&](std::size_t k) {
                     for (std::size_t f = 0; f < 9; ++f) {
                         // exp(-x) < 1e-12 for x > 27.7 (-ln 1e-12 = 27.63):
                         // weight 0 either way, without the exp.
                         const double x = (frames[k][f].s - lowest) / tau;
                         const double e = x > 27.7 ? 0.0 : std::exp(-x);
                         w[9 * k + f] = e > 1e-12 ? e : 0.0;
-                        total += w[9 * k + f];
                     }
-                std::fill(grad.begin(), grad.end(), Vec3{0, 0, 0});
-                for (std::size_t k = 0; k < hexes.size(); ++k) {
+                });
+                double total = 0;
+                for (std::size_t k = 0; k < 9 * H; ++k) total += w[k];
+                forHexes([&](std::size_t k) {
                     for (std::size_t f = 0; f < 9; ++f) w[9 * k + f] /= total;
-                    std::array<Vec3, 8> g{};
-                    g.fill(Vec3{0, 0, 0});
-                    frameGradients(frames[k], &w[9 * k], g, scale);
+                    hexGrad[k].fill(Vec3{0, 0, 0});
+                    frameGradients(frames[k], &w[9 * k], hexGrad[k], scale);
+                });
+                std::fill(grad.begin(), grad.end(), Vec3{0, 0, 0});
+                for (std::size_t k = 0; k < H; ++k)
                     for (std::size_t n = 0; n < 8; ++n) {
                         const std::ptrdiff_t i = localNodes[k][n];
-                        if (i >= 0) grad[static_cast<std::size_t>(i)] = grad[static_cast<std::size_t>(i)] + g[n];
+                        if (i >= 0) grad[static_cast<std::size_t>(i)] = grad[static_cast<std::size_t>(i)] + hexGrad[k][n];
                     }
-                }
-                for (std::size_t i = 0; i < F; ++i) {
-                    if (pinned[i]) continue;
-                    Vec3& x = mesh.nodes[static_cast<std::size_t>(free[i])];
-                    const Vec3 old = x;
-                    for (std::size_t c = 0; c < 3; ++c) {
-                        m1[i][c] = 0.9 * m1[i][c] + 0.1 * grad[i][c];
-                        m2[i][c] = 0.999 * m2[i][c] + 0.001 * grad[i][c] * grad[i][c];
-                        x[c] += lr * m1[i][c] / (std::sqrt(m2[i][c]) + 1e-12);
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, F, kGrain), [&](const auto& r) {
+                    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                        if (pinned[i]) continue;
+                        Vec3& x = mesh.nodes[static_cast<std::size_t>(free[i])];
+                        const Vec3 old = x;
+                        for (std::size_t c = 0; c < 3; ++c) {
+                            m1[i][c] = 0.9 * m1[i][c] + 0.1 * grad[i][c];
+                            m2[i][c] = 0.999 * m2[i][c] + 0.001 * grad[i][c] * grad[i][c];
+                            x[c] += lr * m1[i][c] / (std::sqrt(m2[i][c]) + 1e-12);
+                        }
+                        if (isSurface[i]) constrain(i, x, old);
                     }
-                    if (isSurface[i]) constrain(i, x, old);
+                });
+                forHexes([&](std::size_t k) { hexScore[k] = usableScaledJacobian(hexCoords(mesh, hexes[k])); });
+                RegionScore now;
+                for (std::size_t k = 0; k < H; ++k) {
+                    now.inverted += !(hexScore[k] > 0);
+                    now.min = std::min(now.min, hexScore[k]);
                 }
-                const RegionScore now = scoreHexes(mesh, hexes);
                 if (betterRegion(now, best)) {
                     best = now;
                     for (std::size_t i = 0; i < F; ++i) bestAt[i] = mesh.nodes[static_cast<std::size_t>(free[i])];
