@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cctype>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include <itkGDCMImageIO.h>
@@ -256,6 +258,109 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
     if (have < need) truncated(file, need, have, "bytes");
 }
 
+// MetaImage header fields ITK's MetaIO mishandles without an exception:
+// NDims of 0 or less loops forever, a file pattern with step 0 loops
+// forever printing errors, ASCII data (BinaryData = False) crashes the
+// process (ITK 5.2/5.3), and a LIST or pattern naming missing files, an empty
+// ElementDataFile or a HeaderSize past the end of the data leave voxels
+// unread, which it reports only as a warning. Checked before MetaIO reads
+// the header. (The data size of LOCAL and single-file data is checked after,
+// by checkMetaImageSize, which needs the element size.)
+void checkMetaImageHeader(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    auto fail = [&](const std::string& what) { throw Error(file + ": " + what); };
+    auto trim = [](std::string t) {
+        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(0, 1);
+        return t;
+    };
+    std::string line;
+    long long ndims = 0;
+    std::vector<long long> dims;
+    std::string dataFile;
+    bool haveDataFile = false, binary = true;
+    long long headerSize = 0;
+    for (int n = 0; n < 200 && std::getline(in, line); ++n) {
+        const auto eq = line.find('=');
+        if (eq == std::string::npos) continue;
+        const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
+        std::istringstream v(value);
+        if (key == "NDims") {
+            if (!(v >> ndims) || ndims < 1 || ndims > 8)
+                fail("the MetaImage header says NDims = " + value +
+                     "; it must be the number of image dimensions (3 for a volume). Fix the header and retry.");
+        } else if (key == "DimSize") {
+            for (long long d; v >> d;) dims.push_back(d);
+        } else if (key == "BinaryData") {
+            binary = !(value == "False" || value == "false" || value == "FALSE");
+        } else if (key == "HeaderSize") {
+            v >> headerSize;
+        } else if (key == "ElementDataFile") {
+            dataFile = value;
+            haveDataFile = true;
+            break;
+        }
+    }
+    if (!haveDataFile) return;  // not a MetaImage header as far as this check goes: MetaIO judges it
+    if (ndims >= 1 && (static_cast<long long>(dims.size()) < ndims ||
+                       std::any_of(dims.begin(), dims.begin() + ndims, [](long long d) { return d < 1; })))
+        fail("the MetaImage header's DimSize does not give " + std::to_string(ndims) +
+             " positive sizes; fix the header and retry.");
+    if (!binary)
+        fail("ASCII MetaImage data (BinaryData = False) is not supported: ITK's reader fails on it. Save the image "
+             "with binary data (e.g. SimpleITK or 3D Slicer) and retry.");
+    if (dataFile.empty())
+        fail("the MetaImage header's ElementDataFile is empty; it must be LOCAL, LIST or the data file's name.");
+    const std::filesystem::path dir = std::filesystem::path(file).parent_path();
+    auto requireFile = [&](const std::string& name) {
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(dir / name, ec))
+            fail("its voxel data file '" + (dir / name).string() +
+                 "' is missing; keep the header and its data files together.");
+    };
+    const long long slices = ndims >= 1 && static_cast<long long>(dims.size()) >= ndims ? dims[ndims - 1] : 0;
+    if (dataFile.rfind("LIST", 0) == 0) {
+        long long listed = 0;
+        while (std::getline(in, line)) {
+            const std::string name = trim(line);
+            if (name.empty()) continue;
+            requireFile(name);
+            ++listed;
+        }
+        if (listed < slices)
+            fail("the MetaImage header lists " + std::to_string(listed) + " data file(s) for " +
+                 std::to_string(slices) + " slices; every slice needs its file.");
+    } else if (dataFile.find('%') != std::string::npos) {
+        std::istringstream v(dataFile);
+        std::string pattern;
+        long long first = 0, last = 0, step = 1;
+        v >> pattern >> first >> last;
+        if (!(v >> step)) step = 1;
+        // One integer conversion (%d, %03d ...) and nothing else a printf
+        // would read an argument for.
+        if (!std::regex_match(pattern, std::regex("[^%]*%[0-9]*[di][^%]*")))
+            fail("the MetaImage file pattern '" + pattern + "' must hold one integer field such as %03d; fix the header.");
+        if (step == 0 || (last - first) / step < 0)
+            fail("the MetaImage file pattern '" + dataFile + "' has step " + std::to_string(step) +
+                 ", which never reaches " + std::to_string(last) + "; fix the header.");
+        if ((last - first) / step + 1 < slices)
+            fail("the MetaImage file pattern '" + dataFile + "' names " + std::to_string((last - first) / step + 1) +
+                 " file(s) for " + std::to_string(slices) + " slices; every slice needs its file.");
+        for (long long i = first, k = 0; k < slices; i += step, ++k) {
+            char name[4096];
+            std::snprintf(name, sizeof name, pattern.c_str(), static_cast<int>(i));
+            requireFile(name);
+        }
+    } else if (headerSize > 0) {
+        const std::filesystem::path data = dataFile == "LOCAL" ? std::filesystem::path(file) : dir / dataFile;
+        std::error_code ec;
+        const auto have = std::filesystem::file_size(data, ec);
+        if (!ec && static_cast<std::uint64_t>(headerSize) >= have)
+            fail("the MetaImage header's HeaderSize (" + std::to_string(headerSize) + " bytes) is past the end of '" +
+                 data.string() + "' (" + std::to_string(have) + " bytes); fix the header.");
+    }
+}
+
 }  // namespace
 
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
@@ -278,6 +383,12 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
                     "Check that the file is complete and its extension matches its content.");
     }
     io->SetFileName(file);
+    {
+        std::string lower = path.filename().string();
+        for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        if (lower.size() > 4 && (lower.compare(lower.size() - 4, 4, ".mha") == 0 || lower.compare(lower.size() - 4, 4, ".mhd") == 0))
+            checkMetaImageHeader(file);
+    }
     try {
         io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <tuple>
 
 #include "TestSupport.hpp"
 #include "isohex/core/Error.hpp"
@@ -81,6 +82,49 @@ TEST(BadInput, TruncatedVoxelDataIsReported) {
     writeImage(dir / "split.mhd", kDims, ramp(), Geometry{});
     fs::resize_file(dir / "split.raw", 100);
     expectError([&] { loadVolume(dir / "split.mhd"); }, {"split.mhd", "truncated"});
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
+    // ITK's MetaIO loops forever on NDims -1 and on a file pattern with step
+    // 0, crashes on ASCII data, and reads a LIST or pattern with missing
+    // files, an empty ElementDataFile or a HeaderSize past the end with only
+    // a warning, meshing uninitialised voxels.
+    const auto dir = scratchDir("metaheader");
+    const std::string head = "ObjectType = Image\nNDims = 3\nBinaryData = True\nDimSize = 4 4 3\n"
+                             "ElementSpacing = 1 1 1\nElementType = MET_UCHAR\n";
+    const std::string voxels(48, '\x05');
+    writeBytes(dir / "s0.raw", std::string(16, '\x05'));
+    const std::vector<std::tuple<std::string, std::string, std::vector<std::string>>> cases = {
+        {"ndims.mha", "ObjectType = Image\nNDims = -1\nDimSize = 4 4 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + voxels,
+         {"NDims = -1"}},
+        {"ascii.mha", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 4 4 3\nElementType = MET_UCHAR\n"
+                      "ElementDataFile = LOCAL\n" + std::string(48 * 2, ' '),
+         {"BinaryData = False", "binary"}},
+        {"step0.mhd", head + "ElementDataFile = s%d.raw 0 2 0\n", {"step 0"}},
+        {"format.mhd", head + "ElementDataFile = s%s.raw 0 2 1\n", {"one integer field"}},
+        {"list.mhd", head + "ElementDataFile = LIST\ns0.raw\ns1.raw\ns2.raw\n", {"s1.raw", "missing"}},
+        {"short_list.mhd", head + "ElementDataFile = LIST\ns0.raw\n", {"lists 1 data file(s) for 3 slices"}},
+        {"pattern.mhd", head + "ElementDataFile = s%d.raw 0 2 1\n", {"s1.raw", "missing"}},
+        {"empty.mhd", head + "ElementDataFile = \n", {"ElementDataFile is empty"}},
+        {"headersize.mha", head + "HeaderSize = 100000\nElementDataFile = LOCAL\n" + voxels, {"HeaderSize (100000 bytes)"}},
+    };
+    for (const auto& [name, text, pieces] : cases) {
+        SCOPED_TRACE(name);
+        writeBytes(dir / name, text);
+        std::vector<std::string> want = pieces;
+        want.push_back(name);
+        expectError([&] { loadVolume(dir / name); }, want);
+    }
+    // The same header with every slice's file present reads.
+    writeBytes(dir / "s1.raw", std::string(16, '\x05'));
+    writeBytes(dir / "s2.raw", std::string(16, '\x05'));
+    writeBytes(dir / "good_list.mhd", head + "ElementDataFile = LIST\ns0.raw\ns1.raw\ns2.raw\n");
+    writeBytes(dir / "good_pattern.mhd", head + "ElementDataFile = s%d.raw 0 2 1\n");
+    for (const char* name : {"good_list.mhd", "good_pattern.mhd"}) {
+        SCOPED_TRACE(name);
+        EXPECT_NO_THROW(loadVolume(dir / name));
+    }
     fs::remove_all(dir);
 }
 
