@@ -179,9 +179,10 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
         } catch (const std::exception& e) {
             ++failed;
-            results.push_back({job.input, "failed", e.what()});
-            sink.note("error", e.what());
-            sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", e.what()}});
+            const std::string message = boundedMessage(e.what());
+            results.push_back({job.input, "failed", message});
+            sink.note("error", message);
+            sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});
         }
     }
     std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", "input", "status", "hexes", "min SJ", "mean SJ", "<0.2",

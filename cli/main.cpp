@@ -77,13 +77,13 @@ int main(int argc, char** argv) {
         app.exit(e);
         return kExitUsage;
     } catch (const isohex::Error& e) {
-        std::cerr << "isohex: error: " << e.what() << "\n";
+        std::cerr << "isohex: error: " << isohex::boundedMessage(e.what()) << "\n";
         return kExitError;
     } catch (const std::bad_alloc&) {
         std::cerr << "isohex: error: out of memory; try a coarser --size or a machine with more memory\n";
         return kExitError;
     } catch (const std::exception& e) {
-        std::cerr << "isohex: internal error: " << e.what()
+        std::cerr << "isohex: internal error: " << isohex::boundedMessage(e.what())
                   << "\n(please report this with the command line that caused it)\n";
         return kExitError;
     }

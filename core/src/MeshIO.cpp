@@ -2,6 +2,8 @@
 #include "isohex/core/MeshIO.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -120,6 +122,18 @@ HexMesh read(const std::string& path) {
             throw Error(path + ": hex " + std::to_string(h) + " has material id " + std::to_string(mesh.material[h]) +
                         "; isohex needs material ids of 0 or more (negative ids mean the outside). Renumber the "
                         "materials and retry.");
+    // The quality measures multiply three squared edge lengths, which
+    // overflows to infinity past about 1e51 and then the optimiser's steps
+    // never end (`smooth` hung on a mesh scaled by 1e300). No unit puts a
+    // real mesh anywhere near 1e30.
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        for (int a = 0; a < 3; ++a)
+            if (!(std::abs(mesh.nodes[v][static_cast<std::size_t>(a)]) <= 1e30)) {
+                std::ostringstream m;
+                m << path << ": node " << v << " has coordinate " << mesh.nodes[v][static_cast<std::size_t>(a)]
+                  << "; isohex reads coordinates up to 1e30 in size (and finite). Check the file's units and content.";
+                throw Error(m.str());
+            }
     return mesh;
 }
 

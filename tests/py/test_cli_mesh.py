@@ -400,6 +400,22 @@ class FailurePaths(unittest.TestCase):
             self.assertEqual(p.returncode, 0, (fmt, p.stderr))
             self.assertTrue(os.path.exists(out))
 
+    def test_a_library_message_quoting_the_whole_input_is_cut_to_a_readable_length(self):
+        # Assimp quotes the rest of an ASCII STL after a bad number (262 kB of
+        # stderr for a 2,000-triangle file); OpenVDB quoted gigabytes of a
+        # damaged .vdb.
+        tri = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
+        src = os.path.join(self.dir, "badnumber.stl")
+        with open(src, "w") as f:
+            f.write("solid s\n" + tri.replace("vertex 0 0 0", "vertex abc 0 0", 1) + tri * 5000 + "endsolid s\n")
+        out = os.path.join(self.dir, "badnumber.vtu")
+        p = run(["mesh", src, "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr[:500])
+        self.assertTrue(p.stderr.startswith("isohex: error: " + src), p.stderr[:300])
+        self.assertLess(len(p.stderr), 2500)
+        self.assertIn("characters left out", p.stderr)
+        self.assertFalse(os.path.exists(out))
+
     def test_every_command_checks_its_outputs_before_working_and_never_writes_over_an_input(self):
         # compare wrote two variant meshes and then stopped on an existing
         # third; quality wrote its report and then refused the mesh; --report

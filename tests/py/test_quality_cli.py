@@ -232,6 +232,27 @@ class SmoothCommand(unittest.TestCase):
             self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
         self.assertEqual(os.listdir(d), ["negative.vtu"])
 
+    def test_coordinates_too_large_to_measure_are_refused_on_reading(self):
+        # A mesh scaled by 1e300: the squared edge lengths overflow, and
+        # smooth ran forever (quality and convert went through).
+        import meshio
+        d = workdir("huge_coordinates")
+        m = meshio.read(SAMPLE)
+        bad = os.path.join(d, "huge.vtu")
+        meshio.write(bad, meshio.Mesh(m.points * 1e300, [("hexahedron", m.cells_dict["hexahedron"])]))
+        for args in (["convert", bad, os.path.join(d, "h.exo")], ["quality", bad],
+                     ["smooth", bad, "-o", os.path.join(d, "h.vtu")]):
+            p = run(args, check=False, timeout=120)
+            self.assertEqual(p.returncode, 1, (args, p.stderr))
+            self.assertIn("huge.vtu: node", p.stderr)
+            self.assertIn("up to 1e30", p.stderr)
+        self.assertEqual(os.listdir(d), ["huge.vtu"])
+        # an ordinary mesh in metres far from the origin still reads
+        far = os.path.join(d, "far.vtu")
+        meshio.write(far, meshio.Mesh(m.points * 1e-3 + 1e6, [("hexahedron", m.cells_dict["hexahedron"])]))
+        self.assertEqual(run(["quality", far]).returncode, 0)
+        os.remove(far)
+
 
     def test_a_mesh_without_hexes_is_an_error_and_other_formats_say_they_drop_the_fields(self):
         # quality judged a file of one point and no cells (exit 0, "unused
