@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cctype>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -258,6 +259,75 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
     if (have < need) truncated(file, need, have, "bytes");
 }
 
+// NIfTI orientation fields that are not finite make ITK's reader abort the
+// process (vnl's matrix code calls abort() on a NaN in srow_x; found by a
+// helper's corrupted-input survey, and a batch died with it). Checked before
+// ITK reads the header: pixdim[1..3] always, the quaternion and offsets when
+// qform_code is set, the affine rows when sform_code is set. gzread reads an
+// uncompressed file as it is, so one path serves .nii and .nii.gz.
+void checkNiftiOrientation(const std::string& file) {
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return;
+    unsigned char h[540] = {};
+    const int got = gzread(gz, h, sizeof h);
+    gzclose(gz);
+    if (got < 348) return;  // ITK judges short headers
+    std::uint32_t size;
+    std::memcpy(&size, h, 4);
+    const bool swap = size != 348 && size != 540;
+    if (swap) size = __builtin_bswap32(size);
+    if (size != 348 && size != 540) return;
+    if (size == 540 && got < 540) return;
+    auto f32 = [&](int at) {
+        std::uint32_t b;
+        std::memcpy(&b, h + at, 4);
+        if (swap) b = __builtin_bswap32(b);
+        float v;
+        std::memcpy(&v, &b, 4);
+        return double(v);
+    };
+    auto f64 = [&](int at) {
+        std::uint64_t b;
+        std::memcpy(&b, h + at, 8);
+        if (swap) b = __builtin_bswap64(b);
+        double v;
+        std::memcpy(&v, &b, 8);
+        return v;
+    };
+    auto i16 = [&](int at) {
+        std::uint16_t b;
+        std::memcpy(&b, h + at, 2);
+        if (swap) b = static_cast<std::uint16_t>(__builtin_bswap16(b));
+        return static_cast<int>(static_cast<std::int16_t>(b));
+    };
+    auto i32 = [&](int at) {
+        std::uint32_t b;
+        std::memcpy(&b, h + at, 4);
+        if (swap) b = __builtin_bswap32(b);
+        return static_cast<int>(static_cast<std::int32_t>(b));
+    };
+    const bool v1 = size == 348;
+    auto value = [&](int at1, int at2) { return v1 ? f32(at1) : f64(at2); };
+    auto require = [&](const char* field, int k, double v) {
+        if (!std::isfinite(v))
+            throw Error(file + ": the NIfTI header's " + field + "[" + std::to_string(k) + "] is " +
+                        (std::isnan(v) ? "NaN" : "infinite") +
+                        "; the image orientation cannot be read. Fix or re-export the header and retry.");
+    };
+    for (int k = 1; k <= 3; ++k) require("pixdim", k, value(76 + 4 * k, 104 + 8 * k));
+    const int qform = v1 ? i16(252) : i32(344);
+    const int sform = v1 ? i16(254) : i32(348);
+    if (qform > 0) {
+        for (int k = 0; k < 3; ++k) require("quatern_bcd", k, value(256 + 4 * k, 352 + 8 * k));
+        for (int k = 0; k < 3; ++k) require("qoffset_xyz", k, value(268 + 4 * k, 376 + 8 * k));
+    }
+    if (sform > 0) {
+        const char* rows[3] = {"srow_x", "srow_y", "srow_z"};
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 4; ++k) require(rows[r], k, value(280 + 16 * r + 4 * k, 400 + 32 * r + 8 * k));
+    }
+}
+
 // MetaImage header fields ITK's MetaIO mishandles without an exception:
 // NDims of 0 or less loops forever, a file pattern with step 0 loops
 // forever printing errors, ASCII data (BinaryData = False) crashes the
@@ -386,8 +456,11 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
     {
         std::string lower = path.filename().string();
         for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-        if (lower.size() > 4 && (lower.compare(lower.size() - 4, 4, ".mha") == 0 || lower.compare(lower.size() - 4, 4, ".mhd") == 0))
-            checkMetaImageHeader(file);
+        auto endsWith = [&](const std::string& e) {
+            return lower.size() >= e.size() && lower.compare(lower.size() - e.size(), e.size(), e) == 0;
+        };
+        if (endsWith(".mha") || endsWith(".mhd")) checkMetaImageHeader(file);
+        if (endsWith(".nii") || endsWith(".nii.gz")) checkNiftiOrientation(file);
     }
     try {
         io->ReadImageInformation();

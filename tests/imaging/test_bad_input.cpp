@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <tuple>
 
@@ -124,6 +126,34 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
     for (const char* name : {"good_list.mhd", "good_pattern.mhd"}) {
         SCOPED_TRACE(name);
         EXPECT_NO_THROW(loadVolume(dir / name));
+    }
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, NiftiOrientationThatIsNotFiniteIsRefusedBeforeItkAborts) {
+    // A NaN in srow_x made ITK's reader abort the process (vnl), taking a
+    // batch with it.
+    const auto dir = scratchDir("niftinan");
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    const std::vector<std::tuple<std::string, int, float, std::string>> cases = {
+        {"srow.nii", 280, nan, "srow_x[0] is NaN"},
+        {"srowz.nii", 324, inf, "srow_z[3] is infinite"},
+        {"pixdim.nii", 84, nan, "pixdim[2] is NaN"},
+    };
+    for (const auto& [name, at, value, message] : cases) {
+        SCOPED_TRACE(name);
+        writeImage(dir / name, kDims, ramp(), Geometry{});
+        std::string bytes;
+        {
+            std::ifstream in(dir / name, std::ios::binary);
+            bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        }
+        short sform = 0;
+        std::memcpy(&sform, bytes.data() + 254, 2);
+        EXPECT_GT(sform, 0);  // the writer sets the affine, so srow is read
+        std::memcpy(bytes.data() + at, &value, 4);
+        writeBytes(dir / name, bytes);
+        expectError([&] { loadVolume(dir / name); }, {name, message});
     }
     fs::remove_all(dir);
 }
