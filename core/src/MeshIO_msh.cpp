@@ -14,6 +14,7 @@
 #include <fstream>
 #include <mutex>
 #include <numeric>
+#include <sstream>
 #include <string>
 #include <unordered_map>
 
@@ -174,10 +175,94 @@ void requireMshHeader(const std::string& path) {
     throw Error(path + ": not a Gmsh mesh file (it does not start with $MeshFormat)");
 }
 
+// Gmsh 4.8's reader trusts the counts in an ASCII file's section headers:
+// an $Elements header promising fewer elements than its blocks hold made it
+// crash (segmentation fault in quality, convert and smooth, the latter two
+// leaving a partial output; found by a helper's corrupted-input survey). So
+// the $Nodes and $Elements sections of an ASCII file (format 4.1 or 2.2) are
+// walked first: every block's lines present, the blocks adding up to the
+// totals, the section closed where the counts say. Binary files are left to
+// Gmsh (isohex writes ASCII).
+void checkMshCounts(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    std::size_t lineNo = 0;
+    auto next = [&]() -> bool {
+        if (!std::getline(in, line)) return false;
+        ++lineNo;
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        return true;
+    };
+    auto fail = [&](const std::string& what) {
+        throw Error(path + ": line " + std::to_string(lineNo) + ": " + what +
+                    "; the file is damaged or truncated (re-export it)");
+    };
+    double version = 0;
+    int fileType = 0;
+    while (next()) {
+        if (line == "$MeshFormat") {
+            if (!next()) fail("the file ends in $MeshFormat");
+            std::istringstream f(line);
+            f >> version >> fileType;
+            if (fileType != 0) return;  // binary: Gmsh's reader checks it
+            continue;
+        }
+        const bool nodes = line == "$Nodes", elements = line == "$Elements";
+        if (!nodes && !elements) continue;
+        const std::string end = nodes ? "$EndNodes" : "$EndElements";
+        const std::string what = nodes ? "node" : "element";
+        if (!next()) fail("the file ends after " + std::string(nodes ? "$Nodes" : "$Elements"));
+        std::istringstream head(line);
+        if (version >= 4) {
+            long long blocks = -1, total = -1, minTag = 0, maxTag = 0;
+            if (!(head >> blocks >> total >> minTag >> maxTag) || blocks < 0 || total < 0)
+                fail("the " + what + " section header is not 'blocks count minTag maxTag'");
+            long long seen = 0;
+            for (long long b = 0; b < blocks; ++b) {
+                if (!next()) fail("the file ends in the " + what + " section");
+                std::istringstream bh(line);
+                long long dim = 0, tag = 0, kind = 0, count = -1;
+                if (!(bh >> dim >> tag >> kind >> count) || count < 0)
+                    fail("expected the header of " + what + " block " + std::to_string(b + 1) + " of " +
+                         std::to_string(blocks));
+                seen += count;
+                if (seen > total)
+                    fail("the " + what + " blocks hold more than the " + std::to_string(total) + " " + what +
+                         "s the section header promises");
+                // nodes: the tags, then the coordinates; elements: one line each
+                const long long lines = nodes ? 2 * count : count;
+                for (long long k = 0; k < lines; ++k) {
+                    if (!next() || (!line.empty() && line[0] == '$'))
+                        fail(what + " block " + std::to_string(b + 1) + " ends before its " + std::to_string(count) +
+                             " " + what + "s");
+                    if (!nodes || k < count) {  // a tag first on the line
+                        std::istringstream t(line);
+                        long long id = 0;
+                        if (!(t >> id) || id < minTag || id > maxTag)
+                            fail(what + " tag outside the range " + std::to_string(minTag) + " to " +
+                                 std::to_string(maxTag) + " of the section header");
+                    }
+                }
+            }
+            if (seen != total)
+                fail("the " + what + " blocks hold " + std::to_string(seen) + " " + what + "s but the section header promises " +
+                     std::to_string(total));
+        } else {
+            long long total = -1;
+            if (!(head >> total) || total < 0) fail("the " + what + " section does not start with its count");
+            for (long long k = 0; k < total; ++k)
+                if (!next() || (!line.empty() && line[0] == '$'))
+                    fail("the " + what + " section ends before its " + std::to_string(total) + " " + what + "s");
+        }
+        if (!next() || line != end) fail("expected " + end + " after the " + what + "s the header counts");
+    }
+}
+
 }  // namespace
 
 HexMesh readMsh(const std::string& path) {
     requireMshHeader(path);
+    checkMshCounts(path);
     HexMesh mesh;
     GmshSession gmshSession(path);
     try {

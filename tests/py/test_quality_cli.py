@@ -68,6 +68,44 @@ class QualityCommand(unittest.TestCase):
                     f.write(data[: int(len(data) * frac)])
                 self.one_line_error(["quality", cut], os.path.basename(cut))
 
+    def test_msh_section_counts_that_disagree_with_the_blocks_are_errors_not_crashes(self):
+        # Gmsh's reader crashed (segmentation fault) when the $Elements header
+        # promised fewer elements than the blocks hold; convert and smooth
+        # left a partial output behind.
+        import meshio
+        msh = os.path.join(self.dir, "counts.msh")
+        run(["convert", SAMPLE, msh, "--force"])
+        with open(msh) as f:
+            lines = f.read().split("\n")
+        at = lines.index("$Elements") + 1
+        blocks, total, lo, hi = lines[at].split()
+        lines[at] = " ".join([blocks, "10", lo, hi])
+        bad41 = os.path.join(self.dir, "fewer41.msh")
+        with open(bad41, "w") as f:
+            f.write("\n".join(lines))
+        m = meshio.read(SAMPLE)
+        v22 = os.path.join(self.dir, "v22.msh")
+        meshio.write(v22, meshio.Mesh(m.points, [("hexahedron", m.cells_dict["hexahedron"])]),
+                     file_format="gmsh22", binary=False)
+        with open(v22) as f:
+            lines = f.read().split("\n")
+        at = lines.index("$Elements") + 1
+        lines[at] = str(int(lines[at]) + 5)
+        bad22 = os.path.join(self.dir, "more22.msh")
+        with open(bad22, "w") as f:
+            f.write("\n".join(lines))
+        self.assertEqual(run(["quality", v22]).returncode, 0)  # the file before the edit reads
+        for bad, message in ((bad41, "the element blocks hold more than the 10 elements"),
+                             (bad22, "the element section ends before")):
+            outs = [os.path.join(self.dir, "c.exo"), os.path.join(self.dir, "s.vtu")]
+            for args in (["quality", bad], ["convert", bad, outs[0]], ["smooth", bad, "-o", outs[1], "-q"]):
+                p = run(args, check=False)
+                self.assertEqual(p.returncode, 1, (args, p.stderr))
+                self.assertIn(os.path.basename(bad) + ": line ", p.stderr)
+                self.assertIn(message, p.stderr)
+            for o in outs:
+                self.assertFalse(os.path.exists(o))
+
     def test_unknown_extension(self):
         path = os.path.join(self.dir, "mesh.stp")
         with open(path, "w") as f:
