@@ -120,6 +120,20 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
         if (!std::isfinite(raw.origin[a])) {
             throw Error(file + ": the image origin is not a finite number; fix the header and retry.");
         }
+        // OpenVDB's transform (double precision) refuses scales near 1e-30 or
+        // an origin near 1e30 with an exception; no scanner writes either.
+        if (raw.spacing[a] < 1e-9 || raw.spacing[a] > 1e9) {
+            std::ostringstream m;
+            m << file << ": voxel spacing along axis " << a << " is " << raw.spacing[a]
+              << "; isohex reads spacings from 1e-9 to 1e9. Fix the header (or its units) and retry.";
+            throw Error(m.str());
+        }
+        if (std::fabs(raw.origin[a]) > 1e12) {
+            std::ostringstream m;
+            m << file << ": the image origin is " << raw.origin[a] << " along axis " << a
+              << "; isohex reads origins up to 1e12 in size. Fix the header (or its units) and retry.";
+            throw Error(m.str());
+        }
     }
     const auto& D = raw.direction;
     const double det = D[0] * (D[4] * D[8] - D[5] * D[7]) - D[1] * (D[3] * D[8] - D[5] * D[6]) +
@@ -127,6 +141,18 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
     if (!(std::fabs(det) > 1e-6)) {
         throw Error(file + ": the direction cosines are singular (determinant " +
                     std::to_string(det) + "); fix the orientation in the header and retry.");
+    }
+    // OpenVDB refuses a transform whose determinant (the voxel volume) is
+    // below 3e-15 (3 x its double tolerance): micrometre voxels given in
+    // metres (1e-6 m: 1e-18).
+    const double voxelVolume = raw.spacing[0] * raw.spacing[1] * raw.spacing[2] * std::fabs(det);
+    if (voxelVolume < 3e-15) {
+        std::ostringstream m;
+        m << file << ": the voxel volume is " << voxelVolume << " (spacing " << raw.spacing[0] << " x "
+          << raw.spacing[1] << " x " << raw.spacing[2]
+          << "), below the 3e-15 cubic units OpenVDB's grid transform takes; the spacing is probably in metres. "
+             "Give it in millimetres (spacing and origin times 1000) and retry.";
+        throw Error(m.str());
     }
 }
 

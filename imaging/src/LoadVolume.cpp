@@ -295,7 +295,8 @@ std::vector<fs::path> filesWithExtension(const fs::path& dir, std::initializer_l
 
 }  // namespace
 
-Volume loadVolume(const fs::path& path, const LoadOptions& options) {
+namespace {
+Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
     const std::string file = path.string();
     std::error_code ec;
     const auto status = fs::status(path, ec);
@@ -315,6 +316,26 @@ Volume loadVolume(const fs::path& path, const LoadOptions& options) {
     }
     if (lower(path.extension().string()) == ".vdb") return loadVdb(path, options);
     return fromRaw(detail::readImageFileItk(path, options), file, options);
+}
+}  // namespace
+
+// What the readers and OpenVDB throw that the checks above did not foresee
+// (ITK's "unknown component type" from a header's ElementType, OpenVDB's
+// refusal of a transform from a degenerate header) is still about this
+// input: it is reported as the input's error, not as isohex's.
+Volume loadVolume(const fs::path& path, const LoadOptions& options) {
+    try {
+        return loadVolumeUnguarded(path, options);
+    } catch (const Error&) {
+        throw;
+    } catch (const std::bad_alloc&) {
+        throw;
+    } catch (const std::exception& e) {
+        std::string why = boundedMessage(e.what());
+        std::replace(why.begin(), why.end(), '\n', ' ');
+        throw Error(path.string() + ": cannot be read (" + why +
+                    "). Its header or data is damaged or unusual; check the file or export it again.");
+    }
 }
 
 }  // namespace isohex::imaging

@@ -404,6 +404,16 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
     s.source = file;
     std::unordered_map<Vec3, std::int32_t, Vec3Hash> weld;
     appendNode(*scene, *scene->mRootNode, aiMatrix4x4(), s, weld);
+    // Assimp reads "nan" in an OBJ or binary STL as a coordinate, and the
+    // level set's bounding box breaks on coordinates near 1e200.
+    for (std::size_t i = 0; i < s.vertices.size(); ++i)
+        for (int a = 0; a < 3; ++a)
+            if (!(std::fabs(s.vertices[i][a]) <= 1e15)) {
+                std::ostringstream m;
+                m << file << ": vertex " << i << " has coordinate " << s.vertices[i][a]
+                  << "; isohex reads finite coordinates up to 1e15 in size. Check the file's content and units.";
+                throw Error(m.str());
+            }
     checkClosedManifold(s);
     return s;
 }

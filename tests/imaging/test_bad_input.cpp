@@ -158,6 +158,39 @@ TEST(BadInput, NiftiOrientationThatIsNotFiniteIsRefusedBeforeItkAborts) {
     fs::remove_all(dir);
 }
 
+TEST(BadInput, GeometryOpenVdbCannotTakeAndUnknownElementTypesAreTheInputsErrors) {
+    // A spacing of 1e-30 or an origin of 1e30 reached OpenVDB's transform,
+    // whose exception came out as an internal error; so did ITK's for an
+    // ElementType of MET_NONE.
+    const auto dir = scratchDir("geometry");
+    Geometry tiny;
+    tiny.spacing = {1e-30, 1, 1};
+    writeImage(dir / "tiny.nrrd", kDims, ramp(), tiny);
+    expectError([&] { loadVolume(dir / "tiny.nrrd"); }, {"tiny.nrrd", "spacing along axis 0 is 1e-30"});
+    Geometry far;
+    far.origin = {0, 1e30, 0};
+    writeImage(dir / "far.mha", kDims, ramp(), far);
+    expectError([&] { loadVolume(dir / "far.mha"); }, {"far.mha", "origin is 1e+30 along axis 1"});
+    Geometry metres;
+    metres.spacing = {1e-6, 1e-6, 2e-6};  // micrometre voxels in metres: OpenVDB takes no such transform
+    writeImage(dir / "metres.nrrd", kDims, ramp(), metres);
+    expectError([&] { loadVolume(dir / "metres.nrrd"); }, {"metres.nrrd", "voxel volume is 2e-18", "millimetres"});
+    Geometry ok;
+    ok.spacing = {0.001, 0.001, 0.002};  // micrometre voxels in millimetres
+    ok.origin = {-1e5, 0, 3e5};
+    writeImage(dir / "fine.nrrd", kDims, ramp(), ok);
+    try {
+        loadVolume(dir / "fine.nrrd");
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << e.what();
+    }
+    writeBytes(dir / "none.mha", "ObjectType = Image\nNDims = 3\nDimSize = 4 4 3\nElementType = MET_NONE\n"
+                                 "ElementDataFile = LOCAL\n" + std::string(48, '\x05'));
+    const std::string m = expectError([&] { loadVolume(dir / "none.mha"); }, {"none.mha: cannot be read"});
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+    fs::remove_all(dir);
+}
+
 TEST(BadInput, ComplexPixelsAreUnsupported) {
     const auto dir = scratchDir("complex");
     writeComplexImage(dir / "kspace.nii", kDims);

@@ -400,6 +400,21 @@ class FailurePaths(unittest.TestCase):
             self.assertEqual(p.returncode, 0, (fmt, p.stderr))
             self.assertTrue(os.path.exists(out))
 
+    def test_surface_coordinates_that_are_not_finite_are_refused(self):
+        # Assimp reads "nan" in an OBJ as a coordinate; the mesh came out of it
+        src = os.path.join(self.dir, "nan.obj")
+        with open(src, "w") as f:
+            f.write("v nan 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+        out = os.path.join(self.dir, "nan.vtu")
+        p = run(["mesh", src, "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("nan.obj: vertex 0 has coordinate nan", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        good = os.path.join(self.dir, "tet.obj")
+        with open(good, "w") as f:
+            f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+        self.assertEqual(run(["mesh", good, "-o", out, "-q", "--force"]).returncode, 0)
+
     def test_a_library_message_quoting_the_whole_input_is_cut_to_a_readable_length(self):
         # Assimp quotes the rest of an ASCII STL after a bad number (262 kB of
         # stderr for a 2,000-triangle file); OpenVDB quoted gigabytes of a
