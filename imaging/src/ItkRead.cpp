@@ -9,6 +9,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <type_traits>
+#include <memory>
+#include <limits>
 #include <regex>
 #include <sstream>
 
@@ -354,6 +357,73 @@ void checkNiftiOrientation(const std::string& file) {
     }
 }
 
+// nifti1_io (inside ITK's NIfTI reader) replaces NaN and infinite float
+// voxels with 0, with only a debug message, so a NIfTI scan never reached
+// isohex's NaN policy (refuse, or outside with --nan-as-outside) and was
+// meshed with zeros in the holes. This reads the float voxels of the chosen
+// volume (`frame` of `frames`, component `comp`) again and puts NaN back
+// where the file has a non-finite value.
+void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
+                           std::int64_t frames, int comp) {
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return;
+    std::unique_ptr<std::remove_pointer_t<gzFile>, int (*)(gzFile)> guard(gz, gzclose);
+    unsigned char h[540] = {};
+    const int got = gzread(gz, h, sizeof h);
+    if (got < 348) return;
+    std::uint32_t size;
+    std::memcpy(&size, h, 4);
+    const bool swap = size != 348 && size != 540;
+    if (swap) size = __builtin_bswap32(size);
+    if (size != 348 && (size != 540 || got < 540)) return;
+    const bool v1 = size == 348;
+    std::uint16_t dt;
+    std::memcpy(&dt, h + (v1 ? 70 : 12), 2);
+    if (swap) dt = static_cast<std::uint16_t>(__builtin_bswap16(dt));
+    if (dt != 16 && dt != 64) return;  // only float32 and float64 voxels can be non-finite
+    double voxOffset;
+    if (v1) {
+        std::uint32_t b;
+        std::memcpy(&b, h + 108, 4);
+        if (swap) b = __builtin_bswap32(b);
+        float f;
+        std::memcpy(&f, &b, 4);
+        voxOffset = std::max(double(f), 352.0);
+    } else {
+        std::uint64_t b;
+        std::memcpy(&b, h + 168, 8);
+        voxOffset = double(swap ? __builtin_bswap64(b) : b);
+    }
+    const std::size_t width = dt == 16 ? 4 : 8;
+    const auto n = static_cast<std::int64_t>(values.size());
+    // NIfTI order: x fastest, then y, z, t (frames), then the components.
+    const std::int64_t first = (std::int64_t(comp) * frames + frame) * n;
+    if (gzseek(gz, static_cast<z_off_t>(voxOffset + double(first) * double(width)), SEEK_SET) < 0) return;
+    std::vector<unsigned char> chunk(width * 65536);
+    for (std::int64_t i = 0; i < n;) {
+        const std::int64_t count = std::min<std::int64_t>(65536, n - i);
+        const int want = static_cast<int>(count * static_cast<std::int64_t>(width));
+        if (gzread(gz, chunk.data(), static_cast<unsigned>(want)) != want) return;  // short: the size checks report it
+        for (std::int64_t k = 0; k < count; ++k) {
+            const unsigned char* b = chunk.data() + k * static_cast<std::int64_t>(width);
+            bool finite;
+            if (width == 4) {
+                std::uint32_t u;
+                std::memcpy(&u, b, 4);
+                if (swap) u = __builtin_bswap32(u);
+                finite = (u & 0x7f800000u) != 0x7f800000u;
+            } else {
+                std::uint64_t u;
+                std::memcpy(&u, b, 8);
+                if (swap) u = __builtin_bswap64(u);
+                finite = (u & 0x7ff0000000000000ull) != 0x7ff0000000000000ull;
+            }
+            if (!finite) values[static_cast<std::size_t>(i + k)] = std::numeric_limits<float>::quiet_NaN();
+        }
+        i += count;
+    }
+}
+
 // MetaImage header fields ITK's MetaIO mishandles without an exception:
 // NDims of 0 or less loops forever, a file pattern with step 0 loops
 // forever printing errors, ASCII data (BinaryData = False) crashes the
@@ -594,6 +664,13 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
     }
     image = nullptr;
     reader = nullptr;
+    {
+        std::string lower = path.filename().string();
+        for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        const bool nifti = (lower.size() > 4 && lower.compare(lower.size() - 4, 4, ".nii") == 0) ||
+                           (lower.size() > 7 && lower.compare(lower.size() - 7, 7, ".nii.gz") == 0);
+        if (nifti) restoreNiftiNonFinite(file, raw.values, frame, std::max<std::int64_t>(frames, 1), comp);
+    }
 
     // TIFF carries no usable physical geometry; the caller supplies it.
     if (raw.format == "TIFF") {

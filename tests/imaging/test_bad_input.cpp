@@ -231,6 +231,15 @@ TEST(BadInput, NonFiniteVoxelsAreCountedAndCanBeTreatedAsOutside) {
     writeImage(dir / "nan.nrrd", kDims, v, Geometry{});
     expectError([&] { loadVolume(dir / "nan.nrrd"); },
                 {"nan.nrrd", "3 of 720 voxels are NaN or infinite", "(5,0,0)", "nan-as-outside"});
+    // NIfTI too: its library turned them into 0 on reading, silently
+    for (const char* name : {"nan.nii", "nan.nii.gz"}) {
+        SCOPED_TRACE(name);
+        writeImage(dir / name, kDims, v, Geometry{});
+        expectError([&] { loadVolume(dir / name); }, {name, "3 of 720 voxels are NaN or infinite", "(5,0,0)"});
+        LoadOptions outside;
+        outside.nanAsOutside = true;
+        EXPECT_EQ(loadVolume(dir / name, outside).nonFiniteVoxels, 3);
+    }
     LoadOptions o;
     o.nanAsOutside = true;
     const Volume vol = loadVolume(dir / "nan.nrrd", o);
