@@ -1,5 +1,7 @@
 #include "MeshOptions.hpp"
 
+#include <cmath>
+#include <cstdlib>
 #include <sstream>
 
 #include "isohex/core/Error.hpp"
@@ -38,10 +40,20 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
     cmd->add_option("--series", s.load.seriesUid, "DICOM folder: the SeriesInstanceUID to read")->group(in);
     cmd->add_option("--grid", s.load.gridName, ".vdb file: the grid to read")->group(in);
     cmd->add_option("--volume-index", s.load.volumeIndex, "4-D or multi-component image: which volume/component")
+        ->check(CLI::Range(0, 2147483647))
         ->group(in);
     cmd->add_flag("--nan-as-outside", s.load.nanAsOutside, "Treat NaN/Inf voxels as outside instead of refusing")
         ->group(in);
     cmd->add_option("--max-memory", s.load.maxMemoryMB, "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need more (default: 80% of the machine's memory)")
+        ->check(CLI::Validator(
+            [](const std::string& v) {
+                char* end = nullptr;
+                const double mb = std::strtod(v.c_str(), &end);
+                return end != v.c_str() && *end == '\0' && std::isfinite(mb) && mb > 0
+                           ? std::string()
+                           : "--max-memory takes a number of megabytes above 0 (got '" + v + "')";
+            },
+            "", "positive"))
         ->group(in);
     cmd->add_option("--slice-spacing", a.sliceSpacing, "Folder of 2-D slices: voxel spacing X Y Z in mm")
         ->expected(3)

@@ -218,7 +218,7 @@ const std::vector<Column>& columns() {
         {"max_memory", "MB",
          [](const Field& f, MeshArgs& a, JobFields&) {
              const double v = toNumber(f.scalar());
-             if (v < 0) throw FieldError{"must not be negative"};
+             if (!(v > 0) || !std::isfinite(v)) throw FieldError{"must be a number of megabytes above 0"};
              a.settings.load.maxMemoryMB = v;
          }},
         {"slice_spacing", "three numbers \"X Y Z\"",

@@ -57,14 +57,25 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
         iso = 0.0;  // a signed distance: the zero set, negative inside
         insideBelow = true;
     } else {
-        if (vol.nonFiniteVoxels > 0) {
-            std::vector<float> finite;
-            finite.reserve(values.size());
-            for (float v : values)
-                if (std::isfinite(v)) finite.push_back(v);
-            iso = detail::otsuThresholdItk(finite);
-        } else {
-            iso = detail::otsuThresholdItk(values);
+        try {
+            if (vol.nonFiniteVoxels > 0) {
+                std::vector<float> finite;
+                finite.reserve(values.size());
+                for (float v : values)
+                    if (std::isfinite(v)) finite.push_back(v);
+                iso = detail::otsuThresholdItk(finite);
+            } else {
+                iso = detail::otsuThresholdItk(values);
+            }
+        } catch (const Error& e) {
+            throw Error(src + ": " + e.what());  // which scan, in a batch
+        }
+        // ITK's calculator gives NaN for values near the float limits (+-3e38)
+        if (!std::isfinite(*iso)) {
+            std::ostringstream m;
+            m << src << ": Otsu's method found no threshold for values from " << vol.minValue << " to "
+              << vol.maxValue << "; give the iso value yourself.";
+            throw Error(m.str());
         }
         sel.isoFromOtsu = true;
     }

@@ -523,6 +523,47 @@ class FailurePaths(unittest.TestCase):
         run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--volume-index", "0", "--size", "4", "-o", out, "-q"])
         self.assertTrue(os.path.exists(out))
 
+    def test_memory_budget_and_volume_index_take_only_meaningful_values(self):
+        # --max-memory 0 and nan, and --volume-index -1, were accepted (0 and
+        # -1 silently meant the defaults)
+        out = os.path.join(self.dir, "opts.vtu")
+        src = os.path.join(self.dir, "sphere.nii.gz")
+        for args, message in ((["--max-memory", "0"], "above 0 (got '0')"),
+                              (["--max-memory", "nan"], "above 0 (got 'nan')"),
+                              (["--volume-index", "-1"], "not in range 0")):
+            p = run(["mesh", src, *args, "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 2, (args, p.stderr))
+            self.assertIn(message, p.stderr)
+            self.assertFalse(os.path.exists(out))
+        manifest = os.path.join(self.dir, "opts.csv")
+        with open(manifest, "w") as f:
+            f.write("input,output,max_memory\n%s,%s,0\n" % (src, out))
+        p = run(["batch", manifest], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("opts.csv:2:", p.stderr)
+        self.assertIn("above 0", p.stderr)
+
+    def test_otsu_failures_name_the_scan(self):
+        # a flat scan's message did not say which file (a batch has many), and
+        # values near the float limits gave "iso value -nan"
+        sys.path.insert(0, os.path.join(SOURCE, "samples"))
+        from make_phantoms import write_nifti
+        flat = os.path.join(self.dir, "flat.nii.gz")
+        write_nifti(flat, np.full((8, 8, 8), 7.0, dtype=np.float32))
+        extreme = np.zeros((8, 8, 8), dtype=np.float32)
+        extreme[:4] = -3.0e38
+        extreme[4:] = 3.0e38
+        huge = os.path.join(self.dir, "extreme.nii.gz")
+        write_nifti(huge, extreme)
+        out = os.path.join(self.dir, "otsu.vtu")
+        for src, message in ((flat, "flat.nii.gz: Otsu threshold: every voxel has the value 7"),
+                             (huge, "extreme.nii.gz: Otsu's method found no threshold")):
+            p = run(["mesh", src, "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertIn(message, p.stderr)
+            self.assertNotIn("nan", p.stderr)
+        self.assertFalse(os.path.exists(out))
+
     def test_compare_refuses_a_seed_that_is_not_a_whole_number(self):
         # --seed -1 was taken as 18446744073709551615 (an unsigned wrap) and 1.5 as 1
         js = os.path.join(self.dir, "seed.json")
