@@ -216,6 +216,30 @@ TEST(LoadVolume, VdbFileRoundTripsGridAndTransform) {
     EXPECT_EQ(b.format, "OpenVDB");
     expectSameGrid(a, b);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(b.spacing[k], a.spacing[k], 1e-12);
+    // Cut short, with metadata and two grids in it: a clear error before
+    // OpenVDB reads it (it allocated gigabytes for the garbage lengths).
+    {
+        openvdb::FloatGrid::Ptr second = a.intensity->deepCopy();
+        second->setName("second");
+        openvdb::MetaMap meta;
+        meta.insertMeta("creator", openvdb::StringMetadata("isohex test"));
+        openvdb::io::File f((dir / "two.vdb").string());
+        f.write({a.intensity, second}, meta);
+    }
+    EXPECT_NO_THROW(loadVolume(dir / "two.vdb"));  // whole, the walk accepts it
+    const auto whole = fs::file_size(dir / "two.vdb");
+    for (const double keep : {0.9, 0.6, 0.2}) {
+        SCOPED_TRACE(keep);
+        fs::copy_file(dir / "two.vdb", dir / "cut.vdb", fs::copy_options::overwrite_existing);
+        fs::resize_file(dir / "cut.vdb", static_cast<std::uintmax_t>(keep * double(whole)));
+        try {
+            loadVolume(dir / "cut.vdb");
+            ADD_FAILURE() << "no error";
+        } catch (const isohex::Error& e) {
+            EXPECT_NE(std::string(e.what()).find("cut.vdb: the OpenVDB file is damaged or truncated"), std::string::npos)
+                << e.what();
+        }
+    }
     fs::remove_all(dir);
 }
 
