@@ -179,7 +179,7 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
         } catch (const std::exception& e) {
             ++failed;
-            const std::string message = boundedMessage(e.what());
+            const std::string message = boundedMessage(e.what(), 65536);
             results.push_back({job.input, "failed", message});
             sink.note("error", message);
             sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
         app.exit(e);
         return kExitUsage;
     } catch (const isohex::Error& e) {
-        std::cerr << "isohex: error: " << isohex::boundedMessage(e.what()) << "\n";
+        std::cerr << "isohex: error: " << isohex::boundedMessage(e.what(), 65536) << "\n";
         return kExitError;
     } catch (const std::bad_alloc&) {
         std::cerr << "isohex: error: out of memory; try a coarser --size or a machine with more memory\n";

@@ -9,13 +9,17 @@
 // index order, which keeps numbering identical for readers that renumber by
 // file position.
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <system_error>
 #include <unordered_map>
 
 #include <gmsh.h>
@@ -185,12 +189,15 @@ void requireMshHeader(const std::string& path) {
 // Gmsh (isohex writes ASCII).
 void checkMshCounts(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
+    std::error_code ec;
+    auto fileSize = static_cast<long long>(std::filesystem::file_size(path, ec));
+    if (ec) fileSize = std::numeric_limits<long long>::max();
     std::string line;
     std::size_t lineNo = 0;
     auto next = [&]() -> bool {
         if (!std::getline(in, line)) return false;
         ++lineNo;
-        if (!line.empty() && line.back() == '\r') line.pop_back();
+        while (!line.empty() && std::isspace(static_cast<unsigned char>(line.back()))) line.pop_back();
         return true;
     };
     auto fail = [&](const std::string& what) {
@@ -205,6 +212,8 @@ void checkMshCounts(const std::string& path) {
             std::istringstream f(line);
             f >> version >> fileType;
             if (fileType != 0) return;  // binary: Gmsh's reader checks it
+            // 4.1 and 2.x have the layouts walked below; 3.x and 4.0 are left to Gmsh
+            if (!(version >= 4.1) && !(version >= 2 && version < 3)) return;
             continue;
         }
         const bool nodes = line == "$Nodes", elements = line == "$Elements";
@@ -217,12 +226,14 @@ void checkMshCounts(const std::string& path) {
             long long blocks = -1, total = -1, minTag = 0, maxTag = 0;
             if (!(head >> blocks >> total >> minTag >> maxTag) || blocks < 0 || total < 0)
                 fail("the " + what + " section header is not 'blocks count minTag maxTag'");
+            // a line per item at least: more than the file's bytes is a damaged count
+            if (blocks > fileSize || total > fileSize) fail("the " + what + " section header's counts exceed the file");
             long long seen = 0;
             for (long long b = 0; b < blocks; ++b) {
                 if (!next()) fail("the file ends in the " + what + " section");
                 std::istringstream bh(line);
                 long long dim = 0, tag = 0, kind = 0, count = -1;
-                if (!(bh >> dim >> tag >> kind >> count) || count < 0)
+                if (!(bh >> dim >> tag >> kind >> count) || count < 0 || count > fileSize)
                     fail("expected the header of " + what + " block " + std::to_string(b + 1) + " of " +
                          std::to_string(blocks));
                 seen += count;
@@ -249,7 +260,8 @@ void checkMshCounts(const std::string& path) {
                      std::to_string(total));
         } else {
             long long total = -1;
-            if (!(head >> total) || total < 0) fail("the " + what + " section does not start with its count");
+            if (!(head >> total) || total < 0 || total > fileSize)
+                fail("the " + what + " section does not start with its count");
             for (long long k = 0; k < total; ++k)
                 if (!next() || (!line.empty() && line[0] == '$'))
                     fail("the " + what + " section ends before its " + std::to_string(total) + " " + what + "s");

@@ -12,7 +12,6 @@
 #include <type_traits>
 #include <memory>
 #include <limits>
-#include <regex>
 #include <sstream>
 
 #include <itkGDCMImageIO.h>
@@ -128,7 +127,7 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
         if (raw.spacing[a] < 1e-9 || raw.spacing[a] > 1e9) {
             std::ostringstream m;
             m << file << ": voxel spacing along axis " << a << " is " << raw.spacing[a]
-              << "; isohex reads spacings from 1e-9 to 1e9. Fix the header (or its units) and retry.";
+              << "; isohex reads spacings from 1e-9 to 1e9. Fix the header or its units (for a folder of slices, --slice-spacing) and retry.";
             throw Error(m.str());
         }
         if (std::fabs(raw.origin[a]) > 1e12) {
@@ -268,7 +267,8 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
             break;
         }
     }
-    if (dataFile.empty() || dataFile == "LIST" || dataFile.find('%') != std::string::npos) return;
+    if (dataFile.empty() || dataFile.rfind("LIST", 0) == 0 || dataFile.find('%') != std::string::npos) return;
+    if (dataFile == "Local" || dataFile == "local") dataFile = "LOCAL";
     std::uint64_t need = compressed ? compressedSize : dataBytes;
     if (need == 0) return;
     std::uint64_t have;
@@ -388,11 +388,12 @@ void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, 
         if (swap) b = __builtin_bswap32(b);
         float f;
         std::memcpy(&f, &b, 4);
+        if (!std::isfinite(f)) return;
         voxOffset = std::max(double(f), 352.0);
     } else {
         std::uint64_t b;
         std::memcpy(&b, h + 168, 8);
-        voxOffset = double(swap ? __builtin_bswap64(b) : b);
+        voxOffset = std::max(double(swap ? __builtin_bswap64(b) : b), 544.0);
     }
     const std::size_t width = dt == 16 ? 4 : 8;
     const auto n = static_cast<std::int64_t>(values.size());
@@ -456,9 +457,10 @@ void checkMetaImageHeader(const std::string& file) {
                 fail("the MetaImage header says NDims = " + value +
                      "; it must be the number of image dimensions (3 for a volume). Fix the header and retry.");
         } else if (key == "DimSize") {
-            for (long long d; v >> d;) dims.push_back(d);
+            for (double d; v >> d;) dims.push_back(d >= 1 && d < 9e18 && d == std::floor(d) ? static_cast<long long>(d) : 0);
         } else if (key == "BinaryData") {
-            binary = !(value == "False" || value == "false" || value == "FALSE");
+            // MetaIO: binary when the value starts with T, t or 1
+            binary = !value.empty() && (value[0] == 'T' || value[0] == 't' || value[0] == '1');
         } else if (key == "HeaderSize") {
             v >> headerSize;
         } else if (key == "ElementDataFile") {
@@ -486,29 +488,63 @@ void checkMetaImageHeader(const std::string& file) {
     };
     const long long slices = ndims >= 1 && static_cast<long long>(dims.size()) >= ndims ? dims[ndims - 1] : 0;
     if (dataFile.rfind("LIST", 0) == 0) {
+        // As MetaIO: "LIST nD" names files of n dimensions (default NDims-1),
+        // one per index of the dimensions above; a last name without a line
+        // end is not read.
+        long long fileDim = ndims - 1;
+        {
+            std::istringstream w(dataFile.substr(4));
+            double d = 0;
+            if (w >> d && d >= 1 && d <= double(ndims)) fileDim = static_cast<long long>(d);
+        }
+        long long files = 1;
+        for (long long a = fileDim; a < ndims && a < static_cast<long long>(dims.size()); ++a)
+            files = std::min<long long>(files * std::max<long long>(dims[static_cast<std::size_t>(a)], 1), 1LL << 40);
         long long listed = 0;
-        while (std::getline(in, line)) {
+        while (listed < files && std::getline(in, line)) {
+            if (in.eof()) break;  // no line end: MetaIO stops before it
             const std::string name = trim(line);
             if (name.empty()) continue;
             requireFile(name);
             ++listed;
         }
-        if (listed < slices)
-            fail("the MetaImage header lists " + std::to_string(listed) + " data file(s) for " +
-                 std::to_string(slices) + " slices; every slice needs its file.");
+        if (listed < files)
+            fail("the MetaImage header lists " + std::to_string(listed) + " data file(s) (each on its own line) for " +
+                 std::to_string(files) + " needed; every slice needs its file.");
     } else if (dataFile.find('%') != std::string::npos) {
+        // MetaIO's reading of "pattern [first [last [step]]]": first 1, last
+        // first + slices - 1, step (last - first) / slices with three words;
+        // it loops for ever on a step of 0 and reads nothing for a negative one.
         std::istringstream v(dataFile);
         std::string pattern;
-        long long first = 0, last = 0, step = 1;
-        v >> pattern >> first >> last;
-        if (!(v >> step)) step = 1;
+        v >> pattern;
+        std::vector<double> words;
+        for (double d; v >> d;) words.push_back(d);
+        for (double d : words)
+            if (!(std::fabs(d) < 1e9)) fail("the MetaImage file pattern '" + dataFile + "' has a number out of range; fix the header.");
+        long long first = 1, last = slices, step = 1;
+        if (words.size() >= 1) {
+            first = static_cast<long long>(words[0]);
+            last = first + slices - 1;
+        }
+        if (words.size() >= 2) {
+            last = static_cast<long long>(words[1]);
+            step = slices > 0 ? (last - first) / slices : 1;
+        }
+        if (words.size() >= 3) step = static_cast<long long>(words[2]);
         // One integer conversion (%d, %03d ...) and nothing else a printf
         // would read an argument for.
-        if (!std::regex_match(pattern, std::regex("[^%]*%[0-9]*[di][^%]*")))
+        const auto percent = pattern.find('%');
+        std::size_t at = percent + 1;
+        while (at < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[at]))) ++at;
+        if (at >= pattern.size() || (pattern[at] != 'd' && pattern[at] != 'i') ||
+            pattern.find('%', at) != std::string::npos || pattern.size() > 1000)
             fail("the MetaImage file pattern '" + pattern + "' must hold one integer field such as %03d; fix the header.");
-        if (step == 0 || (last - first) / step < 0)
-            fail("the MetaImage file pattern '" + dataFile + "' has step " + std::to_string(step) +
-                 ", which never reaches " + std::to_string(last) + "; fix the header.");
+        if (step <= 0 || last < first)
+            fail("the MetaImage file pattern '" + dataFile + "' steps by " + std::to_string(step) + " from " +
+                 std::to_string(first) + " to " + std::to_string(last) +
+                 ", which names no file or never ends; write the pattern as 'name first last step' with a step "
+                 "of 1 or more and fix the header.");
         if ((last - first) / step + 1 < slices)
             fail("the MetaImage file pattern '" + dataFile + "' names " + std::to_string((last - first) / step + 1) +
                  " file(s) for " + std::to_string(slices) + " slices; every slice needs its file.");
@@ -518,7 +554,8 @@ void checkMetaImageHeader(const std::string& file) {
             requireFile(name);
         }
     } else if (headerSize > 0) {
-        const std::filesystem::path data = dataFile == "LOCAL" ? std::filesystem::path(file) : dir / dataFile;
+        const bool local = dataFile == "LOCAL" || dataFile == "Local" || dataFile == "local";
+        const std::filesystem::path data = local ? std::filesystem::path(file) : dir / dataFile;
         std::error_code ec;
         const auto have = std::filesystem::file_size(data, ec);
         if (!ec && static_cast<std::uint64_t>(headerSize) >= have)
@@ -669,7 +706,10 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
         for (auto& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
         const bool nifti = (lower.size() > 4 && lower.compare(lower.size() - 4, 4, ".nii") == 0) ||
                            (lower.size() > 7 && lower.compare(lower.size() - 7, 7, ".nii.gz") == 0);
-        if (nifti) restoreNiftiNonFinite(file, raw.values, frame, std::max<std::int64_t>(frames, 1), comp);
+        // (Not for label maps: a float label map padded with NaN, as
+        // resampling with NaN fill writes, keeps NaN as background 0.)
+        if (nifti && !options.labels)
+            restoreNiftiNonFinite(file, raw.values, frame, std::max<std::int64_t>(frames, 1), comp);
     }
 
     // TIFF carries no usable physical geometry; the caller supplies it.

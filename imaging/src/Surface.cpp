@@ -8,6 +8,8 @@
 #include <map>
 #include <cctype>
 #include <fstream>
+#include <limits>
+#include <cstdlib>
 #include <iterator>
 #include <sstream>
 #include <unordered_map>
@@ -250,6 +252,7 @@ static void checkPlyLayout(const std::string& file) {
         int countSize = 0;   // list: bytes of the length; 0 for a scalar
         int size = 0;        // bytes of the value (of each item for a list)
         bool integer = false, isSigned = false;
+        bool vertexIndices = false;  // the face list of vertex indices
     };
     struct Element {
         std::string name;
@@ -274,7 +277,7 @@ static void checkPlyLayout(const std::string& file) {
         std::size_t nl = data.find('\n', pos);
         if (nl == std::string::npos) nl = data.size();
         std::istringstream line(data.substr(pos, nl - pos));
-        pos = nl + 1;
+        pos = std::min(nl + 1, data.size());  // a header cut before its last newline ends at the end
         std::string word;
         line >> word;
         if (lineNo == 1) {
@@ -300,6 +303,9 @@ static void checkPlyLayout(const std::string& file) {
                 pr.size = typeSize(it, pr.integer, pr.isSigned);
                 if (pr.countSize == 0 || pr.size == 0 || !ci)
                     fail("header line " + std::to_string(lineNo) + " has a list property of unknown types '" + ct + " " + it + "'");
+                std::string name;
+                line >> name;
+                pr.vertexIndices = name == "vertex_indices" || name == "vertex_index";
             } else {
                 pr.size = typeSize(t, pr.integer, pr.isSigned);
                 if (pr.size == 0) fail("header line " + std::to_string(lineNo) + " has a property of unknown type '" + t + "'");
@@ -336,9 +342,21 @@ static void checkPlyLayout(const std::string& file) {
         }
         return true;
     };
-    auto readAscii = [&](double& value) { return static_cast<bool>(text >> value); };
+    // ASCII values as tokens: only list lengths and vertex indices are
+    // looked at (other values may be nan or inf, which a PLY may hold in its
+    // normals or colours).
+    std::string token;
+    auto readAscii = [&](double& value, bool needed) {
+        if (!(text >> token)) return false;
+        if (!needed) return true;
+        char* end = nullptr;
+        value = std::strtod(token.c_str(), &end);
+        if (end == token.c_str() || *end != '\0') value = std::numeric_limits<double>::quiet_NaN();
+        return true;
+    };
     for (const Element& e : elements) {
         const bool face = e.name == "face";
+        if (e.props.empty()) continue;  // nothing stored per item
         for (long long i = 0; i < e.count; ++i) {
             auto cut = [&] {
                 fail("the header promises " + std::to_string(e.count) + " " + e.name + " item(s) but the data ends at " +
@@ -347,12 +365,16 @@ static void checkPlyLayout(const std::string& file) {
             for (const Property& pr : e.props) {
                 double n = 1, v = 0;
                 if (pr.countSize > 0) {
-                    if (!(ascii ? readAscii(n) : readBinary(pr.countSize, true, false, n))) cut();
-                    if (n < 0 || n != std::floor(n)) fail(e.name + " " + std::to_string(i) + " has a list length of " + std::to_string(n));
+                    if (!(ascii ? readAscii(n, true) : readBinary(pr.countSize, true, false, n))) cut();
+                    if (!(n >= 0) || n != std::floor(n) || n > static_cast<double>(data.size()))
+                        fail(e.name + " " + std::to_string(i) + " has a list length of " + std::to_string(n));
                 }
                 for (long long k = 0; k < static_cast<long long>(n); ++k) {
-                    if (!(ascii ? readAscii(v) : readBinary(pr.size, pr.integer, pr.isSigned, v))) cut();
-                    if (face && pr.countSize > 0 && pr.integer && (v < 0 || v >= static_cast<double>(vertices)))
+                    const bool index = face && pr.vertexIndices && pr.integer;
+                    if (!(ascii ? readAscii(v, index) : readBinary(pr.size, pr.integer, pr.isSigned, v))) cut();
+                    if (index && !(std::isfinite(v) && v == std::floor(v)))
+                        fail("face " + std::to_string(i) + " has a vertex index that is not a whole number");
+                    if (index && !(v >= 0 && v < static_cast<double>(vertices)))
                         fail("face " + std::to_string(i) + " uses vertex " + std::to_string(static_cast<long long>(v)) +
                              " but there are only " + std::to_string(vertices) + " vertices (0 to " +
                              std::to_string(vertices - 1) + ")");
@@ -397,7 +419,7 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
         scene = importer.ReadFile(file, flags);
     }
     if (!scene || !scene->mRootNode) {
-        throw Error(file + ": cannot be read as a triangle surface (" + importer.GetErrorString() +
+        throw Error(file + ": cannot be read as a triangle surface (" + boundedMessage(importer.GetErrorString()) +
                     "). Supported: .stl (ascii/binary), .obj, .ply, .off; check the file is complete.");
     }
     TriangleSurface s;

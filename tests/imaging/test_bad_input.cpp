@@ -103,10 +103,10 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
         {"ascii.mha", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 4 4 3\nElementType = MET_UCHAR\n"
                       "ElementDataFile = LOCAL\n" + std::string(48 * 2, ' '),
          {"BinaryData = False", "binary"}},
-        {"step0.mhd", head + "ElementDataFile = s%d.raw 0 2 0\n", {"step 0"}},
+        {"step0.mhd", head + "ElementDataFile = s%d.raw 0 2 0\n", {"steps by 0", "first last step"}},
         {"format.mhd", head + "ElementDataFile = s%s.raw 0 2 1\n", {"one integer field"}},
         {"list.mhd", head + "ElementDataFile = LIST\ns0.raw\ns1.raw\ns2.raw\n", {"s1.raw", "missing"}},
-        {"short_list.mhd", head + "ElementDataFile = LIST\ns0.raw\n", {"lists 1 data file(s) for 3 slices"}},
+        {"short_list.mhd", head + "ElementDataFile = LIST\ns0.raw\n", {"lists 1 data file(s) (each on its own line) for 3 needed"}},
         {"pattern.mhd", head + "ElementDataFile = s%d.raw 0 2 1\n", {"s1.raw", "missing"}},
         {"empty.mhd", head + "ElementDataFile = \n", {"ElementDataFile is empty"}},
         {"headersize.mha", head + "HeaderSize = 100000\nElementDataFile = LOCAL\n" + voxels, {"HeaderSize (100000 bytes)"}},
@@ -118,12 +118,26 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
         want.push_back(name);
         expectError([&] { loadVolume(dir / name); }, want);
     }
-    // The same header with every slice's file present reads.
+    // MetaIO's own pattern rules: three words step by (last - first) / slices,
+    // which is 0 here (it would loop for ever); a negative step reads nothing
+    writeBytes(dir / "step_computed.mhd", head + "ElementDataFile = s%d.raw 0 2\n");
+    expectError([&] { loadVolume(dir / "step_computed.mhd"); }, {"step_computed.mhd", "steps by 0 from 0 to 2", "first last step"});
+    writeBytes(dir / "step_negative.mhd", head + "ElementDataFile = s%d.raw 2 0 -1\n");
+    expectError([&] { loadVolume(dir / "step_negative.mhd"); }, {"step_negative.mhd", "steps by -1"});
+    // The same headers with every slice's file present read, and so do the
+    // other forms MetaIO takes: one word (files 1..3), two words (from 0),
+    // "LIST 3D" (one file holding the volume), "local".
     writeBytes(dir / "s1.raw", std::string(16, '\x05'));
     writeBytes(dir / "s2.raw", std::string(16, '\x05'));
+    writeBytes(dir / "s3.raw", std::string(16, '\x05'));
+    writeBytes(dir / "vol.raw", voxels);
     writeBytes(dir / "good_list.mhd", head + "ElementDataFile = LIST\ns0.raw\ns1.raw\ns2.raw\n");
     writeBytes(dir / "good_pattern.mhd", head + "ElementDataFile = s%d.raw 0 2 1\n");
-    for (const char* name : {"good_list.mhd", "good_pattern.mhd"}) {
+    writeBytes(dir / "one_word.mhd", head + "ElementDataFile = s%d.raw\n");
+    writeBytes(dir / "two_words.mhd", head + "ElementDataFile = s%d.raw 0\n");
+    writeBytes(dir / "list3d.mhd", head + "ElementDataFile = LIST 3D\nvol.raw\n");
+    writeBytes(dir / "lower.mha", head + "ElementDataFile = local\n" + voxels);
+    for (const char* name : {"good_list.mhd", "good_pattern.mhd", "one_word.mhd", "two_words.mhd", "list3d.mhd", "lower.mha"}) {
         SCOPED_TRACE(name);
         EXPECT_NO_THROW(loadVolume(dir / name));
     }
@@ -240,6 +254,16 @@ TEST(BadInput, NonFiniteVoxelsAreCountedAndCanBeTreatedAsOutside) {
         outside.nanAsOutside = true;
         EXPECT_EQ(loadVolume(dir / name, outside).nonFiniteVoxels, 3);
     }
+    // a float label map padded with NaN (resampling with NaN fill) keeps NaN as background 0
+    std::vector<float> labels(v.size(), 2.0f);
+    labels[5] = std::numeric_limits<float>::quiet_NaN();
+    labels[6] = 0.0f;
+    writeImage(dir / "labels.nii", kDims, labels, Geometry{});
+    LoadOptions asLabels;
+    asLabels.labels = true;
+    const Volume lv = loadVolume(dir / "labels.nii", asLabels);
+    EXPECT_EQ(lv.labels->tree().getValue(openvdb::Coord(5, 0, 0)), 0);
+    EXPECT_EQ(lv.labels->tree().getValue(openvdb::Coord(7, 0, 0)), 2);
     LoadOptions o;
     o.nanAsOutside = true;
     const Volume vol = loadVolume(dir / "nan.nrrd", o);

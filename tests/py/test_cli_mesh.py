@@ -390,6 +390,25 @@ class FailurePaths(unittest.TestCase):
             self.assertIn(f"{name}: the header {message}" if "promises" in message else f"{name}: {message}", p.stderr)
             self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
             self.assertFalse(os.path.exists(out))
+        # a binary header cut right after end_header, before its newline: read past the buffer
+        cut = os.path.join(self.dir, "cut_header.ply")
+        whole = ply("binary_little_endian", faces)
+        with open(cut, "wb") as f:
+            f.write(whole[:whole.index(b"end_header") + len(b"end_header")])
+        p = run(["mesh", cut, "-o", os.path.join(self.dir, "ply.vtu"), "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("cut_header.ply: the header promises 4 vertex item(s) but the data ends at vertex 0", p.stderr)
+        # valid files the walk must not refuse: nan in a normal, and a face list that is not vertex indices
+        odd = os.path.join(self.dir, "odd.ply")
+        with open(odd, "w") as f:
+            f.write("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property float nx\nelement face 4\nproperty list uchar int vertex_indices\n"
+                    "property list uchar int texcoord_indices\nelement nothing 1000000000000\nend_header\n")
+            for i, v in enumerate(verts):
+                f.write("%g %g %g %s\n" % (*v, "nan" if i == 1 else "0"))
+            for fc in faces:
+                f.write("3 %d %d %d 3 100 200 300\n" % fc)
+        self.assertEqual(run(["mesh", odd, "-o", os.path.join(self.dir, "odd.vtu"), "-q", "--force"]).returncode, 0)
         # the same layouts whole are read and meshed, both byte orders
         for fmt in ("ascii", "binary_little_endian", "binary_big_endian"):
             src = os.path.join(self.dir, "tet_%s.ply" % fmt)
