@@ -12,6 +12,7 @@
 #include <type_traits>
 #include <memory>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include <itkGDCMImageIO.h>
@@ -158,40 +159,45 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
     }
 }
 
-// NIfTI's reader zero-fills missing voxel bytes of an uncompressed .nii with
-// only a debug message, so check the size against the header ourselves.
-void checkNiftiSize(const std::string& file, std::uint64_t dataBytes) {
-    std::ifstream in(file, std::ios::binary);
-    unsigned char h[548] = {};
-    in.read(reinterpret_cast<char*>(h), sizeof h);
-    if (in.gcount() < 352) return;  // too short for a header; ITK has judged it already
-    auto u32 = [&](int at, bool swap) {
-        std::uint32_t v;
-        std::memcpy(&v, h + at, 4);
-        return swap ? __builtin_bswap32(v) : v;
-    };
-    double voxOffset = -1.0;
-    for (bool swap : {false, true}) {
-        if (u32(0, swap) == 348) {  // NIfTI-1: float vox_offset at byte 108
-            const std::uint32_t bits = u32(108, swap);
-            float f;
-            std::memcpy(&f, &bits, 4);
-            voxOffset = f;
-        } else if (u32(0, swap) == 540) {  // NIfTI-2: int64 vox_offset at byte 168
-            std::uint64_t v;
-            std::memcpy(&v, h + 168, 8);
-            voxOffset = double(swap ? __builtin_bswap64(v) : v);
-        }
+// The start of a NIfTI-1 (348-byte) or NIfTI-2 (540-byte) header, read with
+// gzread (which reads an uncompressed file as it is, so one path serves .nii
+// and .nii.gz), its byte order and version worked out. The checks below read
+// their fields from it.
+struct NiftiHeader {
+    unsigned char bytes[548] = {};
+    int got = 0;            // bytes read
+    bool known = false;     // sizeof_hdr is 348 or 540 in either byte order
+    bool v1 = true, swap = false;
+    bool compressed = false;  // gzip data, whatever the name says
+
+    explicit NiftiHeader(const std::string& file) {
+        gzFile gz = gzopen(file.c_str(), "rb");
+        if (!gz) return;
+        got = gzread(gz, bytes, sizeof bytes);
+        compressed = gzdirect(gz) == 0;
+        gzclose(gz);
+        if (got < 4) return;
+        const auto size = field<std::uint32_t>(0);
+        const auto swapped = __builtin_bswap32(size);
+        swap = size != 348 && size != 540;
+        known = swap ? swapped == 348 || swapped == 540 : true;
+        v1 = (swap ? swapped : size) == 348;
     }
-    if (voxOffset < 0) return;
-    const std::uint64_t need = std::uint64_t(voxOffset) + dataBytes;
-    const std::uint64_t have = std::filesystem::file_size(file);
-    if (have < need) {
-        throw Error(file + ": the voxel data is truncated: the header promises " + std::to_string(need) +
-                    " bytes but the file has " + std::to_string(have) +
-                    ". Copy or export the file again.");
+    // The value of type T at byte `at`, in the file's byte order.
+    template <class T>
+    T field(int at) const {
+        unsigned char b[sizeof(T)];
+        std::memcpy(b, bytes + at, sizeof(T));
+        if (swap) std::reverse(b, b + sizeof(T));
+        T v;
+        std::memcpy(&v, b, sizeof(T));
+        return v;
     }
-}
+    // A real field at byte at1 (NIfTI-1, float) or at2 (NIfTI-2, double).
+    double real(int at1, int at2) const { return v1 ? double(field<float>(at1)) : field<double>(at2); }
+    // vox_offset as stored (float in NIfTI-1, int64 in NIfTI-2).
+    double voxOffset() const { return v1 ? double(field<float>(108)) : double(field<std::uint64_t>(168)); }
+};
 
 [[noreturn]] void truncated(const std::string& file, std::uint64_t need, std::uint64_t have,
                             const char* what) {
@@ -212,69 +218,73 @@ std::uint64_t gunzippedSize(const std::string& file) {
     return total;
 }
 
-void checkGzipNiftiSize(const std::string& file, std::uint64_t dataBytes) {
-    gzFile gz = gzopen(file.c_str(), "rb");
-    if (!gz) return;
-    unsigned char h[548] = {};
-    const int got = gzread(gz, h, sizeof h);
-    gzclose(gz);
-    if (got < 352) return;
-    std::uint32_t sizeofHdr;
-    std::memcpy(&sizeofHdr, h, 4);
-    const bool swap = sizeofHdr != 348 && sizeofHdr != 540;
-    if (swap) sizeofHdr = __builtin_bswap32(sizeofHdr);
-    double voxOffset;
-    if (sizeofHdr == 348) {
-        std::uint32_t bits;
-        std::memcpy(&bits, h + 108, 4);
-        if (swap) bits = __builtin_bswap32(bits);
-        float f;
-        std::memcpy(&f, &bits, 4);
-        voxOffset = f;
-    } else if (sizeofHdr == 540) {
-        std::uint64_t v;
-        std::memcpy(&v, h + 168, 8);
-        voxOffset = double(swap ? __builtin_bswap64(v) : v);
-    } else {
-        return;
-    }
-    const std::uint64_t need = std::uint64_t(std::max(voxOffset, 352.0)) + dataBytes;
-    const std::uint64_t have = gunzippedSize(file);
-    if (have < need) truncated(file, need, have, "uncompressed bytes");
+// NIfTI's reader zero-fills missing voxel bytes with only a debug message, so
+// check the size against the header ourselves: the file's size, or for a
+// .nii.gz its uncompressed size (reading it through: a cut gzip stream ends
+// early), against vox_offset plus the voxel bytes.
+void checkNiftiDataSize(const std::string& file, std::uint64_t dataBytes, bool gzipped) {
+    const NiftiHeader h(file);
+    if (h.got < 352 || !h.known) return;  // too short for a header; ITK has judged it already
+    const double voxOffset = h.voxOffset();
+    if (!gzipped && (h.compressed || !(voxOffset >= 0))) return;  // (a gzip stream named .nii: its file size says nothing)
+    const std::uint64_t need = std::uint64_t(gzipped ? std::max(voxOffset, 352.0) : voxOffset) + dataBytes;
+    const std::uint64_t have = gzipped ? gunzippedSize(file) : std::filesystem::file_size(file);
+    if (have < need) truncated(file, need, have, gzipped ? "uncompressed bytes" : "bytes");
 }
+
+
+// A MetaImage header: its "Key = Value" lines up to ElementDataFile (the
+// last one; the data or, for LIST, the file names follow it), values
+// trimmed, and where that line ends. Both MetaImage checks read it.
+struct MetaHeader {
+    std::map<std::string, std::string> values;
+    bool hasDataFile = false;
+    std::string dataFile;
+    std::uint64_t dataStart = 0;  // first byte after the ElementDataFile line
+
+    static std::string trim(std::string t) {
+        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(0, 1);
+        return t;
+    }
+    explicit MetaHeader(const std::string& file) {
+        std::ifstream in(file, std::ios::binary);
+        std::string line;
+        for (int n = 0; n < 200 && std::getline(in, line); ++n) {  // headers are a few dozen lines
+            const auto eq = line.find('=');
+            if (eq == std::string::npos) continue;
+            const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
+            if (key == "ElementDataFile") {
+                hasDataFile = true;
+                dataFile = value;
+                dataStart = static_cast<std::uint64_t>(in.tellg());
+                return;
+            }
+            values[key] = value;
+        }
+    }
+    const std::string* get(const char* key) const {
+        const auto it = values.find(key);
+        return it == values.end() ? nullptr : &it->second;
+    }
+};
 
 // MetaImage: the data follows the header line "ElementDataFile = ..." (LOCAL)
 // or sits in the named file; MetaIO reads short data with only a warning.
 void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
-    std::ifstream in(file, std::ios::binary);
-    std::string line, dataFile;
-    std::uint64_t compressedSize = 0;
-    bool compressed = false;
-    while (std::getline(in, line)) {
-        const auto eq = line.find('=');
-        if (eq == std::string::npos) continue;
-        std::string key = line.substr(0, eq), value = line.substr(eq + 1);
-        auto trim = [](std::string& t) {
-            while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
-            while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(0, 1);
-        };
-        trim(key);
-        trim(value);
-        if (key == "CompressedData") compressed = value == "True" || value == "true";
-        if (key == "CompressedDataSize") compressedSize = std::strtoull(value.c_str(), nullptr, 10);
-        if (key == "ElementDataFile") {
-            dataFile = value;
-            break;
-        }
-    }
+    const MetaHeader header(file);
+    std::string dataFile = header.dataFile;
+    const std::string* c = header.get("CompressedData");
+    const bool compressed = c && (*c == "True" || *c == "true");
+    const std::string* cs = header.get("CompressedDataSize");
+    const std::uint64_t compressedSize = cs ? std::strtoull(cs->c_str(), nullptr, 10) : 0;
     if (dataFile.empty() || dataFile.rfind("LIST", 0) == 0 || dataFile.find('%') != std::string::npos) return;
     if (dataFile == "Local" || dataFile == "local") dataFile = "LOCAL";
     std::uint64_t need = compressed ? compressedSize : dataBytes;
     if (need == 0) return;
     std::uint64_t have;
     if (dataFile == "LOCAL") {
-        const auto headerEnd = static_cast<std::uint64_t>(in.tellg());
-        need += headerEnd;
+        need += header.dataStart;
         have = std::filesystem::file_size(file);
     } else {
         const auto path = std::filesystem::path(file).parent_path() / dataFile;
@@ -295,65 +305,25 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
 // qform_code is set, the affine rows when sform_code is set. gzread reads an
 // uncompressed file as it is, so one path serves .nii and .nii.gz.
 void checkNiftiOrientation(const std::string& file) {
-    gzFile gz = gzopen(file.c_str(), "rb");
-    if (!gz) return;
-    unsigned char h[540] = {};
-    const int got = gzread(gz, h, sizeof h);
-    gzclose(gz);
-    if (got < 348) return;  // ITK judges short headers
-    std::uint32_t size;
-    std::memcpy(&size, h, 4);
-    const bool swap = size != 348 && size != 540;
-    if (swap) size = __builtin_bswap32(size);
-    if (size != 348 && size != 540) return;
-    if (size == 540 && got < 540) return;
-    auto f32 = [&](int at) {
-        std::uint32_t b;
-        std::memcpy(&b, h + at, 4);
-        if (swap) b = __builtin_bswap32(b);
-        float v;
-        std::memcpy(&v, &b, 4);
-        return double(v);
-    };
-    auto f64 = [&](int at) {
-        std::uint64_t b;
-        std::memcpy(&b, h + at, 8);
-        if (swap) b = __builtin_bswap64(b);
-        double v;
-        std::memcpy(&v, &b, 8);
-        return v;
-    };
-    auto i16 = [&](int at) {
-        std::uint16_t b;
-        std::memcpy(&b, h + at, 2);
-        if (swap) b = static_cast<std::uint16_t>(__builtin_bswap16(b));
-        return static_cast<int>(static_cast<std::int16_t>(b));
-    };
-    auto i32 = [&](int at) {
-        std::uint32_t b;
-        std::memcpy(&b, h + at, 4);
-        if (swap) b = __builtin_bswap32(b);
-        return static_cast<int>(static_cast<std::int32_t>(b));
-    };
-    const bool v1 = size == 348;
-    auto value = [&](int at1, int at2) { return v1 ? f32(at1) : f64(at2); };
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;  // ITK judges short headers
     auto require = [&](const char* field, int k, double v) {
         if (!std::isfinite(v))
             throw Error(file + ": the NIfTI header's " + field + "[" + std::to_string(k) + "] is " +
                         (std::isnan(v) ? "NaN" : "infinite") +
                         "; the image orientation cannot be read. Fix or re-export the header and retry.");
     };
-    for (int k = 1; k <= 3; ++k) require("pixdim", k, value(76 + 4 * k, 104 + 8 * k));
-    const int qform = v1 ? i16(252) : i32(344);
-    const int sform = v1 ? i16(254) : i32(348);
+    for (int k = 1; k <= 3; ++k) require("pixdim", k, h.real(76 + 4 * k, 104 + 8 * k));
+    const int qform = h.v1 ? h.field<std::int16_t>(252) : h.field<std::int32_t>(344);
+    const int sform = h.v1 ? h.field<std::int16_t>(254) : h.field<std::int32_t>(348);
     if (qform > 0) {
-        for (int k = 0; k < 3; ++k) require("quatern_bcd", k, value(256 + 4 * k, 352 + 8 * k));
-        for (int k = 0; k < 3; ++k) require("qoffset_xyz", k, value(268 + 4 * k, 376 + 8 * k));
+        for (int k = 0; k < 3; ++k) require("quatern_bcd", k, h.real(256 + 4 * k, 352 + 8 * k));
+        for (int k = 0; k < 3; ++k) require("qoffset_xyz", k, h.real(268 + 4 * k, 376 + 8 * k));
     }
     if (sform > 0) {
         const char* rows[3] = {"srow_x", "srow_y", "srow_z"};
         for (int r = 0; r < 3; ++r)
-            for (int k = 0; k < 4; ++k) require(rows[r], k, value(280 + 16 * r + 4 * k, 400 + 32 * r + 8 * k));
+            for (int k = 0; k < 4; ++k) require(rows[r], k, h.real(280 + 16 * r + 4 * k, 400 + 32 * r + 8 * k));
     }
 }
 
@@ -365,36 +335,17 @@ void checkNiftiOrientation(const std::string& file) {
 // where the file has a non-finite value.
 void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
                            std::int64_t frames, int comp) {
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;
+    const auto dt = h.field<std::uint16_t>(h.v1 ? 70 : 12);
+    if (dt != 16 && dt != 64) return;  // only float32 and float64 voxels can be non-finite
+    const double stored = h.voxOffset();
+    if (!std::isfinite(stored)) return;
+    const double voxOffset = std::max(stored, h.v1 ? 352.0 : 544.0);
     gzFile gz = gzopen(file.c_str(), "rb");
     if (!gz) return;
     std::unique_ptr<std::remove_pointer_t<gzFile>, int (*)(gzFile)> guard(gz, gzclose);
-    unsigned char h[540] = {};
-    const int got = gzread(gz, h, sizeof h);
-    if (got < 348) return;
-    std::uint32_t size;
-    std::memcpy(&size, h, 4);
-    const bool swap = size != 348 && size != 540;
-    if (swap) size = __builtin_bswap32(size);
-    if (size != 348 && (size != 540 || got < 540)) return;
-    const bool v1 = size == 348;
-    std::uint16_t dt;
-    std::memcpy(&dt, h + (v1 ? 70 : 12), 2);
-    if (swap) dt = static_cast<std::uint16_t>(__builtin_bswap16(dt));
-    if (dt != 16 && dt != 64) return;  // only float32 and float64 voxels can be non-finite
-    double voxOffset;
-    if (v1) {
-        std::uint32_t b;
-        std::memcpy(&b, h + 108, 4);
-        if (swap) b = __builtin_bswap32(b);
-        float f;
-        std::memcpy(&f, &b, 4);
-        if (!std::isfinite(f)) return;
-        voxOffset = std::max(double(f), 352.0);
-    } else {
-        std::uint64_t b;
-        std::memcpy(&b, h + 168, 8);
-        voxOffset = std::max(double(swap ? __builtin_bswap64(b) : b), 544.0);
-    }
+    const bool swap = h.swap;
     const std::size_t width = dt == 16 ? 4 : 8;
     const auto n = static_cast<std::int64_t>(values.size());
     // NIfTI order: x fastest, then y, z, t (frames), then the components.
@@ -434,42 +385,32 @@ void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, 
 // the header. (The data size of LOCAL and single-file data is checked after,
 // by checkMetaImageSize, which needs the element size.)
 void checkMetaImageHeader(const std::string& file) {
-    std::ifstream in(file, std::ios::binary);
     auto fail = [&](const std::string& what) { throw Error(file + ": " + what); };
-    auto trim = [](std::string t) {
-        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
-        while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(0, 1);
-        return t;
-    };
-    std::string line;
+    auto trim = MetaHeader::trim;
+    const MetaHeader header(file);
     long long ndims = 0;
-    std::vector<long long> dims;
-    std::string dataFile;
-    bool haveDataFile = false, binary = true;
-    long long headerSize = 0;
-    for (int n = 0; n < 200 && std::getline(in, line); ++n) {
-        const auto eq = line.find('=');
-        if (eq == std::string::npos) continue;
-        const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-        std::istringstream v(value);
-        if (key == "NDims") {
-            if (!(v >> ndims) || ndims < 1 || ndims > 8)
-                fail("the MetaImage header says NDims = " + value +
-                     "; it must be the number of image dimensions (3 for a volume). Fix the header and retry.");
-        } else if (key == "DimSize") {
-            for (double d; v >> d;) dims.push_back(d >= 1 && d < 9e18 && d == std::floor(d) ? static_cast<long long>(d) : 0);
-        } else if (key == "BinaryData") {
-            // MetaIO: binary when the value starts with T, t or 1
-            binary = !value.empty() && (value[0] == 'T' || value[0] == 't' || value[0] == '1');
-        } else if (key == "HeaderSize") {
-            v >> headerSize;
-        } else if (key == "ElementDataFile") {
-            dataFile = value;
-            haveDataFile = true;
-            break;
-        }
+    if (const std::string* value = header.get("NDims")) {
+        std::istringstream v(*value);
+        if (!(v >> ndims) || ndims < 1 || ndims > 8)
+            fail("the MetaImage header says NDims = " + *value +
+                 "; it must be the number of image dimensions (3 for a volume). Fix the header and retry.");
     }
-    if (!haveDataFile) return;  // not a MetaImage header as far as this check goes: MetaIO judges it
+    std::vector<long long> dims;
+    if (const std::string* value = header.get("DimSize")) {
+        std::istringstream v(*value);
+        for (double d; v >> d;) dims.push_back(d >= 1 && d < 9e18 && d == std::floor(d) ? static_cast<long long>(d) : 0);
+    }
+    // MetaIO: binary when the value starts with T, t or 1
+    const std::string* binaryValue = header.get("BinaryData");
+    const bool binary = !binaryValue || (!binaryValue->empty() && ((*binaryValue)[0] == 'T' || (*binaryValue)[0] == 't' ||
+                                                                   (*binaryValue)[0] == '1'));
+    long long headerSize = 0;
+    if (const std::string* value = header.get("HeaderSize")) std::istringstream(*value) >> headerSize;
+    const std::string& dataFile = header.dataFile;
+    std::ifstream in(file, std::ios::binary);  // for the LIST names after the header
+    in.seekg(static_cast<std::streamoff>(header.dataStart));
+    std::string line;
+    if (!header.hasDataFile) return;  // not a MetaImage header as far as this check goes: MetaIO judges it
     if (ndims >= 1 && (static_cast<long long>(dims.size()) < ndims ||
                        std::any_of(dims.begin(), dims.begin() + ndims, [](long long d) { return d < 1; })))
         fail("the MetaImage header's DimSize does not give " + std::to_string(ndims) +
@@ -658,8 +599,7 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
             const std::size_t n = std::strlen(e);
             return name.size() >= n && name.compare(name.size() - n, n, e) == 0;
         };
-        if (endsWith(".nii")) checkNiftiSize(file, bytes);
-        if (endsWith(".nii.gz")) checkGzipNiftiSize(file, bytes);
+        if (endsWith(".nii") || endsWith(".nii.gz")) checkNiftiDataSize(file, bytes, endsWith(".nii.gz"));
         if (endsWith(".mha") || endsWith(".mhd")) checkMetaImageSize(file, bytes);
     }
 
