@@ -27,6 +27,25 @@ class QualityCommand(unittest.TestCase):
         self.assertNotIn("internal error", lines[0])
         return lines[0]
 
+    def sample_with_corner_moved(self, name, k, where):
+        """SAMPLE with corner k of hex 0 moved to where(corner), corner(i) giving
+        corner i's position; written to name in the work folder. Returns the
+        path and the VTK grid."""
+        import vtk
+        r = vtk.vtkXMLUnstructuredGridReader()
+        r.SetFileName(SAMPLE)
+        r.Update()
+        g = r.GetOutput()
+        ids = g.GetCell(0).GetPointIds()
+        corner = lambda i: list(g.GetPoint(ids.GetId(i)))  # noqa: E731
+        g.GetPoints().SetPoint(ids.GetId(k), where(corner))
+        path = os.path.join(self.dir, name)
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        w.SetFileName(path)
+        w.SetInputData(g)
+        w.Write()
+        return path, g
+
     def test_version_and_help(self):
         v = run(["--version"])
         self.assertTrue(v.stdout.startswith("isohex "), v.stdout)
@@ -123,17 +142,7 @@ class QualityCommand(unittest.TestCase):
         # "degenerate: 1" read as a perfect mesh.
         import vtk
         from vtk.util.numpy_support import vtk_to_numpy
-        r = vtk.vtkXMLUnstructuredGridReader()
-        r.SetFileName(SAMPLE)
-        r.Update()
-        g = r.GetOutput()
-        ids = g.GetCell(0).GetPointIds()
-        g.GetPoints().SetPoint(ids.GetId(1), g.GetPoint(ids.GetId(0)))  # collapse edge 0-1
-        bad = os.path.join(self.dir, "collapsed.vtu")
-        w = vtk.vtkXMLUnstructuredGridWriter()
-        w.SetFileName(bad)
-        w.SetInputData(g)
-        w.Write()
+        bad, g = self.sample_with_corner_moved("collapsed.vtu", 1, lambda corner: corner(0))  # collapse edge 0-1
         q = vtk.vtkMeshQuality()
         q.SetInputData(g)
         q.SetHexQualityMeasureToScaledJacobian()
@@ -157,20 +166,9 @@ class QualityCommand(unittest.TestCase):
         self.assertEqual(run(["quality", SAMPLE, "--threads", "0"], check=False).returncode, 2)
 
     def test_strict_fails_on_an_inverted_hex(self):
-        import vtk
-        r = vtk.vtkXMLUnstructuredGridReader()
-        r.SetFileName(SAMPLE)
-        r.Update()
-        g = r.GetOutput()
-        ids = g.GetCell(0).GetPointIds()
-        p = list(g.GetPoint(ids.GetId(6)))
-        q = g.GetPoint(ids.GetId(0))
-        g.GetPoints().SetPoint(ids.GetId(6), [2 * q[i] - p[i] for i in range(3)])  # through the opposite corner
-        bad = os.path.join(self.dir, "inverted.vtu")
-        w = vtk.vtkXMLUnstructuredGridWriter()
-        w.SetFileName(bad)
-        w.SetInputData(g)
-        w.Write()
+        # corner 6 through the opposite corner 0
+        bad, _ = self.sample_with_corner_moved("inverted.vtu", 6,
+                                               lambda corner: [2 * a - b for a, b in zip(corner(0), corner(6))])
         self.assertEqual(run(["quality", SAMPLE, "--strict"], check=False).returncode, 0)
         p2 = run(["quality", bad, "--strict"], check=False)
         self.assertEqual(p2.returncode, 3)
