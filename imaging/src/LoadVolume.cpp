@@ -184,7 +184,7 @@ Volume fromRaw(detail::RawVolume&& raw, const std::string& file, const LoadOptio
 }
 
 // A .vdb file cut short or with damaged lengths made OpenVDB's reader
-// allocate strings of the garbage lengths (16.9 GB and 65 s for a 37 kB file
+// allocate strings of the garbage lengths (16.1 GiB peak and 65 s for a 37 kB file
 // cut from a 41 kB one) before it threw. The layout OpenVDB 10 writes (file
 // format 222 and later, with grid offsets) is walked first: the header, the
 // file metadata (length-prefixed strings and values) and each grid's
