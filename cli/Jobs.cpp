@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "Isolate.hpp"
 #include "Report.hpp"
 #include "Svg.hpp"
 #include "Versions.hpp"
@@ -175,7 +176,7 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
         }
         sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
         try {
-            results.push_back(runJob(job, sink));
+            results.push_back(runJobIsolated(job, sink));
             sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
         } catch (const std::exception& e) {
             ++failed;

@@ -1,5 +1,7 @@
 #include "Progress.hpp"
 
+#include "Isolate.hpp"
+
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
@@ -29,6 +31,7 @@ void ProgressSink::event(const std::string& name, const nlohmann::json& fields) 
 }
 
 void ProgressSink::begin(std::string_view stage) {
+    stageBegins(stage);
     std::lock_guard lock(mutex_);
     stage_ = stage;
     fraction_ = 0;

@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
@@ -57,7 +58,7 @@ void addMeshCommand(CLI::App& app) {
                 throw Error("no output given: add -o mesh.vtu (or .msh .exo .e .inp .mesh), several -o for several formats");
             jobs.push_back({c->inputs[0], c->outputs, c->report, c->plot, c->args});
             ProgressSink sink(c->args.progressMode());
-            const JobResult r = runJob(jobs[0], sink);
+            const JobResult r = runJobIsolated(jobs[0], sink);
             std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu below 0.2, %zu inverted, %.1f s\n",
                         c->inputs[0].c_str(), r.hexes, r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted,
                         r.seconds);

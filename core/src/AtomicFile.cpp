@@ -60,6 +60,10 @@ void releaseOnSignal(int handle) { releaseSlot(handle); }
 
 void removeTemporariesOnSignal() {
     for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+        // A signal the caller ignores stays ignored: `nohup isohex batch ...`
+        // must survive the hangup it was started to survive.
+        struct sigaction current {};
+        if (sigaction(sig, nullptr, &current) == 0 && current.sa_handler == SIG_IGN) continue;
         struct sigaction sa {};
         sa.sa_handler = removeTemporariesAndExit;
         sigemptyset(&sa.sa_mask);

@@ -159,6 +159,57 @@ class Batch(unittest.TestCase):
         self.assertEqual(summary_rows(stale.stdout), {"sphere.nii.gz": "failed", "two_materials.nii.gz": "skipped"})
         self.assertIn("--force", stale.stdout)
 
+    def test_a_job_that_crashes_or_is_killed_fails_alone(self):
+        # A library crashing on a damaged scan (OpenVDB on a .vdb with damaged
+        # grid data) or the out-of-memory killer used to end the whole batch
+        # there. ISOHEX_TEST_CRASH makes the job of one input raise SIGSEGV (or
+        # SIGKILL) as a stage begins.
+        d = self.fresh("crash")
+        manifest = os.path.join(d, "jobs.jsonl")
+        old = os.path.join(d, "old.vtu")
+        with open(old, "w") as f:
+            f.write("a file from before, which the crashed job was to replace")
+        jobs = [
+            {"input": os.path.join(self.scans, "sphere.nii.gz"), "output": ["s.vtu", "s.msh"], "report": "s.json"},
+            {"input": os.path.join(self.scans, "torus.nii.gz"), "output": "t.vtu", "report": "t.json"},
+            {"input": os.path.join(self.scans, "thin_plate.nii.gz"), "output": ["p.vtu", "old.vtu"],
+             "report": "p.json"},
+        ]
+        with open(manifest, "w") as f:
+            f.write("".join(json.dumps(j) + "\n" for j in jobs))
+        base = ["batch", manifest, "--iso", "50", "--size", "4", "-q", "--force"]
+        env = dict(os.environ, ISOHEX_TEST_CRASH="load@sphere")
+        p = run(base, check=False, env=env)
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        self.assertEqual(summary_rows(p.stdout), {"sphere.nii.gz": "failed", "torus.nii.gz": "ok",
+                                                  "thin_plate.nii.gz": "ok"}, p.stdout)
+        self.assertIn("sphere.nii.gz: a library crashed reading it (SIGSEGV, segmentation fault); the file is "
+                      "probably damaged", p.stdout)
+        for name in ("s.vtu", "s.msh", "s.json"):
+            self.assertFalse(os.path.exists(os.path.join(d, name)), name)
+        self.assertGreater(cells(os.path.join(d, "t.vtu")), 0)
+        self.assertGreater(cells(os.path.join(d, "old.vtu")), 0)  # job 3 replaced it (--force)
+
+        # Killed while optimising (what the out-of-memory killer does): the
+        # job's new outputs are gone, a file it was to replace is not.
+        with open(old, "w") as f:
+            f.write("a file from before")
+        for name in ("p.vtu", "p.json"):
+            os.remove(os.path.join(d, name))
+        env = dict(os.environ, ISOHEX_TEST_CRASH="optimize:kill@thin_plate")
+        p = run(base, check=False, env=env)
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        self.assertEqual(summary_rows(p.stdout), {"sphere.nii.gz": "ok", "torus.nii.gz": "ok",
+                                                  "thin_plate.nii.gz": "failed"}, p.stdout)
+        self.assertIn("thin_plate.nii.gz: the meshing process was killed (SIGKILL) in its optimize stage", p.stdout)
+        self.assertIn("out-of-memory killer", p.stdout)
+        self.assertFalse(os.path.exists(os.path.join(d, "p.vtu")))
+        self.assertFalse(os.path.exists(os.path.join(d, "p.json")))
+        with open(old) as f:
+            self.assertEqual(f.read(), "a file from before")
+        self.assertGreater(cells(os.path.join(d, "s.vtu")), 0)
+        self.assertEqual([n for n in os.listdir(d) if n.startswith(".")], [], "temporaries left behind")
+
 
 class ManifestErrors(unittest.TestCase):
     """A malformed manifest fails before any job runs, naming the file and line."""

@@ -532,6 +532,75 @@ class FailurePaths(unittest.TestCase):
         self.assertEqual(q.returncode, 0, q.stderr)
         self.assertEqual(sorted(os.listdir(d)), sorted(os.path.basename(o) for o in outs))
 
+    def test_a_crash_inside_the_pipeline_is_an_error_that_names_the_input_and_stage(self):
+        # The shell's "Segmentation fault" was all a user got when a library
+        # crashed. ISOHEX_TEST_CRASH raises SIGSEGV as the stage begins.
+        import signal
+        out = os.path.join(self.dir, "crash.vtu")
+        args = ["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--size", "4", "-o", out, "-q"]
+        p = run(args, check=False, env=dict(os.environ, ISOHEX_TEST_CRASH="extract"))
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertEqual(p.stderr.strip(), "isohex: error: " + os.path.join(self.dir, "sphere.nii.gz") +
+                         ": isohex crashed in its extract stage (SIGSEGV, segmentation fault). This is a bug: please "
+                         "report it with the command line and the input.")
+        self.assertFalse(os.path.exists(out))
+        # The injected fault is a real crash: without the child process it ends isohex.
+        p = run(args, check=False, env=dict(os.environ, ISOHEX_TEST_CRASH="extract", ISOHEX_ISOLATE="0"))
+        self.assertEqual(p.returncode, -signal.SIGSEGV, p.stderr)
+        # Errors of the job itself keep their message and exit status.
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--iso", "1e9", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertTrue(p.stderr.startswith("isohex: error: "), p.stderr)
+        self.assertNotIn("crash", p.stderr)
+
+    def test_killing_isohex_ends_its_meshing_process_and_a_hangup_it_ignores_does_not(self):
+        # The job runs in a child process; a batch manager's SIGKILL or SIGTERM
+        # to isohex must not leave that child meshing on as an orphan.
+        import signal
+        import time
+        d = os.path.join(self.dir, "orphan")
+        os.makedirs(d, exist_ok=True)
+        out = os.path.join(d, "s.vtu")
+        args = [ISOHEX, "mesh", os.path.join(self.dir, "sphere.nii.gz"), "--size", "0.5", "-o", out, "-q", "--force"]
+
+        def started(p):
+            path = f"/proc/{p.pid}/task/{p.pid}/children"
+            for _ in range(5000):
+                with open(path) as f:
+                    kids = f.read().split()
+                if kids:
+                    return int(kids[0])
+                time.sleep(0.002)
+            self.fail("no meshing process started")
+
+        def gone(pid):
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    return f.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")  # a zombie has ended
+            except FileNotFoundError:
+                return True
+
+        for sig in (signal.SIGKILL, signal.SIGTERM):
+            p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            child = started(p)
+            time.sleep(0.5)
+            p.send_signal(sig)
+            p.communicate()
+            self.assertEqual(p.returncode, -sig)
+            deadline = time.time() + 3  # the whole run takes about 6 s
+            while not gone(child) and time.time() < deadline:
+                time.sleep(0.05)
+            self.assertTrue(gone(child), f"the meshing process outlived isohex's {sig.name}")
+            self.assertEqual(os.listdir(d), [], "outputs or temporaries left behind")
+        # Started the way nohup starts it, isohex ignores the hangup and finishes.
+        p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
+        started(p)
+        p.send_signal(signal.SIGHUP)
+        _, err = p.communicate()
+        self.assertEqual(p.returncode, 0, err)
+        self.assertTrue(os.path.exists(out))
+
     def test_a_volume_index_the_file_does_not_have_is_refused(self):
         # --volume-index 5 on a 3-D scan was silently ignored (volume 0 meshed)
         out = os.path.join(self.dir, "vi.vtu")

@@ -1,0 +1,293 @@
+#include "Isolate.hpp"
+
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "isohex/core/Error.hpp"
+
+namespace isohex::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// The stage the child is in, written by the child into a page shared with
+// the parent (MAP_SHARED survives the child's crash; a pipe message might
+// not have been sent).
+struct StageSlot {
+    char stage[64];
+};
+StageSlot* gSlot = nullptr;  // set in the child of an isolated job only
+std::string gInput;          // the job's input, for ISOHEX_TEST_CRASH=...@text (isolated or not)
+
+StageSlot* sharedSlot() {
+    static StageSlot* slot = [] {
+        void* p = ::mmap(nullptr, sizeof(StageSlot), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+        return p == MAP_FAILED ? nullptr : static_cast<StageSlot*>(p);
+    }();
+    return slot;
+}
+
+// While the parent waits: SIGINT, SIGTERM and SIGHUP go on to the child,
+// whose own handler removes the files it was writing; the parent raises the
+// signal on itself once the child has ended, so a batch stops there as
+// before and the caller sees the same signal.
+volatile sig_atomic_t gChild = 0;
+volatile sig_atomic_t gForwarded = 0;
+constexpr int kForwarded[] = {SIGINT, SIGTERM, SIGHUP};
+
+extern "C" void forwardToChild(int sig) {
+    gForwarded = sig;
+    if (gChild > 0) ::kill(static_cast<pid_t>(gChild), sig);
+}
+
+bool isolationOn() {
+    const char* e = std::getenv("ISOHEX_ISOLATE");
+    return !(e && std::string(e) == "0");
+}
+
+std::string signalName(int sig) {
+    switch (sig) {
+        case SIGSEGV: return "SIGSEGV, segmentation fault";
+        case SIGABRT: return "SIGABRT, aborted";
+        case SIGBUS: return "SIGBUS, bus error";
+        case SIGFPE: return "SIGFPE, arithmetic exception";
+        case SIGILL: return "SIGILL, illegal instruction";
+        case SIGKILL: return "SIGKILL";
+        case SIGTERM: return "SIGTERM";
+        case SIGINT: return "SIGINT";
+        case SIGHUP: return "SIGHUP";
+        default: {
+            const char* d = ::strsignal(sig);
+            return "signal " + std::to_string(sig) + (d ? std::string(", ") + d : std::string());
+        }
+    }
+}
+
+// What the parent says about a child that ended without a result.
+std::string describeEnd(const Job& job, int status, const std::string& stage) {
+    const std::string where = stage.empty() ? "before its first stage" : "in its " + stage + " stage";
+    if (WIFSIGNALED(status)) {
+        const int sig = WTERMSIG(status);
+        const std::string name = signalName(sig);
+        if (sig == SIGKILL)
+            return job.input + ": the meshing process was killed (" + name + ") " + where +
+                   ". The kernel's out-of-memory killer does this when memory runs out: try a coarser --size, a "
+                   "lower --max-memory, or a machine with more memory.";
+        if (sig == SIGTERM || sig == SIGINT || sig == SIGHUP)
+            return job.input + ": the meshing process was stopped (" + name + ") " + where + ".";
+        if (stage == "load")
+            return job.input + ": a library crashed reading it (" + name +
+                   "); the file is probably damaged (OpenVDB, for one, does not check a .vdb's grid data). "
+                   "Write or export it again; if it opens in other programs, please report this with the file.";
+        return job.input + ": isohex crashed " + where + " (" + name +
+               "). This is a bug: please report it with the command line and the input.";
+    }
+    return job.input + ": the meshing process ended with exit status " + std::to_string(WEXITSTATUS(status)) +
+           " " + where + " without a result.";
+}
+
+// The files a job writes and whether each existed before it ran.
+std::vector<std::string> jobFiles(const Job& job) {
+    std::vector<std::string> files = job.outputs;
+    if (!job.plot.empty()) files.push_back(job.plot);
+    if (!job.report.empty()) files.push_back(job.report);
+    return files;
+}
+
+// After a child died: the files it created (not the ones that existed before
+// the job) and its temporaries (AtomicFile names them
+// .<stem>.tmp<pid>_<n><ext> beside the target) are removed.
+void removeLeftovers(const std::vector<std::string>& files, const std::vector<bool>& existed, pid_t child) {
+    std::error_code ec;
+    for (std::size_t i = 0; i < files.size(); ++i) {
+        const fs::path target(files[i]);
+        if (!existed[i]) fs::remove(target, ec);
+        const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
+        const std::string prefix = "." + target.stem().string() + ".tmp" + std::to_string(child) + "_";
+        for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+            const std::string name = it->path().filename().string();
+            if (name.compare(0, prefix.size(), prefix) == 0) fs::remove(it->path(), ec);
+        }
+    }
+}
+
+bool writeAll(int fd, const std::string& s) {
+    std::size_t done = 0;
+    while (done < s.size()) {
+        const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return false;
+        done += static_cast<std::size_t>(n);
+    }
+    return true;
+}
+
+nlohmann::json toJson(const JobResult& r) {
+    return {{"input", r.input},       {"status", r.status},       {"message", r.message},
+            {"hexes", r.hexes},       {"min", r.minScaledJacobian}, {"mean", r.meanScaledJacobian},
+            {"inverted", r.inverted}, {"below02", r.below02},      {"seconds", r.seconds}};
+}
+
+JobResult fromJson(const nlohmann::json& j) {
+    JobResult r;
+    r.input = j.at("input").get<std::string>();
+    r.status = j.at("status").get<std::string>();
+    r.message = j.at("message").get<std::string>();
+    r.hexes = j.at("hexes").get<std::size_t>();
+    r.minScaledJacobian = j.at("min").is_number() ? j.at("min").get<double>() : 0.0;
+    r.meanScaledJacobian = j.at("mean").is_number() ? j.at("mean").get<double>() : 0.0;
+    r.inverted = j.at("inverted").get<std::size_t>();
+    r.below02 = j.at("below02").get<std::size_t>();
+    r.seconds = j.at("seconds").get<double>();
+    return r;
+}
+
+void flushAll() {
+    std::cout.flush();
+    std::cerr.flush();
+    std::fflush(nullptr);
+}
+
+[[noreturn]] void childMain(const Job& job, ProgressSink& sink, int fd, pid_t parent) {
+    // End with the parent: a batch manager's SIGTERM to isohex must not leave
+    // an orphan meshing on.
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (::getppid() != parent) ::_exit(1);
+    nlohmann::json msg;
+    try {
+        msg = {{"result", toJson(runJob(job, sink))}};
+    } catch (const Error& e) {
+        msg = {{"error", "user"}, {"message", e.what()}};
+    } catch (const std::bad_alloc&) {
+        msg = {{"error", "memory"}};
+    } catch (const std::exception& e) {
+        msg = {{"error", "internal"}, {"message", e.what()}};
+    }
+    const bool sent = writeAll(fd, msg.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+    ::close(fd);
+    flushAll();
+    ::_exit(sent ? 0 : 1);
+}
+
+}  // namespace
+
+void stageBegins(std::string_view stage) {
+    if (gSlot) {
+        const std::size_t n = std::min(stage.size(), sizeof(gSlot->stage) - 1);
+        std::memcpy(gSlot->stage, stage.data(), n);
+        gSlot->stage[n] = '\0';
+    }
+    if (const char* crash = std::getenv("ISOHEX_TEST_CRASH")) {
+        std::string c(crash), only;
+        if (const auto at = c.find('@'); at != std::string::npos) {
+            only = c.substr(at + 1);
+            c.resize(at);
+        }
+        if (!only.empty() && gInput.find(only) == std::string::npos) return;
+        if (c == stage) std::raise(SIGSEGV);
+        if (c == std::string(stage) + ":kill") std::raise(SIGKILL);
+    }
+}
+
+JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
+    gInput = job.input;
+    StageSlot* slot = isolationOn() ? sharedSlot() : nullptr;
+    int fds[2];
+    if (slot == nullptr || ::pipe2(fds, O_CLOEXEC) != 0) return runJob(job, sink);
+    slot->stage[0] = '\0';
+    const std::vector<std::string> files = jobFiles(job);
+    std::vector<bool> existed;
+    for (const auto& f : files) {
+        std::error_code ec;
+        existed.push_back(fs::exists(f, ec));
+    }
+    flushAll();  // else the child would print the parent's buffered output again
+    // The forwarding handlers are in place before the fork, with the signals
+    // held until each side has set itself up: the child goes back to the
+    // handlers it inherited (which remove its temporaries), the parent knows
+    // whom to forward to.
+    sigset_t hold, previousMask;
+    sigemptyset(&hold);
+    for (int sig : kForwarded) sigaddset(&hold, sig);
+    ::sigprocmask(SIG_BLOCK, &hold, &previousMask);
+    struct sigaction previous[3];
+    struct sigaction forward {};
+    forward.sa_handler = forwardToChild;
+    sigemptyset(&forward.sa_mask);
+    for (int i = 0; i < 3; ++i) {
+        ::sigaction(kForwarded[i], nullptr, &previous[i]);
+        if (previous[i].sa_handler != SIG_IGN) ::sigaction(kForwarded[i], &forward, nullptr);  // nohup stays nohup
+    }
+    gChild = 0;
+    gForwarded = 0;
+    auto restore = [&] {
+        for (int i = 0; i < 3; ++i) ::sigaction(kForwarded[i], &previous[i], nullptr);
+        ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
+    };
+    const pid_t parent = ::getpid();
+    const pid_t child = ::fork();
+    if (child < 0) {
+        restore();
+        ::close(fds[0]);
+        ::close(fds[1]);
+        return runJob(job, sink);
+    }
+    if (child == 0) {
+        restore();
+        ::close(fds[0]);
+        gSlot = slot;
+        childMain(job, sink, fds[1], parent);
+    }
+    gChild = child;
+    ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
+    ::close(fds[1]);
+    std::string text;
+    char buf[4096];
+    for (;;) {
+        const ssize_t n = ::read(fds[0], buf, sizeof buf);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;
+        text.append(buf, static_cast<std::size_t>(n));
+    }
+    ::close(fds[0]);
+    int status = 0;
+    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    gChild = 0;
+    for (int i = 0; i < 3; ++i) ::sigaction(kForwarded[i], &previous[i], nullptr);
+    nlohmann::json msg = nlohmann::json::parse(text, nullptr, false);
+    const bool complete = !msg.is_discarded() && msg.is_object() && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    if (const int sig = gForwarded; sig != 0) {
+        if (!complete) removeLeftovers(files, existed, child);
+        std::raise(sig);  // the handler the parent had (by default: remove temporaries, end by the signal)
+    }
+    if (!complete) {
+        removeLeftovers(files, existed, child);
+        throw Error(describeEnd(job, status, std::string(slot->stage)));
+    }
+    if (msg.contains("result")) return fromJson(msg["result"]);
+    const std::string kind = msg.value("error", "internal");
+    if (kind == "user") throw Error(msg.value("message", std::string()));
+    if (kind == "memory") throw std::bad_alloc();
+    throw std::runtime_error(msg.value("message", std::string()));
+}
+
+}  // namespace isohex::cli

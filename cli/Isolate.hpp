@@ -1,0 +1,40 @@
+#pragma once
+// A meshing job in a child process of its own.
+//
+// The libraries that read scans do not all check what they read: OpenVDB
+// crashes on a .vdb whose compressed grid data is damaged (segmentation
+// fault, or glibc aborting on a corrupted heap), and the kernel's
+// out-of-memory killer ends a process without a word. Either used to end
+// `isohex batch` at that input, so the later inputs of a run over hundreds
+// of scans were never meshed, and a single `isohex mesh` printed only the
+// shell's "Segmentation fault". Each job now runs in a forked child; the
+// parent waits, takes the child's result (or its error, rethrown as the same
+// kind), and turns a child killed by a signal into an error that names the
+// input, the stage it was in and what to do. Outputs the job created and its
+// temporaries are removed, as for any failed job.
+//
+// The parent never runs the pipeline itself, so it has no TBB worker threads
+// when it forks and the child starts from a single thread. ISOHEX_ISOLATE=0
+// runs jobs in the process itself (for a debugger).
+#include <string_view>
+
+#include "Jobs.hpp"
+#include "Progress.hpp"
+
+namespace isohex::cli {
+
+// runJob(job, sink) in a child process, as described above. Throws
+// isohex::Error (also for a crashed or killed child), std::bad_alloc or
+// std::runtime_error (an internal error) as runJob would.
+JobResult runJobIsolated(const Job& job, ProgressSink& sink);
+
+// Called when a stage begins (ProgressSink::begin): inside an isolated job
+// it records the stage for the parent's message. It also serves the tests'
+// fault injection: with ISOHEX_TEST_CRASH=<stage> the process raises SIGSEGV
+// when that stage begins (ISOHEX_TEST_CRASH=<stage>:kill raises SIGKILL);
+// a suffix @<text> limits it to isolated jobs whose input path contains the
+// text. The handling of a crashing library is then tested without depending
+// on one library's bug.
+void stageBegins(std::string_view stage);
+
+}  // namespace isohex::cli
