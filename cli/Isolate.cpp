@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <new>
 #include <stdexcept>
@@ -82,34 +83,26 @@ std::string signalName(int sig) {
 }
 
 // What the parent says about a child that ended without a result.
-std::string describeEnd(const Job& job, int status, const std::string& stage) {
+std::string describeEnd(const std::string& input, int status, const std::string& stage) {
     const std::string where = stage.empty() ? "before its first stage" : "in its " + stage + " stage";
     if (WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
         const std::string name = signalName(sig);
         if (sig == SIGKILL)
-            return job.input + ": the meshing process was killed (" + name + ") " + where +
+            return input + ": the meshing process was killed (" + name + ") " + where +
                    ". The kernel's out-of-memory killer does this when memory runs out: try a coarser --size, a "
                    "lower --max-memory, or a machine with more memory.";
         if (sig == SIGTERM || sig == SIGINT || sig == SIGHUP)
-            return job.input + ": the meshing process was stopped (" + name + ") " + where + ".";
+            return input + ": the meshing process was stopped (" + name + ") " + where + ".";
         if (stage == "load")
-            return job.input + ": a library crashed reading it (" + name +
+            return input + ": a library crashed reading it (" + name +
                    "); the file is probably damaged (OpenVDB, for one, does not check a .vdb's grid data). "
                    "Write or export it again; if it opens in other programs, please report this with the file.";
-        return job.input + ": isohex crashed " + where + " (" + name +
+        return input + ": isohex crashed " + where + " (" + name +
                "). This is a bug: please report it with the command line and the input.";
     }
-    return job.input + ": the meshing process ended with exit status " + std::to_string(WEXITSTATUS(status)) +
+    return input + ": the meshing process ended with exit status " + std::to_string(WEXITSTATUS(status)) +
            " " + where + " without a result.";
-}
-
-// The files a job writes and whether each existed before it ran.
-std::vector<std::string> jobFiles(const Job& job) {
-    std::vector<std::string> files = job.outputs;
-    if (!job.plot.empty()) files.push_back(job.plot);
-    if (!job.report.empty()) files.push_back(job.report);
-    return files;
 }
 
 // After a child died: the files it created (not the ones that existed before
@@ -166,14 +159,14 @@ void flushAll() {
     std::fflush(nullptr);
 }
 
-[[noreturn]] void childMain(const Job& job, ProgressSink& sink, int fd, pid_t parent) {
+[[noreturn]] void childMain(const std::function<nlohmann::json()>& work, int fd, pid_t parent) {
     // End with the parent: a batch manager's SIGTERM to isohex must not leave
     // an orphan meshing on.
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (::getppid() != parent) ::_exit(1);
     nlohmann::json msg;
     try {
-        msg = {{"result", toJson(runJob(job, sink))}};
+        msg = {{"result", work()}};
     } catch (const Error& e) {
         msg = {{"error", "user"}, {"message", e.what()}};
     } catch (const std::bad_alloc&) {
@@ -207,13 +200,12 @@ void stageBegins(std::string_view stage) {
     }
 }
 
-JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
-    gInput = job.input;
+nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
+                           const std::function<nlohmann::json()>& work) {
+    gInput = input;
     StageSlot* slot = isolationOn() ? sharedSlot() : nullptr;
     int fds[2];
-    if (slot == nullptr || ::pipe2(fds, O_CLOEXEC) != 0) return runJob(job, sink);
-    slot->stage[0] = '\0';
-    const std::vector<std::string> files = jobFiles(job);
+    if (slot == nullptr || ::pipe2(fds, O_CLOEXEC) != 0) return work();
     std::vector<bool> existed;
     for (const auto& f : files) {
         std::error_code ec;
@@ -242,19 +234,20 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
         for (int i = 0; i < 3; ++i) ::sigaction(kForwarded[i], &previous[i], nullptr);
         ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
     };
+    slot->stage[0] = '\0';
     const pid_t parent = ::getpid();
     const pid_t child = ::fork();
     if (child < 0) {
         restore();
         ::close(fds[0]);
         ::close(fds[1]);
-        return runJob(job, sink);
+        return work();
     }
     if (child == 0) {
         restore();
         ::close(fds[0]);
         gSlot = slot;
-        childMain(job, sink, fds[1], parent);
+        childMain(work, fds[1], parent);
     }
     gChild = child;
     ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
@@ -281,13 +274,20 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
     }
     if (!complete) {
         removeLeftovers(files, existed, child);
-        throw Error(describeEnd(job, status, std::string(slot->stage)));
+        throw Error(describeEnd(input, status, std::string(slot->stage)));
     }
-    if (msg.contains("result")) return fromJson(msg["result"]);
+    if (msg.contains("result")) return msg["result"];
     const std::string kind = msg.value("error", "internal");
     if (kind == "user") throw Error(msg.value("message", std::string()));
     if (kind == "memory") throw std::bad_alloc();
     throw std::runtime_error(msg.value("message", std::string()));
+}
+
+JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
+    std::vector<std::string> files = job.outputs;
+    if (!job.plot.empty()) files.push_back(job.plot);
+    if (!job.report.empty()) files.push_back(job.report);
+    return fromJson(runIsolated(job.input, files, [&] { return toJson(runJob(job, sink)); }));
 }
 
 }  // namespace isohex::cli

@@ -16,12 +16,25 @@
 // The parent never runs the pipeline itself, so it has no TBB worker threads
 // when it forks and the child starts from a single thread. ISOHEX_ISOLATE=0
 // runs jobs in the process itself (for a debugger).
+#include <functional>
+#include <string>
 #include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "Jobs.hpp"
 #include "Progress.hpp"
 
 namespace isohex::cli {
+
+// work() in a child process, as described above: returns what it returned
+// (JSON, sent over a pipe), rethrows its error as the same kind, and throws
+// isohex::Error naming `input` and the stage when the child dies without a
+// result; `files` are the outputs work() writes (those it created, and its
+// temporaries, are removed then).
+nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
+                           const std::function<nlohmann::json()>& work);
 
 // runJob(job, sink) in a child process, as described above. Throws
 // isohex::Error (also for a crashed or killed child), std::bad_alloc or

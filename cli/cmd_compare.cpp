@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "MeshOptions.hpp"
 #include "Report.hpp"
@@ -132,9 +133,9 @@ void addCompareCommand(CLI::App& app) {
                         "one variant would make them differ");
         s.fixBoundary = !c->moveBoundary;
         s.fixBoundaryByCompare = s.fixBoundary;
+        // every output before the four meshings (the variant meshes too)
+        std::vector<std::string> outputs;
         {
-            // every output before the four meshings (the variant meshes too)
-            std::vector<std::string> outputs;
             if (!c->json.empty()) outputs.push_back(c->json);
             if (!c->plot.empty()) outputs.push_back(c->plot);
             if (!c->meshDir.empty()) {
@@ -146,77 +147,82 @@ void addCompareCommand(CLI::App& app) {
             }
             checkOutputPaths(outputs, {c->input}, args.force);
         }
-        ProgressSink sink(args.progressMode());
-        Prepared p = prepare(c->input, s, sink);
-        HexMesh base = extract(p, s, sink);
+        // In a child process, as isohex mesh: a reader crashing on a damaged
+        // scan is an error naming it (cli/Isolate.hpp).
+        runIsolated(c->input, outputs, [&] {
+            ProgressSink sink(args.progressMode());
+            Prepared p = prepare(c->input, s, sink);
+            HexMesh base = extract(p, s, sink);
 
-        std::vector<Variant> variants(4);
-        variants[0] = {"a", "no sheet", base, {}, 0};
-        variants[1] = {"b", "fundamental sheet", base, {}, 0};
-        MeshSettings pillowed = s;
-        pillowed.pillow = true;
-        {
-            const auto t = std::chrono::steady_clock::now();
-            variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
-            variants[1].seconds += secondsSince(t);
-        }
-        variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
-        {
-            sink.begin("dice");
-            const auto t = std::chrono::steady_clock::now();
-            variants[2].ops = diceUntil(variants[2].mesh, variants[1].mesh.hexCount(), c->seed);
-            variants[2].seconds += secondsSince(t);
-            sink.end("dice", variants[2].seconds);
-        }
-        variants[3] = {"d", "fundamental sheet, random sheets extracted", variants[1].mesh, {}, 0};
-        {
-            sink.begin("extract sheets");
-            const auto t = std::chrono::steady_clock::now();
-            variants[3].ops = extractUntil(variants[3].mesh, base.hexCount(), c->seed);
-            variants[3].seconds += secondsSince(t) + variants[1].seconds;
-            sink.end("extract sheets", secondsSince(t));
-        }
-
-        nlohmann::json out;
-        out["input"] = p.report["input"];
-        out["grid"] = p.report["grid"];
-        out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
-                                        : "boundary nodes slide on the isosurface";
-        out["seed"] = c->seed;
-        std::vector<HistogramSeries> series;
-        std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
-                    "seconds");
-        for (auto& v : variants) {
-            const auto t = std::chrono::steady_clock::now();
-            sink.setJob("variant " + v.key);  // its warnings say which variant they are about
-            const nlohmann::json opt = optimize(v.mesh, p, s, sink);
-            sink.setJob({});
-            v.seconds += secondsSince(t);
-            const HexQuality q = computeQuality(v.mesh);
-            const QualitySummary qs = summarize(v.mesh, q);
-            nlohmann::json j = toJson(qs);
-            j["variant"] = v.key;
-            j["label"] = v.label;
-            j["operations"] = v.ops;
-            j["optimization"] = opt;
-            j["seconds"] = v.seconds;
-            out["variants"].push_back(j);
-            series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});
-            std::printf("%-44s %9zu %8.3f %8.3f %8zu %9zu %8.1f\n", (v.key + ") " + v.label).c_str(), qs.hexes,
-                        qs.scaledJacobian.min, qs.scaledJacobian.mean, qs.below02, qs.inverted, v.seconds);
-            if (!c->meshDir.empty()) {
-                std::filesystem::create_directories(c->meshDir);
-                io::WriteOptions w;
-                w.overwrite = args.force;
-                w.scaledJacobian = q.scaledJacobian;
-                io::write(v.mesh, (std::filesystem::path(c->meshDir) / ("variant_" + v.key + ".vtu")).string(), w);
+            std::vector<Variant> variants(4);
+            variants[0] = {"a", "no sheet", base, {}, 0};
+            variants[1] = {"b", "fundamental sheet", base, {}, 0};
+            MeshSettings pillowed = s;
+            pillowed.pillow = true;
+            {
+                const auto t = std::chrono::steady_clock::now();
+                variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
+                variants[1].seconds += secondsSince(t);
             }
-        }
-        out["versions"] = versionsJson();
-        out["peak_memory_mb"] = peakMemoryMb();
-        if (!c->json.empty()) writeJsonFile(out, c->json, args.force);
-        if (!c->plot.empty())
-            writeHistogramSvg(c->plot, args.force, "Scaled Jacobian per variant: " + c->input, series);
+            variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
+            {
+                sink.begin("dice");
+                const auto t = std::chrono::steady_clock::now();
+                variants[2].ops = diceUntil(variants[2].mesh, variants[1].mesh.hexCount(), c->seed);
+                variants[2].seconds += secondsSince(t);
+                sink.end("dice", variants[2].seconds);
+            }
+            variants[3] = {"d", "fundamental sheet, random sheets extracted", variants[1].mesh, {}, 0};
+            {
+                sink.begin("extract sheets");
+                const auto t = std::chrono::steady_clock::now();
+                variants[3].ops = extractUntil(variants[3].mesh, base.hexCount(), c->seed);
+                variants[3].seconds += secondsSince(t) + variants[1].seconds;
+                sink.end("extract sheets", secondsSince(t));
+            }
+
+            nlohmann::json out;
+            out["input"] = p.report["input"];
+            out["grid"] = p.report["grid"];
+            out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
+                                            : "boundary nodes slide on the isosurface";
+            out["seed"] = c->seed;
+            std::vector<HistogramSeries> series;
+            std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
+                        "seconds");
+            for (auto& v : variants) {
+                const auto t = std::chrono::steady_clock::now();
+                sink.setJob("variant " + v.key);  // its warnings say which variant they are about
+                const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+                sink.setJob({});
+                v.seconds += secondsSince(t);
+                const HexQuality q = computeQuality(v.mesh);
+                const QualitySummary qs = summarize(v.mesh, q);
+                nlohmann::json j = toJson(qs);
+                j["variant"] = v.key;
+                j["label"] = v.label;
+                j["operations"] = v.ops;
+                j["optimization"] = opt;
+                j["seconds"] = v.seconds;
+                out["variants"].push_back(j);
+                series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});
+                std::printf("%-44s %9zu %8.3f %8.3f %8zu %9zu %8.1f\n", (v.key + ") " + v.label).c_str(), qs.hexes,
+                            qs.scaledJacobian.min, qs.scaledJacobian.mean, qs.below02, qs.inverted, v.seconds);
+                if (!c->meshDir.empty()) {
+                    std::filesystem::create_directories(c->meshDir);
+                    io::WriteOptions w;
+                    w.overwrite = args.force;
+                    w.scaledJacobian = q.scaledJacobian;
+                    io::write(v.mesh, (std::filesystem::path(c->meshDir) / ("variant_" + v.key + ".vtu")).string(), w);
+                }
+            }
+            out["versions"] = versionsJson();
+            out["peak_memory_mb"] = peakMemoryMb();
+            if (!c->json.empty()) writeJsonFile(out, c->json, args.force);
+            if (!c->plot.empty())
+                writeHistogramSvg(c->plot, args.force, "Scaled Jacobian per variant: " + c->input, series);
+            return nlohmann::json::object();
+        });
     });
 }
 

@@ -208,13 +208,23 @@ struct NiftiHeader {
 
 // Uncompressed bytes in a gzip file, reading it through to the end. A cut
 // gzip stream ends early, which the NIfTI reader would zero-fill silently.
+// Damaged compressed data (zlib's Z_DATA_ERROR: a bad CRC or length check,
+// an invalid block) is refused here with its own message; it used to be
+// reported as a truncation, or, with the damage in the last check bytes,
+// not at all (ITK reads the voxels before the check).
 std::uint64_t gunzippedSize(const std::string& file) {
     gzFile gz = gzopen(file.c_str(), "rb");
     if (!gz) return 0;
     std::vector<char> chunk(1 << 20);
     std::uint64_t total = 0;
-    for (int n; (n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0;) total += n;
+    int n;
+    while ((n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0) total += n;
+    int code = Z_OK;
+    const std::string message = n < 0 ? gzerror(gz, &code) : "";
     gzclose(gz);
+    if (code == Z_DATA_ERROR)
+        throw Error(file + ": the compressed data is damaged (zlib: " + message + ", after " + std::to_string(total) +
+                    " uncompressed bytes). Copy or export the file again.");
     return total;
 }
 

@@ -311,7 +311,8 @@ class FailurePaths(unittest.TestCase):
         self.assertIn("--size of at least", p.stderr)
         self.assertFalse(os.path.exists(out))
         # --max-memory is the budget; the estimated hex count is the real one's
-        p = run(["mesh", src, "--size", "0.5", "--max-memory", "200", "-o", out, "-q"], check=False)
+        # (the job's process needs about 180 MB at this size; 170 MB measured)
+        p = run(["mesh", src, "--size", "0.5", "--max-memory", "120", "-o", out, "-q"], check=False)
         self.assertEqual(p.returncode, 1, p.stderr)
         self.assertIn("--max-memory budget", p.stderr)
         self.assertFalse(os.path.exists(out))
@@ -547,6 +548,13 @@ class FailurePaths(unittest.TestCase):
         # The injected fault is a real crash: without the child process it ends isohex.
         p = run(args, check=False, env=dict(os.environ, ISOHEX_TEST_CRASH="extract", ISOHEX_ISOLATE="0"))
         self.assertEqual(p.returncode, -signal.SIGSEGV, p.stderr)
+        # compare reads the scan the same way: a reader's crash there fails it alone too.
+        js = os.path.join(self.dir, "crash.json")
+        p = run(["compare", os.path.join(self.dir, "sphere.nii.gz"), "--size", "4", "--json", js, "-q"], check=False,
+                env=dict(os.environ, ISOHEX_TEST_CRASH="load"))
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("sphere.nii.gz: a library crashed reading it (SIGSEGV, segmentation fault)", p.stderr)
+        self.assertFalse(os.path.exists(js))
         # Errors of the job itself keep their message and exit status.
         p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--iso", "1e9", "-o", out, "-q"], check=False)
         self.assertEqual(p.returncode, 1, p.stderr)
@@ -600,6 +608,28 @@ class FailurePaths(unittest.TestCase):
         _, err = p.communicate()
         self.assertEqual(p.returncode, 0, err)
         self.assertTrue(os.path.exists(out))
+
+    def test_damaged_gzip_data_in_a_nifti_is_named_as_damage_not_truncation(self):
+        # A .nii.gz whose gzip check bytes were damaged was reported as
+        # "truncated" (or, damaged in the CRC only, meshed).
+        with open(os.path.join(self.dir, "sphere.nii.gz"), "rb") as f:
+            good = f.read()
+        out = os.path.join(self.dir, "gz.vtu")
+        for name, at in (("badcrc", len(good) - 6), ("baddata", len(good) // 2)):
+            src = os.path.join(self.dir, name + ".nii.gz")
+            b = bytearray(good)
+            b[at] ^= 0x5A
+            with open(src, "wb") as f:
+                f.write(bytes(b))
+            p = run(["mesh", src, "--size", "4", "-o", out, "-q"], check=False)
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertTrue(p.stderr.startswith(f"isohex: error: {src}: the compressed data is damaged (zlib: "),
+                            p.stderr)
+            self.assertIn("Copy or export the file again", p.stderr)
+            self.assertNotIn("truncated", p.stderr)
+            if name == "badcrc":
+                self.assertIn("incorrect data check", p.stderr)
+            self.assertFalse(os.path.exists(out))
 
     def test_a_volume_index_the_file_does_not_have_is_refused(self):
         # --volume-index 5 on a 3-D scan was silently ignored (volume 0 meshed)
