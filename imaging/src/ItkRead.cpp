@@ -279,6 +279,73 @@ struct MetaHeader {
     }
 };
 
+// Compressed MetaImage data is inflated here once before MetaIO reads it:
+// MetaIO does not report a damaged zlib stream, and without a
+// CompressedDataSize (or with 0) it reads wrong voxel values. A corrupted
+// stream was meshed as it came out, and a missing size or gzip data in place
+// of zlib gave NaN voxels and a message about those (the corrupted-input
+// survey). zlib's Adler-32 check catches damage; the stream must end within
+// CompressedDataSize, and the inflated size must be what the header's sizes
+// need.
+void checkMetaImageInflates(const std::string& file, const MetaHeader& header, const std::string& dataFile,
+                            std::uint64_t dataBytes) {
+    const bool local = dataFile == "LOCAL";
+    const std::filesystem::path dataPath = local ? std::filesystem::path(file)
+                                                 : std::filesystem::path(file).parent_path() / dataFile;
+    std::error_code ec;
+    const std::uint64_t fileBytes = std::filesystem::file_size(dataPath, ec);
+    if (ec) return;  // the size check has said what is missing
+    const std::uint64_t available = local ? fileBytes - std::min(fileBytes, header.dataStart) : fileBytes;
+    const std::string* cs = header.get("CompressedDataSize");
+    const std::uint64_t declared = cs ? std::strtoull(cs->c_str(), nullptr, 10) : 0;
+    if (declared == 0)  // MetaIO then inflates the wrong bytes (wrong voxels, no message)
+        throw Error(file + ": CompressedData is True but CompressedDataSize is " + (cs ? "0" : "missing") +
+                    ", and MetaIO then reads wrong voxel values. Add the line 'CompressedDataSize = " +
+                    std::to_string(available) + "' (the bytes of compressed data" +
+                    (local ? " after the header" : " in " + dataPath.filename().string()) +
+                    ") before ElementDataFile, or save the image again.");
+    std::ifstream in(dataPath, std::ios::binary);
+    if (local) in.seekg(static_cast<std::streamoff>(header.dataStart));
+    z_stream z{};
+    if (inflateInit(&z) != Z_OK) return;
+    std::vector<unsigned char> input(1 << 20), output(1 << 20);
+    std::uint64_t left = declared, produced = 0;
+    int rc = Z_OK;
+    std::string problem;
+    while (rc != Z_STREAM_END && problem.empty()) {
+        if (z.avail_in == 0) {
+            if (left == 0) {
+                problem = "the compressed data ends before its stream does";
+                break;
+            }
+            in.read(reinterpret_cast<char*>(input.data()),
+                    static_cast<std::streamsize>(std::min<std::uint64_t>(left, input.size())));
+            const auto got = static_cast<std::uint64_t>(in.gcount());
+            if (got == 0) {
+                problem = "the compressed data ends before its stream does";
+                break;
+            }
+            left -= got;
+            z.next_in = input.data();
+            z.avail_in = static_cast<uInt>(got);
+        }
+        z.next_out = output.data();
+        z.avail_out = static_cast<uInt>(output.size());
+        rc = inflate(&z, Z_NO_FLUSH);
+        produced += output.size() - z.avail_out;
+        if (rc != Z_OK && rc != Z_STREAM_END)
+            problem = std::string("the compressed data is damaged (zlib: ") + (z.msg ? z.msg : "error " + std::to_string(rc)) + ")";
+    }
+    inflateEnd(&z);
+    if (!problem.empty())
+        throw Error(file + ": " + problem + " after " + std::to_string(produced) +
+                    " uncompressed bytes. Copy or export the file again.");
+    if (produced != dataBytes)
+        throw Error(file + ": the compressed data inflates to " + std::to_string(produced) + " bytes but the header's "
+                    "DimSize, ElementType and channels need " + std::to_string(dataBytes) +
+                    ". The header does not describe the data; export the file again.");
+}
+
 // MetaImage: the data follows the header line "ElementDataFile = ..." (LOCAL)
 // or sits in the named file; MetaIO reads short data with only a warning.
 void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
@@ -291,7 +358,10 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
     if (dataFile.empty() || dataFile.rfind("LIST", 0) == 0 || dataFile.find('%') != std::string::npos) return;
     if (dataFile == "Local" || dataFile == "local") dataFile = "LOCAL";
     std::uint64_t need = compressed ? compressedSize : dataBytes;
-    if (need == 0) return;
+    if (need == 0) {
+        if (compressed) checkMetaImageInflates(file, header, dataFile, dataBytes);
+        return;
+    }
     std::uint64_t have;
     if (dataFile == "LOCAL") {
         need += header.dataStart;
@@ -306,6 +376,7 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
         }
     }
     if (have < need) truncated(file, need, have, "bytes");
+    if (compressed) checkMetaImageInflates(file, header, dataFile, dataBytes);
 }
 
 // NIfTI orientation fields that are not finite make ITK's reader abort the
@@ -730,9 +801,24 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
         }
         chosen = largest.front();
     }
+    if (chosen->files.size() == 1) {
+        // One file can hold the whole volume: a multi-frame DICOM (enhanced
+        // CT or MR, and what ITK writes for a 3-D image). It is read as the
+        // image file it is; the folder used to call it "a single slice".
+        auto probe = itk::GDCMImageIO::New();
+        bool frames = false;
+        try {
+            probe->SetFileName(chosen->files.front());
+            probe->ReadImageInformation();
+            frames = probe->GetNumberOfDimensions() >= 3 && probe->GetDimensions(2) > 1;
+        } catch (const itk::ExceptionObject&) {
+            // unreadable: the header check below says so
+        }
+        if (frames) return readImageFileItk(chosen->files.front(), options);
+    }
     if (chosen->files.size() < 2) {
         throw Error(folder + ": DICOM series " + chosen->id + " has a single slice; isohex needs "
-                    "a 3-D volume (a series of at least two slices).");
+                    "a 3-D volume (a series of at least two slices, or one multi-frame file).");
     }
 
     auto io = itk::GDCMImageIO::New();

@@ -172,6 +172,22 @@ void writeDicomSeries(const fs::path& dir, const Dims& dims, const std::vector<s
     writer->Update();
 }
 
+void writeMultiFrameDicom(const fs::path& path, const Dims& dims, const std::vector<std::int16_t>& v,
+                          const Geometry& g) {
+    registerIo();
+    auto image = makeImage<std::int16_t>(dims, v, g);
+    auto io = itk::GDCMImageIO::New();
+    itk::MetaDataDictionary& d = image->GetMetaDataDictionary();  // the writer hands the image's to the IO
+    // With modality MR, GDCM stores a 3-D image as one enhanced MR file (frames).
+    itk::EncapsulateMetaData<std::string>(d, "0008|0060", "MR");
+    itk::EncapsulateMetaData<std::string>(d, "0028|0004", "MONOCHROME2");
+    auto writer = itk::ImageFileWriter<itk::Image<std::int16_t, 3>>::New();
+    writer->SetInput(image);
+    writer->SetImageIO(io);
+    writer->SetFileName(path.string());
+    writer->Update();
+}
+
 std::string dicomTag(const fs::path& file, const std::string& tag) {
     auto io = itk::GDCMImageIO::New();
     io->SetFileName(file.string());

@@ -38,6 +38,9 @@ void writeDicomSeries(const fs::path& dir, const Dims& dims, const std::vector<s
                       const Geometry& g, const std::string& seriesUid, double rescaleSlope = 1.0,
                       double rescaleIntercept = 0.0, const std::string& prefix = "slice");
 // A tag of a DICOM file as text ("" when absent), e.g. "0028|1053".
+// One multi-frame DICOM file holding the whole volume (ImageFileWriter + GDCMImageIO).
+void writeMultiFrameDicom(const fs::path& path, const Dims& dims, const std::vector<std::int16_t>& v,
+                          const Geometry& g);
 std::string dicomTag(const fs::path& file, const std::string& tag);
 // Images the loader must refuse or handle specially.
 void writeComplexImage(const fs::path& path, const Dims& dims);

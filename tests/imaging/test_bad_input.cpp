@@ -10,6 +10,8 @@
 #include <limits>
 #include <tuple>
 
+#include <zlib.h>
+
 #include "TestSupport.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/imaging/Selection.hpp"
@@ -140,6 +142,64 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
     for (const char* name : {"good_list.mhd", "good_pattern.mhd", "one_word.mhd", "two_words.mhd", "list3d.mhd", "lower.mha"}) {
         SCOPED_TRACE(name);
         EXPECT_NO_THROW(loadVolume(dir / name));
+    }
+    fs::remove_all(dir);
+}
+
+TEST(BadInput, CompressedMetaImageDataIsCheckedBeforeMetaIoReadsIt) {
+    // MetaIO meshed a damaged zlib stream as it inflated, and with
+    // CompressedDataSize 0 or missing, or gzip data, gave NaN voxels.
+    const auto dir = scratchDir("metazlib");
+    std::string voxels(48, '\0');
+    for (std::size_t i = 0; i < voxels.size(); ++i) voxels[i] = static_cast<char>((i * 7) % 251);
+    auto deflated = [](const std::string& raw, int windowBits) {
+        z_stream z{};
+        EXPECT_EQ(deflateInit2(&z, 9, Z_DEFLATED, windowBits, 8, Z_DEFAULT_STRATEGY), Z_OK);
+        std::string out(deflateBound(&z, raw.size()) + 32, '\0');
+        z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(raw.data()));
+        z.avail_in = static_cast<uInt>(raw.size());
+        z.next_out = reinterpret_cast<Bytef*>(out.data());
+        z.avail_out = static_cast<uInt>(out.size());
+        EXPECT_EQ(deflate(&z, Z_FINISH), Z_STREAM_END);
+        out.resize(z.total_out);
+        deflateEnd(&z);
+        return out;
+    };
+    const std::string zlib = deflated(voxels, 15), gzip = deflated(voxels, 31), short40 = deflated(voxels.substr(0, 40), 15);
+    const std::string head = "ObjectType = Image\nNDims = 3\nBinaryData = True\nDimSize = 4 4 3\n"
+                             "ElementSpacing = 1 1 1\nElementType = MET_UCHAR\nCompressedData = True\n";
+    auto sized = [&](const std::string& z) { return head + "CompressedDataSize = " + std::to_string(z.size()) + "\n"; };
+    std::string badCheck = zlib;
+    badCheck.back() = static_cast<char>(badCheck.back() ^ 0x5A);  // the last byte is Adler-32's
+    writeBytes(dir / "good.mha", sized(zlib) + "ElementDataFile = LOCAL\n" + zlib);
+    writeBytes(dir / "good.zraw", zlib);
+    writeBytes(dir / "good.mhd", sized(zlib) + "ElementDataFile = good.zraw\n");
+    for (const char* name : {"good.mha", "good.mhd"}) {
+        SCOPED_TRACE(name);
+        const Volume v = loadVolume(dir / name);
+        EXPECT_EQ(v.intensity->tree().getValue(openvdb::Coord(1, 2, 1)),
+                  float(static_cast<unsigned char>(voxels[1 + 4 * (2 + 4 * 1)])));
+    }
+    writeBytes(dir / "bad.zraw", badCheck);
+    const std::vector<std::tuple<std::string, std::string, std::vector<std::string>>> cases = {
+        {"check.mha", sized(badCheck) + "ElementDataFile = LOCAL\n" + badCheck,
+         {"the compressed data is damaged (zlib: incorrect data check)", "export the file again"}},
+        {"check.mhd", sized(badCheck) + "ElementDataFile = bad.zraw\n", {"incorrect data check"}},
+        {"gzip.mha", sized(gzip) + "ElementDataFile = LOCAL\n" + gzip, {"damaged (zlib: incorrect header check)"}},
+        // MetaIO read wrong values from these (95 where the data has 175, no message)
+        {"nosize.mha", head + "ElementDataFile = LOCAL\n" + zlib,
+         {"CompressedDataSize is missing", "CompressedDataSize = " + std::to_string(zlib.size()) + "'"}},
+        {"size0.mha", head + "CompressedDataSize = 0\nElementDataFile = LOCAL\n" + zlib, {"CompressedDataSize is 0"}},
+        {"cut.mha", head + "CompressedDataSize = " + std::to_string(zlib.size() - 4) + "\nElementDataFile = LOCAL\n" + zlib,
+         {"ends before its stream does"}},
+        {"short.mha", sized(short40) + "ElementDataFile = LOCAL\n" + short40, {"inflates to 40 bytes", "need 48"}},
+    };
+    for (const auto& [name, text, pieces] : cases) {
+        SCOPED_TRACE(name);
+        writeBytes(dir / name, text);
+        std::vector<std::string> want = pieces;
+        want.push_back(name);
+        expectError([&] { loadVolume(dir / name); }, want);
     }
     fs::remove_all(dir);
 }

@@ -82,6 +82,24 @@ TEST(LoadVolume, SameVolumeInNiftiNrrdMetaImageAndDicomGivesIdenticalGridsAndTra
     fs::remove_all(dir);
 }
 
+TEST(LoadVolume, AFolderHoldingOneMultiFrameDicomIsReadAsItsVolume) {
+    // A folder with one multi-frame DICOM file (enhanced CT or MR; ITK writes
+    // a 3-D image so) was refused as "a single slice".
+    const auto dir = scratchDir("multiframe");
+    const auto g = blobGeometry();
+    const auto v = blobValues();
+    writeImage(dir / "blob.nii.gz", kDims, v, g);
+    fs::create_directories(dir / "dicom");
+    writeMultiFrameDicom(dir / "dicom" / "volume.dcm", kDims, v, g);
+    const Volume ref = loadVolume(dir / "blob.nii.gz");
+    const Volume folder = loadVolume(dir / "dicom");
+    EXPECT_EQ(folder.format, "DICOM");
+    EXPECT_EQ(folder.dims(), openvdb::Coord(kDims[0], kDims[1], kDims[2]));
+    expectSameGrid(ref, folder);
+    expectSameGrid(ref, loadVolume(dir / "dicom" / "volume.dcm"));  // the file itself, as before
+    fs::remove_all(dir);
+}
+
 TEST(LoadVolume, VoxelCentresMapToItkPhysicalPoints) {
     const auto dir = scratchDir("geometry");
     const auto g = blobGeometry();
