@@ -220,11 +220,12 @@ std::uint64_t gunzippedSize(const std::string& file) {
     int n;
     while ((n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0) total += n;
     int code = Z_OK;
-    const std::string message = n < 0 ? gzerror(gz, &code) : "";
+    std::string message = n < 0 ? gzerror(gz, &code) : "";
     gzclose(gz);
+    if (message.rfind(file + ": ", 0) == 0) message.erase(0, file.size() + 2);  // zlib puts the path first
     if (code == Z_DATA_ERROR)
-        throw Error(file + ": the compressed data is damaged (zlib: " + message + ", after " + std::to_string(total) +
-                    " uncompressed bytes). Copy or export the file again.");
+        throw Error(file + ": the compressed data is damaged (zlib: " + message +
+                    "). Copy or export the file again.");
     return total;
 }
 

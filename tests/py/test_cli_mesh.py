@@ -627,6 +627,7 @@ class FailurePaths(unittest.TestCase):
                             p.stderr)
             self.assertIn("Copy or export the file again", p.stderr)
             self.assertNotIn("truncated", p.stderr)
+            self.assertEqual(p.stderr.count(src), 1, p.stderr)  # zlib's own text starts with the path too
             if name == "badcrc":
                 self.assertIn("incorrect data check", p.stderr)
             self.assertFalse(os.path.exists(out))
