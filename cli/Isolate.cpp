@@ -34,6 +34,7 @@ namespace {
 // not have been sent).
 struct StageSlot {
     char stage[64];
+    char file[1024];  // the file being read, when it is not the job's input (insert-sheet's surfaces)
 };
 StageSlot* gSlot = nullptr;  // set in the child of an isolated job only
 std::string gInput;          // the job's input, for ISOHEX_TEST_CRASH=...@text (isolated or not)
@@ -83,7 +84,8 @@ std::string signalName(int sig) {
 }
 
 // What the parent says about a child that ended without a result.
-std::string describeEnd(const std::string& input, int status, const std::string& stage) {
+std::string describeEnd(const std::string& job, int status, const std::string& stage, const std::string& file) {
+    const std::string& input = file.empty() ? job : file;
     const std::string where = stage.empty() ? "before its first stage" : "in its " + stage + " stage";
     if (WIFSIGNALED(status)) {
         const int sig = WTERMSIG(status);
@@ -182,22 +184,44 @@ void flushAll() {
 
 }  // namespace
 
+namespace {
+
+void copyInto(char* slot, std::size_t size, std::string_view text) {
+    const std::size_t n = std::min(text.size(), size - 1);
+    std::memcpy(slot, text.data(), n);
+    slot[n] = '\0';
+}
+
+// ISOHEX_TEST_CRASH=<stage>[:kill][@<text>]: see Isolate.hpp.
+void injectedFault(std::string_view stage, const std::string& subject) {
+    const char* crash = std::getenv("ISOHEX_TEST_CRASH");
+    if (!crash) return;
+    std::string c(crash), only;
+    if (const auto at = c.find('@'); at != std::string::npos) {
+        only = c.substr(at + 1);
+        c.resize(at);
+    }
+    if (!only.empty() && subject.find(only) == std::string::npos) return;
+    if (c == stage) std::raise(SIGSEGV);
+    if (c == std::string(stage) + ":kill") std::raise(SIGKILL);
+}
+
+}  // namespace
+
 void stageBegins(std::string_view stage) {
     if (gSlot) {
-        const std::size_t n = std::min(stage.size(), sizeof(gSlot->stage) - 1);
-        std::memcpy(gSlot->stage, stage.data(), n);
-        gSlot->stage[n] = '\0';
+        copyInto(gSlot->stage, sizeof gSlot->stage, stage);
+        gSlot->file[0] = '\0';
     }
-    if (const char* crash = std::getenv("ISOHEX_TEST_CRASH")) {
-        std::string c(crash), only;
-        if (const auto at = c.find('@'); at != std::string::npos) {
-            only = c.substr(at + 1);
-            c.resize(at);
-        }
-        if (!only.empty() && gInput.find(only) == std::string::npos) return;
-        if (c == stage) std::raise(SIGSEGV);
-        if (c == std::string(stage) + ":kill") std::raise(SIGKILL);
+    injectedFault(stage, gInput);
+}
+
+void nowReading(const std::string& file) {
+    if (gSlot) {
+        copyInto(gSlot->stage, sizeof gSlot->stage, "load");
+        copyInto(gSlot->file, sizeof gSlot->file, file);
     }
+    injectedFault("load", file);
 }
 
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
@@ -235,6 +259,7 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
         ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
     };
     slot->stage[0] = '\0';
+    slot->file[0] = '\0';
     const pid_t parent = ::getpid();
     const pid_t child = ::fork();
     if (child < 0) {
@@ -274,7 +299,7 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
     }
     if (!complete) {
         removeLeftovers(files, existed, child);
-        throw Error(describeEnd(input, status, std::string(slot->stage)));
+        throw Error(describeEnd(input, status, std::string(slot->stage), std::string(slot->file)));
     }
     if (msg.contains("result")) return msg["result"];
     const std::string kind = msg.value("error", "internal");

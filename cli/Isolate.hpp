@@ -50,4 +50,9 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink);
 // on one library's bug.
 void stageBegins(std::string_view stage);
 
+// A command that reads its files itself says which one it is reading: the
+// "load" stage begins, a crash names that file, and ISOHEX_TEST_CRASH's
+// @<text> is matched against it.
+void nowReading(const std::string& file);
+
 }  // namespace isohex::cli

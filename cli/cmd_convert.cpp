@@ -4,6 +4,7 @@
 #include <string>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "isohex/core/MeshIO.hpp"
 
@@ -34,12 +35,19 @@ void addConvertCommand(CLI::App& app) {
     cmd->callback([args] {
         io::formatFromPath(args->output);  // reject a bad output name before reading a large input
         checkOutputPaths({args->output}, {args->input}, args->force);
-        const HexMesh mesh = io::read(args->input);
-        io::WriteOptions opt;
-        opt.overwrite = args->force;
-        io::write(mesh, args->output, opt);
-        std::cout << "wrote " << args->output << ": " << mesh.nodeCount() << " nodes, " << mesh.hexCount()
-                  << " hexes\n";
+        // In a child process, as isohex mesh (cli/Isolate.hpp).
+        runIsolated(args->input, {args->output}, [&] {
+            nowReading(args->input);
+            const HexMesh mesh = io::read(args->input);
+            stageBegins("write");
+            io::WriteOptions opt;
+            opt.overwrite = args->force;
+            io::write(mesh, args->output, opt);
+            std::cout << "wrote " << args->output << ": " << mesh.nodeCount() << " nodes, " << mesh.hexCount()
+                      << " hexes\n";
+            std::cout.flush();
+            return nlohmann::json::object();
+        });
     });
 }
 

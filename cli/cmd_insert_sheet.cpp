@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "Progress.hpp"
 #include "Report.hpp"
@@ -61,54 +62,65 @@ void addInsertSheetCommand(CLI::App& app) {
             checkOutputPaths({a->output}, inputs, a->force);
         }
         if (!std::filesystem::exists(a->mesh)) throw Error(a->mesh + ": no such file; check the path");
-        // Every surface is read and checked before any work.
-        std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;
-        for (const auto& s : a->surfaces) trees.push_back(loadTriangleTree(s));
-        HexMesh mesh = io::read(a->mesh);
-        sheets::SheetGeometry geometry;
-        sheets::adoptBoundary(mesh, geometry);
-        sheets::InsertOptions o;
-        o.keep = a->keep == "inside" ? sheets::Keep::Inside : a->keep == "outside" ? sheets::Keep::Outside : sheets::Keep::Both;
-        o.intersected = a->intersected == "side1"   ? sheets::Intersected::Side1
-                        : a->intersected == "side2" ? sheets::Intersected::Side2
-                                                    : sheets::Intersected::Auto;
-        for (const auto& t : trees) {
-            const sheets::InsertResult r = sheets::insertSheets(mesh, geometry, t, o);
-            std::printf("%s: %zu hexes cut, %zu moved for manifold sides (%zu edges, %zu nodes), %zu sheet hexes, "
-                        "%zu surface and %zu curve nodes, %.2f s\n",
-                        t->name().c_str(), r.intersectedHexes, r.hexesMoved, r.nonManifoldEdgesFixed,
-                        r.nonManifoldNodesFixed, r.sheetHexes, r.surfaceNodes, r.curveNodes, r.seconds);
-        }
-        std::size_t invertedBefore = 0, invertedAfter = 0;
-        if (a->optimize) {
-            ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
-            sink.begin("optimize");
-            const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, [&](std::string_view, double f) { sink.progress(f); });
-            sink.end("optimize", r.seconds);
-            invertedBefore = r.invertedBefore;
-            invertedAfter = r.invertedAfter;
-        }
-        const HexQuality q = computeQuality(mesh);
-        const QualitySummary s = summarize(mesh, q);
-        const ValidityReport v = validate(mesh);
-        io::WriteOptions w;
-        w.overwrite = a->force;
-        w.scaledJacobian = q.scaledJacobian;
-        io::write(mesh, a->output, w);
-        // Without the optimiser the hexes are as inserted: there is no
-        // "before smoothing" to compare with.
-        const std::string inverted =
-            a->optimize ? std::to_string(s.inverted) + " inverted (" + std::to_string(invertedBefore) + " before smoothing)"
-                        : std::to_string(s.inverted) + " inverted (not smoothed: --no-optimize)";
-        std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %s, %s, %.1f s\n", a->output.c_str(), s.hexes,
-                    s.scaledJacobian.min, s.scaledJacobian.mean, inverted.c_str(), v.ok() ? "valid" : "validity defects",
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        (void)invertedAfter;
-        std::printf("wrote %s\n", a->output.c_str());
-        if (!v.ok())
-            std::cerr << "isohex: warning: " << a->output << ": " << describeDefects(v)
-                      << (a->optimize ? "" : "; run without --no-optimize to untangle them")
-                      << "; isohex quality " << a->output << " lists them\n";
+        // In a child process, as isohex mesh: a reader crashing on a damaged
+        // file is an error naming it (cli/Isolate.hpp).
+        runIsolated(a->mesh, {a->output}, [&] {
+            // Every surface is read and checked before any work.
+            std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;
+            for (const auto& s : a->surfaces) {
+                nowReading(s);
+                trees.push_back(loadTriangleTree(s));
+            }
+            nowReading(a->mesh);
+            HexMesh mesh = io::read(a->mesh);
+            stageBegins("insert");
+            sheets::SheetGeometry geometry;
+            sheets::adoptBoundary(mesh, geometry);
+            sheets::InsertOptions o;
+            o.keep = a->keep == "inside" ? sheets::Keep::Inside : a->keep == "outside" ? sheets::Keep::Outside : sheets::Keep::Both;
+            o.intersected = a->intersected == "side1"   ? sheets::Intersected::Side1
+                            : a->intersected == "side2" ? sheets::Intersected::Side2
+                                                        : sheets::Intersected::Auto;
+            for (const auto& t : trees) {
+                const sheets::InsertResult r = sheets::insertSheets(mesh, geometry, t, o);
+                std::printf("%s: %zu hexes cut, %zu moved for manifold sides (%zu edges, %zu nodes), %zu sheet hexes, "
+                            "%zu surface and %zu curve nodes, %.2f s\n",
+                            t->name().c_str(), r.intersectedHexes, r.hexesMoved, r.nonManifoldEdgesFixed,
+                            r.nonManifoldNodesFixed, r.sheetHexes, r.surfaceNodes, r.curveNodes, r.seconds);
+            }
+            std::size_t invertedBefore = 0, invertedAfter = 0;
+            if (a->optimize) {
+                ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
+                sink.begin("optimize");
+                const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, [&](std::string_view, double f) { sink.progress(f); });
+                sink.end("optimize", r.seconds);
+                invertedBefore = r.invertedBefore;
+                invertedAfter = r.invertedAfter;
+            }
+            const HexQuality q = computeQuality(mesh);
+            const QualitySummary s = summarize(mesh, q);
+            const ValidityReport v = validate(mesh);
+            io::WriteOptions w;
+            w.overwrite = a->force;
+            w.scaledJacobian = q.scaledJacobian;
+            io::write(mesh, a->output, w);
+            // Without the optimiser the hexes are as inserted: there is no
+            // "before smoothing" to compare with.
+            const std::string inverted =
+                a->optimize ? std::to_string(s.inverted) + " inverted (" + std::to_string(invertedBefore) + " before smoothing)"
+                            : std::to_string(s.inverted) + " inverted (not smoothed: --no-optimize)";
+            std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %s, %s, %.1f s\n", a->output.c_str(), s.hexes,
+                        s.scaledJacobian.min, s.scaledJacobian.mean, inverted.c_str(), v.ok() ? "valid" : "validity defects",
+                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            (void)invertedAfter;
+            std::printf("wrote %s\n", a->output.c_str());
+            if (!v.ok())
+                std::cerr << "isohex: warning: " << a->output << ": " << describeDefects(v)
+                          << (a->optimize ? "" : "; run without --no-optimize to untangle them")
+                          << "; isohex quality " << a->output << " lists them\n";
+            std::fflush(stdout);
+            return nlohmann::json::object();
+        });
     });
 }
 

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "Report.hpp"
 #include "Versions.hpp"
@@ -53,32 +54,40 @@ void addQualityCommand(CLI::App& app) {
             outputs.push_back(args->annotated);
         }
         checkOutputPaths(outputs, {args->mesh}, args->force);
-        const HexMesh mesh = io::read(args->mesh);
-        const HexQuality q = computeQuality(mesh);
-        const QualitySummary s = summarize(mesh, q);
-        const ValidityReport v = validate(mesh);
-        nlohmann::json j = toJson(s);
-        j["mesh"] = args->mesh;
-        j["validity"] = toJson(v);
-        j["peak_memory_mb"] = peakMemoryMb();
-        j["versions"] = versionsJson();
-        if (!args->reportPath.empty()) writeJsonFile(j, args->reportPath, args->force);
-        if (!args->annotated.empty()) {
-            io::WriteOptions w;
-            w.overwrite = args->force;
-            w.scaledJacobian = q.scaledJacobian;
-            w.cellFields = {{"inverse_mean_ratio", q.inverseMeanRatio},
-                            {"condition", q.condition},
-                            {"edge_ratio", q.edgeRatio},
-                            {"volume", q.volume}};
-            io::write(mesh, args->annotated, w);
-            if (io::formatFromPath(args->annotated) != io::Format::Vtu)
-                std::cerr << "isohex: note: " << args->annotated
-                          << ": the per-hex quality fields are written to .vtu files only; this file holds the mesh\n";
-        }
-        if (args->json) std::cout << j.dump(2) << "\n";
-        else std::cout << args->mesh << "\n" << formatQuality(s, v);
-        if (args->strict && (!v.ok() || s.inverted > 0 || s.degenerate > 0)) pendingExitCode() = kExitInvalidMesh;
+        // In a child process, as isohex mesh: a reader crashing on a damaged
+        // file is an error naming it (cli/Isolate.hpp).
+        const nlohmann::json done = runIsolated(args->mesh, outputs, [&] {
+            nowReading(args->mesh);
+            const HexMesh mesh = io::read(args->mesh);
+            stageBegins("quality");
+            const HexQuality q = computeQuality(mesh);
+            const QualitySummary s = summarize(mesh, q);
+            const ValidityReport v = validate(mesh);
+            nlohmann::json j = toJson(s);
+            j["mesh"] = args->mesh;
+            j["validity"] = toJson(v);
+            j["peak_memory_mb"] = peakMemoryMb();
+            j["versions"] = versionsJson();
+            if (!args->reportPath.empty()) writeJsonFile(j, args->reportPath, args->force);
+            if (!args->annotated.empty()) {
+                io::WriteOptions w;
+                w.overwrite = args->force;
+                w.scaledJacobian = q.scaledJacobian;
+                w.cellFields = {{"inverse_mean_ratio", q.inverseMeanRatio},
+                                {"condition", q.condition},
+                                {"edge_ratio", q.edgeRatio},
+                                {"volume", q.volume}};
+                io::write(mesh, args->annotated, w);
+                if (io::formatFromPath(args->annotated) != io::Format::Vtu)
+                    std::cerr << "isohex: note: " << args->annotated
+                              << ": the per-hex quality fields are written to .vtu files only; this file holds the mesh\n";
+            }
+            if (args->json) std::cout << j.dump(2) << "\n";
+            else std::cout << args->mesh << "\n" << formatQuality(s, v);
+            std::cout.flush();
+            return nlohmann::json{{"invalid", args->strict && (!v.ok() || s.inverted > 0 || s.degenerate > 0)}};
+        });
+        if (done.value("invalid", false)) pendingExitCode() = kExitInvalidMesh;
     });
 }
 

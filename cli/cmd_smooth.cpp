@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "Commands.hpp"
+#include "Isolate.hpp"
 #include "Jobs.hpp"
 #include "Progress.hpp"
 #include "isohex/core/Error.hpp"
@@ -37,56 +38,63 @@ void addSmoothCommand(CLI::App& app) {
         applyThreads(a->threads);
         io::formatFromPath(a->output);
         checkOutputPaths({a->output}, {a->input}, a->force);
-        HexMesh mesh = io::read(a->input);
-        classifyBoundaryNodes(mesh);
-        const HexQuality qBefore = computeQuality(mesh);
-        const QualitySummary before = summarize(mesh, qBefore);
-        if (2 * before.inverted > mesh.hexCount())
-            throw Error(a->input + ": " + std::to_string(before.inverted) + " of " + std::to_string(mesh.hexCount()) +
-                        " hexes are inverted, so the corner order is probably mirrored: isohex reads VTK's hexahedron "
-                        "order (bottom face counter-clockwise seen from the top face, then the top face). Reorder the "
-                        "corners and retry; smoothing would only scramble the mesh");
-        const std::vector<Vec3> original = mesh.nodes;
-        smoothing::SmoothingOptions opt;
-        opt.fixBoundary = true;
-        ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
-        sink.begin("optimize");
-        const auto t0 = std::chrono::steady_clock::now();
-        const auto r = smoothing::optimizeMesh(mesh, nullptr, opt, [&](std::string_view, double f) { sink.progress(f); });
-        // The mean-ratio sweeps raise the average and can lower the worst hex
-        // (the JHU mesh isohex wrote: minimum 0.148 -> 0.044): the max-min
-        // pass after them, as isohex mesh runs it, with the boundary fixed.
-        smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{});
-        sink.end("optimize", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-        HexQuality q = computeQuality(mesh);
-        QualitySummary after = summarize(mesh, q);
-        // Never hand back a worse mesh: fewer inverted hexes, or as many and a
-        // minimum no lower, or the input's positions stay.
-        const bool worse = after.inverted > before.inverted ||
-                           (after.inverted == before.inverted && after.scaledJacobian.min < before.scaledJacobian.min);
-        if (worse) {
-            sink.note("warning", "smoothing lowered the worst hex (scaled Jacobian min " +
-                                     std::to_string(before.scaledJacobian.min) + " -> " +
-                                     std::to_string(after.scaledJacobian.min) + ", inverted " +
-                                     std::to_string(before.inverted) + " -> " + std::to_string(after.inverted) +
-                                     "); the input's node positions are written unchanged");
-            mesh.nodes = original;
-            q = qBefore;
-            after = before;
-        }
-        if (after.inverted > 0) {
-            sink.note("warning", std::to_string(after.inverted) + " of " + std::to_string(mesh.hexCount()) +
-                                     " hexes stay inverted; the boundary nodes are fixed, so hexes folded at the "
-                                     "boundary need the mesh remade");
-        }
-        io::WriteOptions w2;
-        w2.overwrite = a->force;
-        w2.scaledJacobian = q.scaledJacobian;
-        io::write(mesh, a->output, w2);
-        std::printf("%s: %zu hexes; scaled Jacobian min %.3f -> %.3f, mean %.3f -> %.3f; inverted %zu -> %zu; %d sweeps\n",
-                    a->input.c_str(), mesh.hexCount(), before.scaledJacobian.min, after.scaledJacobian.min,
-                    before.scaledJacobian.mean, after.scaledJacobian.mean, before.inverted, after.inverted, r.sweeps);
-        std::printf("wrote %s\n", a->output.c_str());
+        // In a child process, as isohex mesh (cli/Isolate.hpp).
+        runIsolated(a->input, {a->output}, [&] {
+            nowReading(a->input);
+            HexMesh mesh = io::read(a->input);
+            stageBegins("check");
+            classifyBoundaryNodes(mesh);
+            const HexQuality qBefore = computeQuality(mesh);
+            const QualitySummary before = summarize(mesh, qBefore);
+            if (2 * before.inverted > mesh.hexCount())
+                throw Error(a->input + ": " + std::to_string(before.inverted) + " of " + std::to_string(mesh.hexCount()) +
+                            " hexes are inverted, so the corner order is probably mirrored: isohex reads VTK's hexahedron "
+                            "order (bottom face counter-clockwise seen from the top face, then the top face). Reorder the "
+                            "corners and retry; smoothing would only scramble the mesh");
+            const std::vector<Vec3> original = mesh.nodes;
+            smoothing::SmoothingOptions opt;
+            opt.fixBoundary = true;
+            ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
+            sink.begin("optimize");
+            const auto t0 = std::chrono::steady_clock::now();
+            const auto r = smoothing::optimizeMesh(mesh, nullptr, opt, [&](std::string_view, double f) { sink.progress(f); });
+            // The mean-ratio sweeps raise the average and can lower the worst hex
+            // (the JHU mesh isohex wrote: minimum 0.148 -> 0.044): the max-min
+            // pass after them, as isohex mesh runs it, with the boundary fixed.
+            smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{});
+            sink.end("optimize", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            HexQuality q = computeQuality(mesh);
+            QualitySummary after = summarize(mesh, q);
+            // Never hand back a worse mesh: fewer inverted hexes, or as many and a
+            // minimum no lower, or the input's positions stay.
+            const bool worse = after.inverted > before.inverted ||
+                               (after.inverted == before.inverted && after.scaledJacobian.min < before.scaledJacobian.min);
+            if (worse) {
+                sink.note("warning", "smoothing lowered the worst hex (scaled Jacobian min " +
+                                         std::to_string(before.scaledJacobian.min) + " -> " +
+                                         std::to_string(after.scaledJacobian.min) + ", inverted " +
+                                         std::to_string(before.inverted) + " -> " + std::to_string(after.inverted) +
+                                         "); the input's node positions are written unchanged");
+                mesh.nodes = original;
+                q = qBefore;
+                after = before;
+            }
+            if (after.inverted > 0) {
+                sink.note("warning", std::to_string(after.inverted) + " of " + std::to_string(mesh.hexCount()) +
+                                         " hexes stay inverted; the boundary nodes are fixed, so hexes folded at the "
+                                         "boundary need the mesh remade");
+            }
+            io::WriteOptions w2;
+            w2.overwrite = a->force;
+            w2.scaledJacobian = q.scaledJacobian;
+            io::write(mesh, a->output, w2);
+            std::printf("%s: %zu hexes; scaled Jacobian min %.3f -> %.3f, mean %.3f -> %.3f; inverted %zu -> %zu; %d sweeps\n",
+                        a->input.c_str(), mesh.hexCount(), before.scaledJacobian.min, after.scaledJacobian.min,
+                        before.scaledJacobian.mean, after.scaledJacobian.mean, before.inverted, after.inverted, r.sweeps);
+            std::printf("wrote %s\n", a->output.c_str());
+            std::fflush(stdout);
+            return nlohmann::json::object();
+        });
     });
 }
 

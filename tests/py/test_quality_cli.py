@@ -46,6 +46,40 @@ class QualityCommand(unittest.TestCase):
         w.Write()
         return path, g
 
+    def test_a_reader_crash_in_the_mesh_commands_is_an_error_naming_the_file(self):
+        # quality, convert, smooth and insert-sheet read meshes and surfaces
+        # through VTK, Gmsh and Assimp; a crash there (ISOHEX_TEST_CRASH
+        # raises SIGSEGV as the file's reading begins) ended isohex with the
+        # shell's "Segmentation fault".
+        import signal
+        samples = os.path.join(SOURCE, "samples")
+        block = os.path.join(samples, "spherical_cuts_block.vtu")
+        cut = os.path.join(samples, "spherical_cut_1.off")
+        out = os.path.join(self.dir, "crash_out.vtu")
+        cases = [
+            (["quality", SAMPLE, "--report", os.path.join(self.dir, "crash.json")], "load", SAMPLE),
+            (["convert", SAMPLE, out], "load", SAMPLE),
+            (["smooth", SAMPLE, "-o", out, "-q"], "load", SAMPLE),
+            (["insert-sheet", "--mesh", block, "--surface", cut, "-o", out, "-q"], "load@spherical_cut_1", cut),
+            (["smooth", SAMPLE, "-o", out, "-q"], "optimize", SAMPLE),
+        ]
+        for args, fault, named in cases:
+            with self.subTest(command=args[0], fault=fault):
+                env = dict(os.environ, ISOHEX_TEST_CRASH=fault)
+                p = run(args, check=False, env=env)
+                self.assertEqual(p.returncode, 1, p.stderr)
+                if fault.startswith("load"):
+                    self.assertIn(f"isohex: error: {named}: a library crashed reading it (SIGSEGV", p.stderr)
+                else:
+                    self.assertIn(f"isohex: error: {named}: isohex crashed in its {fault} stage (SIGSEGV", p.stderr)
+                self.assertFalse(os.path.exists(out))
+                self.assertFalse(os.path.exists(os.path.join(self.dir, "crash.json")))
+                # without the child process the same fault ends isohex
+                p = run(args, check=False, env=dict(env, ISOHEX_ISOLATE="0"))
+                self.assertEqual(p.returncode, -signal.SIGSEGV, p.stderr)
+        # quality --strict still sets the exit status from the child's result
+        self.assertEqual(run(["quality", SAMPLE, "--strict"], check=False).returncode, 0)
+
     def test_version_and_help(self):
         v = run(["--version"])
         self.assertTrue(v.stdout.startswith("isohex "), v.stdout)
