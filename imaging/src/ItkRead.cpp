@@ -1,6 +1,7 @@
 // Every ITK reader of the module lives in this one translation unit (ITK's
 // templates are expensive to compile). It turns a file or folder into a
 // RawVolume: a dense float or int32 array plus origin, spacing and direction.
+#include <cstdarg>
 #include <cstdio>
 #include <algorithm>
 #include <cmath>
@@ -23,6 +24,7 @@
 #include <itkImageSeriesReader.h>
 #include <itkTIFFImageIO.h>
 #include <itkVectorImage.h>
+#include <tiffio.h>
 #include <zlib.h>
 
 #include "RawVolume.hpp"
@@ -589,6 +591,65 @@ void checkMetaImageHeader(const std::string& file) {
 
 }  // namespace
 
+// libtiff's messages while checkTiffLayout runs (its handlers are
+// process-wide; scans are loaded on one thread).
+std::vector<std::string>* gTiffMessages = nullptr;
+
+void keepTiffMessage(const char* module, const char* fmt, va_list ap, bool warning) {
+    char text[512];
+    std::vsnprintf(text, sizeof text, fmt, ap);
+    const std::string m = std::string(module ? module : "libtiff") + ": " + text;
+    // Warnings are mostly about tags libtiff does not know (GeoTIFF, vendors'
+    // own); a warning that a tag could not be read means the file ends early.
+    if (gTiffMessages && (!warning || m.find("IO error") != std::string::npos)) gTiffMessages->push_back(m);
+}
+extern "C" void tiffError(const char* module, const char* fmt, va_list ap) { keepTiffMessage(module, fmt, ap, false); }
+extern "C" void tiffWarning(const char* module, const char* fmt, va_list ap) { keepTiffMessage(module, fmt, ap, true); }
+
+// A TIFF file cut short lost its last pages without a word: ITK reads the
+// pages libtiff can find (libtiff only prints "Failed to read directory"),
+// so a multi-page scan cut at 50% or 90% was meshed with fewer slices, and
+// one cut at 10% ended in an Otsu message about constant voxels (the
+// corrupted-input survey). Before ITK reads it, libtiff walks every page's
+// directory here and each strip or tile must end inside the file; any
+// libtiff error on the way (or a tag it could not read) refuses the file.
+void checkTiffLayout(const std::string& file) {
+    std::vector<std::string> messages;
+    gTiffMessages = &messages;
+    const TIFFErrorHandler oldError = TIFFSetErrorHandler(tiffError);
+    const TIFFErrorHandler oldWarning = TIFFSetWarningHandler(tiffWarning);
+    struct Restore {
+        TIFFErrorHandler e, w;
+        ~Restore() {
+            TIFFSetErrorHandler(e);
+            TIFFSetWarningHandler(w);
+            gTiffMessages = nullptr;
+        }
+    } restore{oldError, oldWarning};
+    std::error_code ec;
+    const std::uint64_t size = std::filesystem::file_size(file, ec);
+    if (ec) return;
+    TIFF* tif = TIFFOpen(file.c_str(), "r");
+    if (!tif) return;  // ITK says what it makes of a file libtiff cannot open
+    std::string problem;
+    int page = 0;
+    do {
+        ++page;
+        const bool tiled = TIFFIsTiled(tif);
+        const std::uint32_t pieces = tiled ? TIFFNumberOfTiles(tif) : TIFFNumberOfStrips(tif);
+        for (std::uint32_t i = 0; i < pieces && problem.empty(); ++i) {
+            const std::uint64_t offset = TIFFGetStrileOffset(tif, i), bytes = TIFFGetStrileByteCount(tif, i);
+            if (offset > size || bytes > size - offset)
+                problem = "page " + std::to_string(page) + "'s " + (tiled ? "tile " : "strip ") + std::to_string(i) +
+                          " ends at byte " + std::to_string(offset + bytes) + " of a file of " + std::to_string(size);
+        }
+    } while (problem.empty() && messages.empty() && TIFFReadDirectory(tif));
+    TIFFClose(tif);
+    if (problem.empty() && !messages.empty()) problem = boundedMessage(messages.front(), 500);
+    if (!problem.empty())
+        throw Error(file + ": the TIFF file is damaged or truncated (" + problem + "); export it again.");
+}
+
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
     const std::string file = path.string();
     itk::ImageIOBase::Pointer io =
@@ -617,6 +678,7 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
         };
         if (endsWith(".mha") || endsWith(".mhd")) checkMetaImageHeader(file);
         if (endsWith(".nii") || endsWith(".nii.gz")) checkNiftiOrientation(file);
+        if (endsWith(".tif") || endsWith(".tiff")) checkTiffLayout(file);
     }
     try {
         io->ReadImageInformation();
@@ -877,6 +939,7 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
 RawVolume readTiffSlicesItk(const std::vector<std::filesystem::path>& files,
                             const LoadOptions& options) {
     const std::string folder = files.front().parent_path().string();
+    for (const auto& f : files) checkTiffLayout(f.string());
     auto io = itk::TIFFImageIO::New();
     io->SetFileName(files.front().string());
     try {

@@ -89,6 +89,39 @@ TEST(BadInput, TruncatedVoxelDataIsReported) {
     fs::remove_all(dir);
 }
 
+TEST(BadInput, AMultiPageTiffCutShortIsRefusedNotReadWithFewerSlices) {
+    // ITK read the pages libtiff could still find: a scan cut at 50% or 90%
+    // was meshed with fewer slices and no error.
+    const auto dir = scratchDir("tiff");
+    std::vector<std::uint8_t> v(std::size_t(kDims[0]) * kDims[1] * kDims[2]);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = static_cast<std::uint8_t>(i % 97);
+    writeImage(dir / "scan.tif", kDims, v, Geometry{});
+    const Volume whole = loadVolume(dir / "scan.tif");
+    ASSERT_EQ(whole.dims(), openvdb::Coord(kDims[0], kDims[1], kDims[2]));
+    const auto size = fs::file_size(dir / "scan.tif");
+    for (double keep : {0.5, 0.9}) {
+        SCOPED_TRACE(keep);
+        fs::copy_file(dir / "scan.tif", dir / "cut.tif", fs::copy_options::overwrite_existing);
+        fs::resize_file(dir / "cut.tif", static_cast<std::uintmax_t>(keep * double(size)));
+        expectError([&] { loadVolume(dir / "cut.tif"); }, {"cut.tif", "the TIFF file is damaged or truncated", "export it again"});
+    }
+    // Cut before the first page's directory, no reader takes it (it was an
+    // Otsu message about constant voxels in the survey's scan).
+    fs::copy_file(dir / "scan.tif", dir / "cut.tif", fs::copy_options::overwrite_existing);
+    fs::resize_file(dir / "cut.tif", size / 10);
+    expectError([&] { loadVolume(dir / "cut.tif"); }, {"cut.tif", "not a readable image"});
+    // A folder of slices checks every slice file.
+    fs::create_directories(dir / "slices");
+    const std::vector<std::uint8_t> slice(v.begin(), v.begin() + kDims[0] * kDims[1]);
+    for (int z = 0; z < 3; ++z) writeImage(dir / "slices" / ("s" + std::to_string(z) + ".tif"), {kDims[0], kDims[1], 1}, slice, Geometry{});
+    LoadOptions o;
+    o.sliceSpacing = {1, 1, 1};
+    EXPECT_EQ(loadVolume(dir / "slices", o).dims(), openvdb::Coord(kDims[0], kDims[1], 3));
+    fs::resize_file(dir / "slices" / "s1.tif", fs::file_size(dir / "slices" / "s1.tif") / 2);
+    expectError([&] { loadVolume(dir / "slices", o); }, {"s1.tif"});
+    fs::remove_all(dir);
+}
+
 TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
     // ITK's MetaIO loops forever on NDims -1 and on a file pattern with step
     // 0, crashes on ASCII data, and reads a LIST or pattern with missing
