@@ -76,6 +76,9 @@ std::string signalName(int sig) {
         case SIGTERM: return "SIGTERM";
         case SIGINT: return "SIGINT";
         case SIGHUP: return "SIGHUP";
+        case SIGPIPE: return "SIGPIPE, broken pipe";
+        case SIGXFSZ: return "SIGXFSZ, file size limit exceeded";
+        case SIGXCPU: return "SIGXCPU, CPU time limit exceeded";
         default: {
             const char* d = ::strsignal(sig);
             return "signal " + std::to_string(sig) + (d ? std::string(", ") + d : std::string());
@@ -94,8 +97,15 @@ std::string describeEnd(const std::string& job, int status, const std::string& s
             return input + ": the meshing process was killed (" + name + ") " + where +
                    ". The kernel's out-of-memory killer does this when memory runs out: try a coarser --size, a "
                    "lower --max-memory, or a machine with more memory.";
-        if (sig == SIGTERM || sig == SIGINT || sig == SIGHUP)
-            return input + ": the meshing process was stopped (" + name + ") " + where + ".";
+        if (sig == SIGXFSZ)
+            return input + ": the meshing process was stopped (" + name + ") " + where +
+                   ": a file reached the size limit (ulimit -f); raise the limit or write elsewhere.";
+        if (sig == SIGXCPU)
+            return input + ": the meshing process was stopped (" + name + ") " + where +
+                   ": it reached the CPU time limit (ulimit -t).";
+        const bool crash = sig == SIGSEGV || sig == SIGABRT || sig == SIGBUS || sig == SIGFPE || sig == SIGILL ||
+                           sig == SIGSYS || sig == SIGTRAP;
+        if (!crash) return input + ": the meshing process was stopped (" + name + ") " + where + ".";
         if (stage == "load")
             return input + ": a library crashed reading it (" + name +
                    "); the file is probably damaged (OpenVDB, for one, does not check a .vdb's grid data). "
@@ -135,17 +145,25 @@ bool writeAll(int fd, const std::string& s) {
     return true;
 }
 
+// Messages travel as byte arrays: a file name need not be UTF-8, and JSON
+// strings would replace such bytes.
+nlohmann::json bytesOf(const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); }
+std::string textOf(const nlohmann::json& j) {
+    if (!j.is_array()) return {};
+    const auto b = j.get<std::vector<std::uint8_t>>();
+    return std::string(b.begin(), b.end());
+}
+
 nlohmann::json toJson(const JobResult& r) {
-    return {{"input", r.input},       {"status", r.status},       {"message", r.message},
+    return {{"status", r.status},     {"message", bytesOf(r.message)},
             {"hexes", r.hexes},       {"min", r.minScaledJacobian}, {"mean", r.meanScaledJacobian},
             {"inverted", r.inverted}, {"below02", r.below02},      {"seconds", r.seconds}};
 }
 
 JobResult fromJson(const nlohmann::json& j) {
     JobResult r;
-    r.input = j.at("input").get<std::string>();
     r.status = j.at("status").get<std::string>();
-    r.message = j.at("message").get<std::string>();
+    r.message = textOf(j.at("message"));
     r.hexes = j.at("hexes").get<std::size_t>();
     r.minScaledJacobian = j.at("min").is_number() ? j.at("min").get<double>() : 0.0;
     r.meanScaledJacobian = j.at("mean").is_number() ? j.at("mean").get<double>() : 0.0;
@@ -170,15 +188,24 @@ void flushAll() {
     try {
         msg = {{"result", work()}};
     } catch (const Error& e) {
-        msg = {{"error", "user"}, {"message", e.what()}};
+        msg = {{"error", "user"}, {"message", bytesOf(e.what())}};
     } catch (const std::bad_alloc&) {
         msg = {{"error", "memory"}};
     } catch (const std::exception& e) {
-        msg = {{"error", "internal"}, {"message", e.what()}};
+        msg = {{"error", "internal"}, {"message", bytesOf(e.what())}};
     }
-    const bool sent = writeAll(fd, msg.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
-    ::close(fd);
+    // The work is done (its outputs in place) or has failed cleanly: from
+    // here no forwarded signal or closed stdout may turn that into a death
+    // without a result, which the parent would report as a crash and clean
+    // up after. (The parent re-raises a forwarded signal itself.)
+    sigset_t quiet;
+    sigemptyset(&quiet);
+    for (int sig : kForwarded) sigaddset(&quiet, sig);
+    ::sigprocmask(SIG_BLOCK, &quiet, nullptr);
+    std::signal(SIGPIPE, SIG_IGN);
     flushAll();
+    const bool sent = writeAll(fd, msg.dump());
+    ::close(fd);
     ::_exit(sent ? 0 : 1);
 }
 
@@ -227,13 +254,22 @@ void nowReading(const std::string& file) {
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
                            const std::function<nlohmann::json()>& work) {
     gInput = input;
-    StageSlot* slot = isolationOn() ? sharedSlot() : nullptr;
+    if (!isolationOn()) return work();
+    // Without its own process a job that crashes would end isohex (and a
+    // batch), and its threads would stay in the process later jobs fork
+    // from: say so instead of running it here.
+    auto cannotStart = [&](const char* what) {
+        return Error(input + ": cannot start the process for this job (" + what + ": " + std::strerror(errno) +
+                     "); the machine is out of processes or memory. Retry when it has some to spare.");
+    };
+    StageSlot* slot = sharedSlot();
+    if (slot == nullptr) throw cannotStart("mmap");
     int fds[2];
-    if (slot == nullptr || ::pipe2(fds, O_CLOEXEC) != 0) return work();
+    if (::pipe2(fds, O_CLOEXEC) != 0) throw cannotStart("pipe");
     std::vector<bool> existed;
     for (const auto& f : files) {
         std::error_code ec;
-        existed.push_back(fs::exists(f, ec));
+        existed.push_back(fs::exists(fs::symlink_status(f, ec)));  // a dangling link is there too
     }
     flushAll();  // else the child would print the parent's buffered output again
     // The forwarding handlers are in place before the fork, with the signals
@@ -252,10 +288,18 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
         ::sigaction(kForwarded[i], nullptr, &previous[i]);
         if (previous[i].sa_handler != SIG_IGN) ::sigaction(kForwarded[i], &forward, nullptr);  // nohup stays nohup
     }
+    // waitpid needs SIGCHLD at its default (a caller may have set it to
+    // SIG_IGN, and then children are reaped before the wait).
+    struct sigaction previousChld {};
+    struct sigaction defaultChld {};
+    defaultChld.sa_handler = SIG_DFL;
+    sigemptyset(&defaultChld.sa_mask);
+    ::sigaction(SIGCHLD, &defaultChld, &previousChld);
     gChild = 0;
     gForwarded = 0;
     auto restore = [&] {
         for (int i = 0; i < 3; ++i) ::sigaction(kForwarded[i], &previous[i], nullptr);
+        ::sigaction(SIGCHLD, &previousChld, nullptr);
         ::sigprocmask(SIG_SETMASK, &previousMask, nullptr);
     };
     slot->stage[0] = '\0';
@@ -263,10 +307,11 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
     const pid_t parent = ::getpid();
     const pid_t child = ::fork();
     if (child < 0) {
+        const Error e = cannotStart("fork");
         restore();
         ::close(fds[0]);
         ::close(fds[1]);
-        return work();
+        throw e;
     }
     if (child == 0) {
         restore();
@@ -287,32 +332,41 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
     }
     ::close(fds[0]);
     int status = 0;
-    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    pid_t waited;
+    while ((waited = ::waitpid(child, &status, 0)) < 0 && errno == EINTR) {
     }
     gChild = 0;
     for (int i = 0; i < 3; ++i) ::sigaction(kForwarded[i], &previous[i], nullptr);
+    ::sigaction(SIGCHLD, &previousChld, nullptr);
+    // A result that arrived whole stands, whatever happened to the child
+    // after sending it.
     nlohmann::json msg = nlohmann::json::parse(text, nullptr, false);
-    const bool complete = !msg.is_discarded() && msg.is_object() && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    const bool complete = !msg.is_discarded() && msg.is_object() && (msg.contains("result") || msg.contains("error"));
     if (const int sig = gForwarded; sig != 0) {
         if (!complete) removeLeftovers(files, existed, child);
         std::raise(sig);  // the handler the parent had (by default: remove temporaries, end by the signal)
     }
     if (!complete) {
         removeLeftovers(files, existed, child);
+        // Killed for writing to a closed stdout (isohex ... | head): end the
+        // same way, as the one process did.
+        if (waited == child && WIFSIGNALED(status) && WTERMSIG(status) == SIGPIPE) std::raise(SIGPIPE);
         throw Error(describeEnd(input, status, std::string(slot->stage), std::string(slot->file)));
     }
     if (msg.contains("result")) return msg["result"];
     const std::string kind = msg.value("error", "internal");
-    if (kind == "user") throw Error(msg.value("message", std::string()));
+    if (kind == "user") throw Error(textOf(msg["message"]));
     if (kind == "memory") throw std::bad_alloc();
-    throw std::runtime_error(msg.value("message", std::string()));
+    throw std::runtime_error(textOf(msg["message"]));
 }
 
 JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
     std::vector<std::string> files = job.outputs;
     if (!job.plot.empty()) files.push_back(job.plot);
     if (!job.report.empty()) files.push_back(job.report);
-    return fromJson(runIsolated(job.input, files, [&] { return toJson(runJob(job, sink)); }));
+    JobResult r = fromJson(runIsolated(job.input, files, [&] { return toJson(runJob(job, sink)); }));
+    r.input = job.input;
+    return r;
 }
 
 }  // namespace isohex::cli

@@ -3,6 +3,7 @@
 #include "Isolate.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <iostream>
 
@@ -27,7 +28,16 @@ void ProgressSink::event(const std::string& name, const nlohmann::json& fields) 
     j["event"] = name;
     j["time"] = wallClock();
     if (!job_.empty()) j["job"] = job_;
-    std::cerr << j.dump() << std::endl;
+    // One write per event line: a meshing process killed between the object
+    // and its newline left the next event glued to it.
+    std::cerr.flush();
+    const std::string line = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+    for (std::size_t done = 0; done < line.size();) {
+        const ssize_t n = ::write(STDERR_FILENO, line.data() + done, line.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;
+        done += static_cast<std::size_t>(n);
+    }
 }
 
 void ProgressSink::begin(std::string_view stage) {

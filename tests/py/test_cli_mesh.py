@@ -545,6 +545,27 @@ class FailurePaths(unittest.TestCase):
                          ": isohex crashed in its extract stage (SIGSEGV, segmentation fault). This is a bug: please "
                          "report it with the command line and the input.")
         self.assertFalse(os.path.exists(out))
+        # A dangling symbolic link at the output path is not the job's to remove.
+        link = os.path.join(self.dir, "link.vtu")
+        if os.path.lexists(link):
+            os.remove(link)
+        os.symlink(os.path.join(self.dir, "nowhere", "x.vtu"), link)
+        p = run(["mesh", os.path.join(self.dir, "sphere.nii.gz"), "--size", "4", "-o", link, "-q"], check=False,
+                env=dict(os.environ, ISOHEX_TEST_CRASH="load"))
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertTrue(os.path.islink(link))
+        # A limit the user set is not a bug: the file size limit (ulimit -f)
+        import resource
+        big = os.path.join(self.dir, "fsize.vtu")
+        p = subprocess.run([ISOHEX, "mesh", os.path.join(self.dir, "sphere.nii.gz"), "--size", "2", "-o", big, "-q"],
+                           capture_output=True, text=True,
+                           preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000)))
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("was stopped (SIGXFSZ", p.stderr)
+        self.assertIn("size limit", p.stderr)
+        self.assertNotIn("bug", p.stderr)
+        self.assertEqual([n for n in os.listdir(self.dir) if n.startswith(".fsize")], [])
+        self.assertFalse(os.path.exists(big))
         # The injected fault is a real crash: without the child process it ends isohex.
         p = run(args, check=False, env=dict(os.environ, ISOHEX_TEST_CRASH="extract", ISOHEX_ISOLATE="0"))
         self.assertEqual(p.returncode, -signal.SIGSEGV, p.stderr)
