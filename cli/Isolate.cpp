@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "isohex/core/AtomicFile.hpp"
 #include "isohex/core/Error.hpp"
 
 namespace isohex::cli {
@@ -118,31 +119,20 @@ std::string describeEnd(const std::string& job, int status, const std::string& s
 }
 
 // After a child died: the files it created (not the ones that existed before
-// the job) and its temporaries (AtomicFile names them
-// .<stem>.tmp<pid>_<n><ext> beside the target) are removed.
+// the job) and its temporaries (io::temporaryPrefix, beside the target) are
+// removed.
 void removeLeftovers(const std::vector<std::string>& files, const std::vector<bool>& existed, pid_t child) {
     std::error_code ec;
     for (std::size_t i = 0; i < files.size(); ++i) {
         const fs::path target(files[i]);
         if (!existed[i]) fs::remove(target, ec);
         const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-        const std::string prefix = "." + target.stem().string() + ".tmp" + std::to_string(child) + "_";
+        const std::string prefix = io::temporaryPrefix(files[i], child);
         for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
             const std::string name = it->path().filename().string();
             if (name.compare(0, prefix.size(), prefix) == 0) fs::remove(it->path(), ec);
         }
     }
-}
-
-bool writeAll(int fd, const std::string& s) {
-    std::size_t done = 0;
-    while (done < s.size()) {
-        const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) return false;
-        done += static_cast<std::size_t>(n);
-    }
-    return true;
 }
 
 // Messages travel as byte arrays: a file name need not be UTF-8, and JSON
@@ -208,10 +198,6 @@ void flushAll() {
     ::close(fd);
     ::_exit(sent ? 0 : 1);
 }
-
-}  // namespace
-
-namespace {
 
 void copyInto(char* slot, std::size_t size, std::string_view text) {
     const std::size_t n = std::min(text.size(), size - 1);

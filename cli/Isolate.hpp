@@ -1,5 +1,6 @@
 #pragma once
-// A meshing job in a child process of its own.
+// A meshing job (and the work of compare, quality, convert, smooth and
+// insert-sheet) in a child process of its own.
 //
 // The libraries that read scans do not all check what they read: OpenVDB
 // crashes on a .vdb whose compressed grid data is damaged (segmentation
@@ -14,8 +15,10 @@
 // temporaries are removed, as for any failed job.
 //
 // The parent never runs the pipeline itself, so it has no TBB worker threads
-// when it forks and the child starts from a single thread. ISOHEX_ISOLATE=0
-// runs jobs in the process itself (for a debugger).
+// when it forks (its only other threads are log4cplus's idle ones, started
+// when OpenVDB's library loads, which the child never uses). If the fork
+// fails the job fails with that reason rather than running in the parent.
+// ISOHEX_ISOLATE=0 runs jobs in the process itself (for a debugger).
 #include <functional>
 #include <string>
 #include <string_view>
@@ -45,8 +48,8 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink);
 // it records the stage for the parent's message. It also serves the tests'
 // fault injection: with ISOHEX_TEST_CRASH=<stage> the process raises SIGSEGV
 // when that stage begins (ISOHEX_TEST_CRASH=<stage>:kill raises SIGKILL);
-// a suffix @<text> limits it to isolated jobs whose input path contains the
-// text. The handling of a crashing library is then tested without depending
+// a suffix @<text> limits it to jobs whose input path (or the path
+// nowReading names) contains the text. The handling of a crashing library is then tested without depending
 // on one library's bug.
 void stageBegins(std::string_view stage);
 

@@ -18,6 +18,17 @@ double wallClock() {
 }
 }  // namespace
 
+bool writeAll(int fd, std::string_view text) {
+    std::size_t done = 0;
+    while (done < text.size()) {
+        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return false;
+        done += static_cast<std::size_t>(n);
+    }
+    return true;
+}
+
 ProgressSink::ProgressSink(Mode mode, std::string job) : mode_(mode), job_(std::move(job)) {
     terminal_ = mode == Mode::Auto && ::isatty(STDERR_FILENO);
 }
@@ -31,13 +42,7 @@ void ProgressSink::event(const std::string& name, const nlohmann::json& fields) 
     // One write per event line: a meshing process killed between the object
     // and its newline left the next event glued to it.
     std::cerr.flush();
-    const std::string line = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
-    for (std::size_t done = 0; done < line.size();) {
-        const ssize_t n = ::write(STDERR_FILENO, line.data() + done, line.size() - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) break;
-        done += static_cast<std::size_t>(n);
-    }
+    writeAll(STDERR_FILENO, j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
 void ProgressSink::begin(std::string_view stage) {

@@ -5,10 +5,17 @@
 #include <chrono>
 #include <mutex>
 #include <string>
+#include <string_view>
 
 #include "Pipeline.hpp"
 
 namespace isohex::cli {
+
+// Writes all of `text` to the file descriptor (retrying after signals and
+// short writes); false if the descriptor refuses it. A line written this way
+// is one write when the descriptor takes it whole, so lines of two processes
+// sharing stderr do not interleave.
+bool writeAll(int fd, std::string_view text);
 
 class ProgressSink : public StageSink {
 public:

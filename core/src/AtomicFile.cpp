@@ -72,6 +72,10 @@ void removeTemporariesOnSignal() {
     }
 }
 
+std::string temporaryPrefix(const std::string& path, long pid) {
+    return "." + fs::path(path).stem().string() + ".tmp" + std::to_string(pid) + "_";
+}
+
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string&)>& produce) {
     const fs::path target(path);
@@ -85,8 +89,8 @@ void writeAtomically(const std::string& path, bool overwrite,
 
     // Keep the real extension last: some libraries choose behaviour by it.
     std::random_device rd;
-    const std::string tmpName = "." + target.stem().string() + ".tmp" + std::to_string(::getpid()) + "_" +
-                                std::to_string(rd() % 1000000) + target.extension().string();
+    const std::string tmpName =
+        temporaryPrefix(path, ::getpid()) + std::to_string(rd() % 1000000) + target.extension().string();
     const fs::path tmp = dir / tmpName;
     const int slot = claimSlot(fs::absolute(tmp, ec).string());
     try {

@@ -282,6 +282,14 @@ struct MetaHeader {
     }
 };
 
+// Where a MetaImage's voxel data lies: its file (the header's own for LOCAL),
+// the byte it starts at, and the bytes from there to the end of that file.
+struct MetaData {
+    std::filesystem::path path;
+    bool local = false;
+    std::uint64_t start = 0, available = 0;
+};
+
 // Compressed MetaImage data is inflated here once before MetaIO reads it:
 // MetaIO does not report a damaged zlib stream, and without a
 // CompressedDataSize (or with 0) it reads wrong voxel values. A corrupted
@@ -290,25 +298,17 @@ struct MetaHeader {
 // survey). zlib's Adler-32 check catches damage; the stream must end within
 // CompressedDataSize, and the inflated size must be what the header's sizes
 // need.
-void checkMetaImageInflates(const std::string& file, const MetaHeader& header, const std::string& dataFile,
+void checkMetaImageInflates(const std::string& file, const MetaData& data, const std::string* sizeField,
                             std::uint64_t dataBytes) {
-    const bool local = dataFile == "LOCAL";
-    const std::filesystem::path dataPath = local ? std::filesystem::path(file)
-                                                 : std::filesystem::path(file).parent_path() / dataFile;
-    std::error_code ec;
-    const std::uint64_t fileBytes = std::filesystem::file_size(dataPath, ec);
-    if (ec) return;  // the size check has said what is missing
-    const std::uint64_t available = local ? fileBytes - std::min(fileBytes, header.dataStart) : fileBytes;
-    const std::string* cs = header.get("CompressedDataSize");
-    const std::uint64_t declared = cs ? std::strtoull(cs->c_str(), nullptr, 10) : 0;
+    const std::uint64_t declared = sizeField ? std::strtoull(sizeField->c_str(), nullptr, 10) : 0;
     if (declared == 0)  // MetaIO then inflates the wrong bytes (wrong voxels, no message)
-        throw Error(file + ": CompressedData is True but CompressedDataSize is " + (cs ? "0" : "missing") +
+        throw Error(file + ": CompressedData is True but CompressedDataSize is " + (sizeField ? "0" : "missing") +
                     ", and MetaIO then reads wrong voxel values. Add the line 'CompressedDataSize = " +
-                    std::to_string(available) + "' (the bytes of compressed data" +
-                    (local ? " after the header" : " in " + dataPath.filename().string()) +
+                    std::to_string(data.available) + "' (the bytes of compressed data" +
+                    (data.local ? " after the header" : " in " + data.path.filename().string()) +
                     ") before ElementDataFile, or save the image again.");
-    std::ifstream in(dataPath, std::ios::binary);
-    if (local) in.seekg(static_cast<std::streamoff>(header.dataStart));
+    std::ifstream in(data.path, std::ios::binary);
+    in.seekg(static_cast<std::streamoff>(data.start));
     z_stream z{};
     if (inflateInit(&z) != Z_OK) return;
     std::vector<unsigned char> input(1 << 20), output(1 << 20);
@@ -317,13 +317,12 @@ void checkMetaImageInflates(const std::string& file, const MetaHeader& header, c
     std::string problem;
     while (rc != Z_STREAM_END && problem.empty()) {
         if (z.avail_in == 0) {
-            if (left == 0) {
-                problem = "the compressed data ends before its stream does";
-                break;
+            std::uint64_t got = 0;
+            if (left > 0) {
+                in.read(reinterpret_cast<char*>(input.data()),
+                        static_cast<std::streamsize>(std::min<std::uint64_t>(left, input.size())));
+                got = static_cast<std::uint64_t>(in.gcount());
             }
-            in.read(reinterpret_cast<char*>(input.data()),
-                    static_cast<std::streamsize>(std::min<std::uint64_t>(left, input.size())));
-            const auto got = static_cast<std::uint64_t>(in.gcount());
             if (got == 0) {
                 problem = "the compressed data ends before its stream does";
                 break;
@@ -357,29 +356,20 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes) {
     const std::string* c = header.get("CompressedData");
     const bool compressed = c && (*c == "True" || *c == "true");
     const std::string* cs = header.get("CompressedDataSize");
-    const std::uint64_t compressedSize = cs ? std::strtoull(cs->c_str(), nullptr, 10) : 0;
     if (dataFile.empty() || dataFile.rfind("LIST", 0) == 0 || dataFile.find('%') != std::string::npos) return;
-    if (dataFile == "Local" || dataFile == "local") dataFile = "LOCAL";
-    std::uint64_t need = compressed ? compressedSize : dataBytes;
-    if (need == 0) {
-        if (compressed) checkMetaImageInflates(file, header, dataFile, dataBytes);
-        return;
-    }
-    std::uint64_t have;
-    if (dataFile == "LOCAL") {
-        need += header.dataStart;
-        have = std::filesystem::file_size(file);
-    } else {
-        const auto path = std::filesystem::path(file).parent_path() / dataFile;
-        std::error_code ec;
-        have = std::filesystem::file_size(path, ec);
-        if (ec) {
-            throw Error(file + ": its voxel data file '" + path.string() +
-                        "' is missing; keep the .mhd header and its data file together.");
-        }
-    }
-    if (have < need) truncated(file, need, have, "bytes");
-    if (compressed) checkMetaImageInflates(file, header, dataFile, dataBytes);
+    MetaData data;
+    data.local = dataFile == "LOCAL" || dataFile == "Local" || dataFile == "local";
+    data.path = data.local ? std::filesystem::path(file) : std::filesystem::path(file).parent_path() / dataFile;
+    data.start = data.local ? header.dataStart : 0;
+    std::error_code ec;
+    const std::uint64_t have = std::filesystem::file_size(data.path, ec);
+    if (ec)
+        throw Error(file + ": its voxel data file '" + data.path.string() +
+                    "' is missing; keep the .mhd header and its data file together.");
+    data.available = have - std::min(have, data.start);
+    const std::uint64_t need = compressed ? (cs ? std::strtoull(cs->c_str(), nullptr, 10) : 0) : dataBytes;
+    if (need > 0 && have < data.start + need) truncated(file, data.start + need, have, "bytes");
+    if (compressed) checkMetaImageInflates(file, data, cs, dataBytes);
 }
 
 // NIfTI orientation fields that are not finite make ITK's reader abort the

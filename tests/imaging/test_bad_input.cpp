@@ -49,6 +49,22 @@ void writeBytes(const fs::path& p, const std::string& bytes) {
     std::ofstream(p, std::ios::binary) << bytes;
 }
 
+// A file to write (name, bytes) and the pieces its error must name besides
+// the file name.
+using RefusedFile = std::tuple<std::string, std::string, std::vector<std::string>>;
+
+// Writes each file into dir; loading it must throw an error naming it and
+// every piece.
+void expectEachRefused(const fs::path& dir, const std::vector<RefusedFile>& cases) {
+    for (const auto& [name, text, pieces] : cases) {
+        SCOPED_TRACE(name);
+        writeBytes(dir / name, text);
+        std::vector<std::string> want = pieces;
+        want.push_back(name);
+        expectError([&] { loadVolume(dir / name); }, want);
+    }
+}
+
 }  // namespace
 
 TEST(BadInput, MissingFileNamesThePath) {
@@ -132,7 +148,7 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
                              "ElementSpacing = 1 1 1\nElementType = MET_UCHAR\n";
     const std::string voxels(48, '\x05');
     writeBytes(dir / "s0.raw", std::string(16, '\x05'));
-    const std::vector<std::tuple<std::string, std::string, std::vector<std::string>>> cases = {
+    const std::vector<RefusedFile> cases = {
         {"ndims.mha", "ObjectType = Image\nNDims = -1\nDimSize = 4 4 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + voxels,
          {"NDims = -1"}},
         {"ascii.mha", "ObjectType = Image\nNDims = 3\nBinaryData = False\nDimSize = 4 4 3\nElementType = MET_UCHAR\n"
@@ -146,13 +162,7 @@ TEST(BadInput, MetaImageHeadersItkMishandlesAreRefusedBeforeItReadsThem) {
         {"empty.mhd", head + "ElementDataFile = \n", {"ElementDataFile is empty"}},
         {"headersize.mha", head + "HeaderSize = 100000\nElementDataFile = LOCAL\n" + voxels, {"HeaderSize (100000 bytes)"}},
     };
-    for (const auto& [name, text, pieces] : cases) {
-        SCOPED_TRACE(name);
-        writeBytes(dir / name, text);
-        std::vector<std::string> want = pieces;
-        want.push_back(name);
-        expectError([&] { loadVolume(dir / name); }, want);
-    }
+    expectEachRefused(dir, cases);
     // MetaIO's own pattern rules: three words step by (last - first) / slices,
     // which is 0 here (it would loop for ever); a negative step reads nothing
     writeBytes(dir / "step_computed.mhd", head + "ElementDataFile = s%d.raw 0 2\n");
@@ -214,7 +224,7 @@ TEST(BadInput, CompressedMetaImageDataIsCheckedBeforeMetaIoReadsIt) {
                   float(static_cast<unsigned char>(voxels[1 + 4 * (2 + 4 * 1)])));
     }
     writeBytes(dir / "bad.zraw", badCheck);
-    const std::vector<std::tuple<std::string, std::string, std::vector<std::string>>> cases = {
+    const std::vector<RefusedFile> cases = {
         {"check.mha", sized(badCheck) + "ElementDataFile = LOCAL\n" + badCheck,
          {"the compressed data is damaged (zlib: incorrect data check)", "export the file again"}},
         {"check.mhd", sized(badCheck) + "ElementDataFile = bad.zraw\n", {"incorrect data check"}},
@@ -227,13 +237,7 @@ TEST(BadInput, CompressedMetaImageDataIsCheckedBeforeMetaIoReadsIt) {
          {"ends before its stream does"}},
         {"short.mha", sized(short40) + "ElementDataFile = LOCAL\n" + short40, {"inflates to 40 bytes", "need 48"}},
     };
-    for (const auto& [name, text, pieces] : cases) {
-        SCOPED_TRACE(name);
-        writeBytes(dir / name, text);
-        std::vector<std::string> want = pieces;
-        want.push_back(name);
-        expectError([&] { loadVolume(dir / name); }, want);
-    }
+    expectEachRefused(dir, cases);
     fs::remove_all(dir);
 }
 

@@ -13,6 +13,11 @@ namespace isohex::io {
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string& tmpPath)>& produce);
 
+// How every temporary that process `pid` writes for `path` begins (its file
+// name, in the folder of `path`): ".<stem>.tmp<pid>_". A process that
+// outlives a writer it forked removes what the writer left with it.
+std::string temporaryPrefix(const std::string& path, long pid);
+
 // Installs handlers for SIGINT, SIGTERM and SIGHUP that remove the temporary
 // files of writes in progress, then let the signal end the process as it
 // would have (for programs: call once at start-up).
