@@ -769,6 +769,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
         } else {
             imaging::LoadOptions lo = settings.load;
             lo.progress = [&](std::string_view, double f) { sink.progress(f); };
+            lo.reading = [&](const std::string& file) { sink.reading(file); };
             p.volume = std::make_shared<const imaging::Volume>(imaging::loadVolume(input, lo));
         }
         st.finish();

@@ -80,6 +80,9 @@ public:
     virtual void progress(double fraction) = 0;
     virtual void end(std::string_view stage, double seconds) = 0;
     virtual void note(std::string_view level, const std::string& text) = 0;  // "info" or "warning"
+    // A file a library is about to open while loading (a DICOM folder's
+    // files, one by one), so a crash can be put down to it.
+    virtual void reading(const std::string& /*file*/) {}
 };
 
 // A scan loaded and selected, with the sampling grid chosen: everything the

@@ -55,6 +55,8 @@ void ProgressSink::begin(std::string_view stage) {
     else if (terminal_) drawBar(false);
 }
 
+void ProgressSink::reading(const std::string& file) { nowReading(file); }
+
 void ProgressSink::progress(double fraction) {
     std::lock_guard lock(mutex_);
     fraction_ = std::clamp(fraction, 0.0, 1.0);

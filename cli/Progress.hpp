@@ -25,6 +25,7 @@ public:
     void progress(double fraction) override;
     void end(std::string_view stage, double seconds) override;
     void note(std::string_view level, const std::string& text) override;
+    void reading(const std::string& file) override;  // tells the job isolation (nowReading)
     void event(const std::string& name, const nlohmann::json& fields);  // JSON mode only
     void setJob(std::string job) { job_ = std::move(job); }
     // Seconds per finished stage (a stage run twice adds up).

@@ -13,9 +13,17 @@
 #include <type_traits>
 #include <memory>
 #include <limits>
+#include <locale>
 #include <map>
+#include <set>
 #include <sstream>
 
+#include <gdcmExplicitDataElement.h>
+#include <gdcmImplicitDataElement.h>
+#include <gdcmMediaStorage.h>
+#include <gdcmReader.h>
+#include <gdcmScanner.h>
+#include <gdcmTrace.h>
 #include <itkGDCMImageIO.h>
 #include <itkGDCMSeriesFileNames.h>
 #include <itkImage.h>
@@ -23,6 +31,7 @@
 #include <itkImageIOFactory.h>
 #include <itkImageSeriesReader.h>
 #include <itkTIFFImageIO.h>
+#include <itkVector.h>
 #include <itkVectorImage.h>
 #include <tiffio.h>
 #include <zlib.h>
@@ -640,10 +649,143 @@ void checkTiffLayout(const std::string& file) {
         throw Error(file + ": the TIFF file is damaged or truncated (" + problem + "); export it again.");
 }
 
+// Keeps GDCM's warnings and errors (process-wide streams; scans are loaded
+// on one thread) off the console while it lives: where they matter, isohex's
+// own message says what was wrong.
+class QuietGdcm {
+public:
+    QuietGdcm() : warnings_(gdcm::Trace::GetWarningStream()), errors_(gdcm::Trace::GetErrorStream()) {
+        gdcm::Trace::SetWarningStream(sink_);
+        gdcm::Trace::SetErrorStream(sink_);
+    }
+    ~QuietGdcm() {
+        gdcm::Trace::SetWarningStream(warnings_);
+        gdcm::Trace::SetErrorStream(errors_);
+    }
+    QuietGdcm(const QuietGdcm&) = delete;
+    QuietGdcm& operator=(const QuietGdcm&) = delete;
+
+private:
+    std::ostringstream sink_;
+    std::ostream& warnings_;
+    std::ostream& errors_;
+};
+
+// A DICOM file cut short was read in part: GDCM keeps the Pixel Data's
+// declared length, pads what is missing (it only prints "Incomplete Pixel
+// Data found" to the console) and ITK meshed the padding. GDCM reads the
+// whole data set here and the lengths of its elements, as declared, must fit
+// in the file. (A deflated data set is stored compressed, so its lengths say
+// nothing about the file's size; one cut short fails GDCM's read instead.)
+void checkDicomLength(const std::string& file) {
+    std::error_code ec;
+    const std::uint64_t size = std::filesystem::file_size(file, ec);
+    if (ec) return;
+    QuietGdcm quiet;  // its "Incomplete Pixel Data" warning would only repeat ours
+    gdcm::Reader reader;
+    reader.SetFileName(file.c_str());
+    if (!reader.Read())  // ITK read a deflated data set cut short as far as it went
+        throw Error(file + ": the DICOM file is damaged or truncated (GDCM cannot read its data set to the end); "
+                    "copy or export it again.");
+    const gdcm::File& f = reader.GetFile();
+    const gdcm::TransferSyntax ts = f.GetHeader().GetDataSetTransferSyntax();
+    if (ts.IsEncoded()) return;
+    const gdcm::DataSet& ds = f.GetDataSet();
+    const std::uint64_t dataSet = ts.GetNegociatedType() == gdcm::TransferSyntax::Implicit
+                                      ? std::uint64_t(ds.GetLength<gdcm::ImplicitDataElement>())
+                                      : std::uint64_t(ds.GetLength<gdcm::ExplicitDataElement>());
+    const std::uint64_t declared = std::uint64_t(f.GetHeader().GetFullLength()) + dataSet;
+    if (declared > size)
+        throw Error(file + ": the DICOM file is truncated (its elements declare " + std::to_string(declared) +
+                    " bytes, the file has " + std::to_string(size) + "); copy or export it again.");
+}
+
+// The numbers of a DICOM decimal-string value (backslash-separated); empty if any
+// is not a number.
+std::vector<double> dicomNumbers(const char* value) {
+    std::vector<double> out;
+    if (!value) return out;
+    std::istringstream in(value);
+    in.imbue(std::locale::classic());
+    std::string piece;
+    while (std::getline(in, piece, '\\')) {
+        std::istringstream one(piece);
+        one.imbue(std::locale::classic());
+        double x = 0;
+        if (!(one >> x) || !std::isfinite(x)) return {};
+        out.push_back(x);
+    }
+    return out;
+}
+
+// ITK stacks a series' slices at one spacing (from the first and last
+// positions), so a slice missing from the folder (a transfer cut short, or a
+// file GDCM could not parse and left out of the series) or a protocol with
+// variable spacing was meshed with every slice after the gap in the wrong
+// place, without a word. The slices' Image Position (Patient) along their
+// normal (from Image Orientation (Patient)) must step evenly, within 10% of
+// the median step. Slices without those tags are left to ITK.
+void checkSliceSpacing(const std::string& folder, const std::vector<std::string>& files) {
+    const gdcm::Tag position(0x0020, 0x0032), orientation(0x0020, 0x0037);
+    gdcm::Scanner scanner;
+    scanner.AddTag(position);
+    scanner.AddTag(orientation);
+    {
+        QuietGdcm quiet;
+        if (!scanner.Scan(files)) return;
+    }
+    const std::vector<double> iop = dicomNumbers(scanner.GetValue(files.front().c_str(), orientation));
+    if (iop.size() != 6) return;
+    using V = itk::Vector<double, 3>;
+    V normal = itk::CrossProduct(V(std::array<double, 3>{iop[0], iop[1], iop[2]}.data()),
+                                 V(std::array<double, 3>{iop[3], iop[4], iop[5]}.data()));
+    if (!(normal.GetNorm() > 0.5)) return;
+    normal.Normalize();
+    std::vector<double> along;
+    for (const auto& f : files) {
+        const std::vector<double> p = dicomNumbers(scanner.GetValue(f.c_str(), position));
+        if (p.size() != 3) return;
+        along.push_back(normal[0] * p[0] + normal[1] * p[1] + normal[2] * p[2]);
+    }
+    std::vector<double> steps;
+    for (std::size_t i = 1; i < along.size(); ++i) steps.push_back(along[i] - along[i - 1]);
+    std::vector<double> sorted = steps;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    if (median == 0) return;  // slices at one position: the geometry check says so
+    std::size_t shortest = 0, longest = 0, uneven = 0;
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+        if (std::abs(steps[i] - median) > 0.1 * std::abs(median)) ++uneven;
+        if (std::abs(steps[i]) < std::abs(steps[shortest])) shortest = i;
+        if (std::abs(steps[i]) > std::abs(steps[longest])) longest = i;
+    }
+    if (uneven == 0) return;
+    auto between = [&](std::size_t i) {
+        return std::filesystem::path(files[i]).filename().string() + " and " +
+               std::filesystem::path(files[i + 1]).filename().string();
+    };
+    std::ostringstream m;
+    m.precision(6);
+    m << folder << ": the DICOM slices are not evenly spaced: along the slice normal the step between slices "
+      << "goes from " << std::abs(steps[shortest]) << " (" << between(shortest) << ") to " << std::abs(steps[longest])
+      << " (" << between(longest) << "); " << uneven << " of " << steps.size()
+      << " steps differ from the median step, " << std::abs(median) << ", by more than 10%. ";
+    if (std::abs(steps[longest]) > 1.5 * std::abs(median))
+        m << "A slice is probably missing between " << between(longest)
+          << " (an incomplete transfer, or a damaged file GDCM left out of the series); copy or export the "
+             "series again.";
+    else
+        m << "isohex needs one slice spacing; resample the series to even spacing first.";
+    throw Error(m.str());
+}
+
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
     const std::string file = path.string();
-    itk::ImageIOBase::Pointer io =
-        itk::ImageIOFactory::CreateImageIO(file.c_str(), itk::IOFileModeEnum::ReadMode);
+    itk::ImageIOBase::Pointer io;
+    {
+        QuietGdcm quiet;  // the DICOM probe reads a file cut short and warns; checkDicomLength says why
+        io = itk::ImageIOFactory::CreateImageIO(file.c_str(), itk::IOFileModeEnum::ReadMode);
+    }
     if (!io) {
         // A gzip stream whose name does not say so (.nii instead of .nii.gz):
         // the readers pick gzip by the extension.
@@ -670,6 +812,7 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
         if (endsWith(".nii") || endsWith(".nii.gz")) checkNiftiOrientation(file);
         if (endsWith(".tif") || endsWith(".tiff")) checkTiffLayout(file);
     }
+    if (std::string(io->GetNameOfClass()) == "GDCMImageIO") checkDicomLength(file);
     try {
         io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
@@ -797,6 +940,88 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
     return raw;
 }
 
+// What GDCM makes of one file of a DICOM folder, read before its series scan.
+struct DicomFileScan {
+    bool marked = false;  // "DICM" after the 128-byte preamble
+    bool named = false;   // not marked, but named .dcm or .dicom
+    bool readable = false;
+    bool imageWithoutPixels = false;  // an image storage class, but no Pixel Data
+    std::string seriesUid;
+};
+
+// Reads every file of the folder with GDCM before ITK's series scan does, one
+// at a time and named through `reading` first: Debian's GDCM stops the process
+// on an assertion for a file cut inside its header, and the scan reads the
+// whole folder in one call, so the crash report could only name the folder.
+std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesystem::path& dir,
+                                                             const LoadOptions& options) {
+    std::map<std::filesystem::path, DicomFileScan> out;
+    std::error_code ec;
+    std::vector<std::filesystem::path> files;
+    for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
+        if (entry.is_regular_file(ec)) files.push_back(entry.path().lexically_normal());
+    std::sort(files.begin(), files.end());
+    QuietGdcm quiet;
+    for (const auto& file : files) {
+        DicomFileScan& scan = out[file];
+        char mark[4] = {0, 0, 0, 0};
+        {
+            std::ifstream in(file, std::ios::binary);
+            scan.marked = in.seekg(128) && in.read(mark, 4) && std::memcmp(mark, "DICM", 4) == 0;
+        }
+        if (!scan.marked) {  // cut before the mark, or older files without a preamble
+            std::string ext = file.extension().string();
+            for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            scan.named = ext == ".dcm" || ext == ".dicom";
+        }
+        if (options.reading) options.reading(file.string());
+        gdcm::Reader reader;
+        reader.SetFileName(file.c_str());
+        scan.readable = reader.Read();
+        if (!scan.readable) continue;
+        const gdcm::DataSet& ds = reader.GetFile().GetDataSet();
+        gdcm::MediaStorage storage;
+        storage.SetFromFile(reader.GetFile());
+        scan.imageWithoutPixels = gdcm::MediaStorage::IsImage(storage) && !ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010));
+        const gdcm::Tag seriesTag(0x0020, 0x000e);
+        if (ds.FindDataElement(seriesTag))
+            if (const gdcm::ByteValue* bv = ds.GetDataElement(seriesTag).GetByteValue()) {
+                scan.seriesUid.assign(bv->GetPointer(), bv->GetLength());
+                while (!scan.seriesUid.empty() && (scan.seriesUid.back() == ' ' || scan.seriesUid.back() == '\0'))
+                    scan.seriesUid.pop_back();
+            }
+    }
+    if (options.reading) options.reading(dir.string());
+    return out;
+}
+
+// GDCM's series scan leaves out, without a word, a file whose data set it
+// cannot parse (a deflated file cut short, a damaged header) or that has no
+// image left (a file cut before its Pixel Data), so a damaged first or last
+// slice made the volume a slice shorter. A file no series lists is refused by
+// name if it says it is DICOM (its mark, or a .dcm name) and GDCM cannot read
+// it, if it is of an image storage class but has no Pixel Data, or if it
+// belongs to the chosen series. Other files no series lists (a DICOMDIR, a
+// report, notes) are left alone.
+void checkUnlistedDicomFiles(const std::map<std::filesystem::path, DicomFileScan>& scans,
+                             const std::set<std::filesystem::path>& listed, const std::string& chosenId) {
+    for (const auto& [file, scan] : scans) {
+        if (listed.count(file)) continue;
+        if ((scan.marked || scan.named) && !scan.readable)
+            throw Error(file.string() + ": this DICOM file in the series folder is damaged or truncated (GDCM "
+                        "cannot read its data set), so it was left out of the series; copy or export the series "
+                        "again, or remove the file if it is not part of the scan.");
+        if (scan.marked && scan.imageWithoutPixels)
+            throw Error(file.string() + ": this DICOM image file in the series folder has no pixel data (it is "
+                        "probably truncated), so it was left out of the series; copy or export the series again, "
+                        "or remove the file if it is not part of the scan.");
+        if (scan.readable && !scan.seriesUid.empty() && chosenId.rfind(scan.seriesUid, 0) == 0)
+            throw Error(file.string() + ": this file belongs to DICOM series " + scan.seriesUid +
+                        " but holds no image GDCM can read (damaged or truncated), so the series would be read "
+                        "without it; copy or export the series again.");
+    }
+}
+
 RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions& options) {
     const std::string folder = dir.string();
     auto names = itk::GDCMSeriesFileNames::New();
@@ -805,7 +1030,9 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
     names->SetUseSeriesDetails(true);
     names->SetGlobalWarningDisplay(false);
     std::vector<std::string> ids;
+    const auto scans = scanDicomFolder(dir, options);
     try {
+        QuietGdcm quiet;  // about files in the folder that are not DICOM
         names->SetDirectory(folder);
         ids = names->GetSeriesUIDs();
     } catch (const itk::ExceptionObject& e) {
@@ -854,6 +1081,17 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
         }
         chosen = largest.front();
     }
+    {
+        std::set<std::filesystem::path> listed;
+        for (const auto& sr : series)
+            for (const auto& f : sr.files) listed.insert(std::filesystem::path(f).lexically_normal());
+        checkUnlistedDicomFiles(scans, listed, chosen->id);
+    }
+    // Before ITK reads any of them (its header read decodes the first slice).
+    if (chosen->files.size() > 1) {
+        for (const auto& f : chosen->files) checkDicomLength(f);
+        checkSliceSpacing(folder, chosen->files);
+    }
     if (chosen->files.size() == 1) {
         // One file can hold the whole volume: a multi-frame DICOM (enhanced
         // CT or MR, and what ITK writes for a 3-D image). It is read as the
@@ -861,6 +1099,7 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
         auto probe = itk::GDCMImageIO::New();
         bool frames = false;
         try {
+            QuietGdcm quiet;  // readImageFileItk checks the file
             probe->SetFileName(chosen->files.front());
             probe->ReadImageInformation();
             frames = probe->GetNumberOfDimensions() >= 3 && probe->GetDimensions(2) > 1;

@@ -50,6 +50,10 @@ struct LoadOptions {
     // many MiB. 0 = 80 % of the machine's physical memory.
     double maxMemoryMB = 0.0;
     Progress progress;
+    // Called with each file of a folder (a DICOM series' folder) just before
+    // a library opens it, so that a crash inside the library can be put down
+    // to that file; may be empty.
+    std::function<void(const std::string& file)> reading;
 };
 
 struct Volume {
