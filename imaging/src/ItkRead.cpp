@@ -662,6 +662,7 @@ public:
         gdcm::Trace::SetWarningStream(warnings_);
         gdcm::Trace::SetErrorStream(errors_);
     }
+    bool said(const std::string& text) const { return sink_.str().find(text) != std::string::npos; }
     QuietGdcm(const QuietGdcm&) = delete;
     QuietGdcm& operator=(const QuietGdcm&) = delete;
 
@@ -673,31 +674,44 @@ private:
 
 // A DICOM file cut short was read in part: GDCM keeps the Pixel Data's
 // declared length, pads what is missing (it only prints "Incomplete Pixel
-// Data found" to the console) and ITK meshed the padding. GDCM reads the
-// whole data set here and the lengths of its elements, as declared, must fit
-// in the file. (A deflated data set is stored compressed, so its lengths say
-// nothing about the file's size; one cut short fails GDCM's read instead.)
+// Data found" to the console) and ITK meshed the padding. GDCM gives where
+// the Pixel Data's value starts in the file (reading up to it with the value
+// skipped) and its declared length (a full read); the value must end inside
+// the file. Only Pixel Data is checked: GDCM's sums over a whole data set
+// are of the file as it would write it again (a preamble it adds, VRs it
+// fixes), which is not the file on disk. A deflated data set is exempt (its
+// positions are in the inflated stream; one cut short fails GDCM's read).
 void checkDicomLength(const std::string& file) {
     std::error_code ec;
     const std::uint64_t size = std::filesystem::file_size(file, ec);
     if (ec) return;
     QuietGdcm quiet;  // its "Incomplete Pixel Data" warning would only repeat ours
-    gdcm::Reader reader;
-    reader.SetFileName(file.c_str());
-    if (!reader.Read())  // ITK read a deflated data set cut short as far as it went
+    const gdcm::Tag pixelData(0x7fe0, 0x0010);
+    gdcm::Reader full;
+    full.SetFileName(file.c_str());
+    if (!full.Read())  // ITK read a deflated data set cut short as far as it went
         throw Error(file + ": the DICOM file is damaged or truncated (GDCM cannot read its data set to the end); "
                     "copy or export it again.");
-    const gdcm::File& f = reader.GetFile();
-    const gdcm::TransferSyntax ts = f.GetHeader().GetDataSetTransferSyntax();
-    if (ts.IsEncoded()) return;
-    const gdcm::DataSet& ds = f.GetDataSet();
-    const std::uint64_t dataSet = ts.GetNegociatedType() == gdcm::TransferSyntax::Implicit
-                                      ? std::uint64_t(ds.GetLength<gdcm::ImplicitDataElement>())
-                                      : std::uint64_t(ds.GetLength<gdcm::ExplicitDataElement>());
-    const std::uint64_t declared = std::uint64_t(f.GetHeader().GetFullLength()) + dataSet;
-    if (declared > size)
-        throw Error(file + ": the DICOM file is truncated (its elements declare " + std::to_string(declared) +
-                    " bytes, the file has " + std::to_string(size) + "); copy or export it again.");
+    if (full.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncoded()) return;
+    const gdcm::DataSet& ds = full.GetFile().GetDataSet();
+    if (!ds.FindDataElement(pixelData)) return;
+    const gdcm::DataElement& pd = ds.GetDataElement(pixelData);
+    std::uint64_t length = 0;
+    if (!pd.GetVL().IsUndefined()) length = std::uint64_t(pd.GetVL());
+    else if (const gdcm::SequenceOfFragments* f = pd.GetSequenceOfFragments()) length = std::uint64_t(f->ComputeLength());
+    else return;
+    gdcm::Reader upTo;
+    upTo.SetFileName(file.c_str());
+    if (!upTo.ReadUpToTag(pixelData, {pixelData})) return;
+    const std::uint64_t start = upTo.GetStreamCurrentPosition();
+    // A read that ran to the end of the file did not stop at the Pixel Data
+    // (GDCM's full read copes with a data set in another VR than the meta
+    // header says, this one does not); then only GDCM's own warning tells.
+    const bool cut = start < size ? length > size - start : quiet.said("Incomplete Pixel Data");
+    if (cut)
+        throw Error(file + ": the DICOM file is truncated (its pixel data starts at byte " + std::to_string(start) +
+                    " and declares " + std::to_string(length) + " bytes, the file has " + std::to_string(size) +
+                    "); copy or export it again.");
 }
 
 // The numbers of a DICOM decimal-string value (backslash-separated); empty if any
@@ -724,7 +738,8 @@ std::vector<double> dicomNumbers(const char* value) {
 // variable spacing was meshed with every slice after the gap in the wrong
 // place, without a word. The slices' Image Position (Patient) along their
 // normal (from Image Orientation (Patient)) must step evenly, within 10% of
-// the median step. Slices without those tags are left to ITK.
+// the median step plus 0.1 (mm; positions are often rounded to 0.1 mm).
+// Slices without those tags are left to ITK.
 void checkSliceSpacing(const std::string& folder, const std::vector<std::string>& files) {
     const gdcm::Tag position(0x0020, 0x0032), orientation(0x0020, 0x0037);
     gdcm::Scanner scanner;
@@ -749,13 +764,19 @@ void checkSliceSpacing(const std::string& folder, const std::vector<std::string>
     }
     std::vector<double> steps;
     for (std::size_t i = 1; i < along.size(); ++i) steps.push_back(along[i] - along[i - 1]);
+    // Slices at one position, or out of order (GDCM could not sort them, e.g.
+    // two phases in one series): not a question of spacing; left as before.
+    const bool up = steps.front() > 0;
+    for (double step : steps)
+        if (step == 0 || (step > 0) != up) return;
     std::vector<double> sorted = steps;
-    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-    const double median = sorted[sorted.size() / 2];
-    if (median == 0) return;  // slices at one position: the geometry check says so
+    std::nth_element(sorted.begin(), sorted.begin() + (sorted.size() - 1) / 2, sorted.end());
+    const double median = sorted[(sorted.size() - 1) / 2];  // the lower middle of an even count
+    // Positions are often written to 0.1 mm, so 0.1 on top of 10%.
+    const double tolerance = 0.1 * std::abs(median) + 0.1;
     std::size_t shortest = 0, longest = 0, uneven = 0;
     for (std::size_t i = 0; i < steps.size(); ++i) {
-        if (std::abs(steps[i] - median) > 0.1 * std::abs(median)) ++uneven;
+        if (std::abs(steps[i] - median) > tolerance) ++uneven;
         if (std::abs(steps[i]) < std::abs(steps[shortest])) shortest = i;
         if (std::abs(steps[i]) > std::abs(steps[longest])) longest = i;
     }
@@ -769,7 +790,7 @@ void checkSliceSpacing(const std::string& folder, const std::vector<std::string>
     m << folder << ": the DICOM slices are not evenly spaced: along the slice normal the step between slices "
       << "goes from " << std::abs(steps[shortest]) << " (" << between(shortest) << ") to " << std::abs(steps[longest])
       << " (" << between(longest) << "); " << uneven << " of " << steps.size()
-      << " steps differ from the median step, " << std::abs(median) << ", by more than 10%. ";
+      << " steps differ from the median step, " << std::abs(median) << ", by more than 10% (+0.1). ";
     if (std::abs(steps[longest]) > 1.5 * std::abs(median))
         m << "A slice is probably missing between " << between(longest)
           << " (an incomplete transfer, or a damaged file GDCM left out of the series); copy or export the "
@@ -946,7 +967,6 @@ struct DicomFileScan {
     bool named = false;   // not marked, but named .dcm or .dicom
     bool readable = false;
     bool imageWithoutPixels = false;  // an image storage class, but no Pixel Data
-    std::string seriesUid;
 };
 
 // Reads every file of the folder with GDCM before ITK's series scan does, one
@@ -963,6 +983,7 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
     std::sort(files.begin(), files.end());
     QuietGdcm quiet;
     for (const auto& file : files) {
+        if (file.filename().string().rfind("._", 0) == 0) continue;  // macOS AppleDouble side files
         DicomFileScan& scan = out[file];
         char mark[4] = {0, 0, 0, 0};
         {
@@ -983,13 +1004,6 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
         gdcm::MediaStorage storage;
         storage.SetFromFile(reader.GetFile());
         scan.imageWithoutPixels = gdcm::MediaStorage::IsImage(storage) && !ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010));
-        const gdcm::Tag seriesTag(0x0020, 0x000e);
-        if (ds.FindDataElement(seriesTag))
-            if (const gdcm::ByteValue* bv = ds.GetDataElement(seriesTag).GetByteValue()) {
-                scan.seriesUid.assign(bv->GetPointer(), bv->GetLength());
-                while (!scan.seriesUid.empty() && (scan.seriesUid.back() == ' ' || scan.seriesUid.back() == '\0'))
-                    scan.seriesUid.pop_back();
-            }
     }
     if (options.reading) options.reading(dir.string());
     return out;
@@ -1000,11 +1014,11 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
 // image left (a file cut before its Pixel Data), so a damaged first or last
 // slice made the volume a slice shorter. A file no series lists is refused by
 // name if it says it is DICOM (its mark, or a .dcm name) and GDCM cannot read
-// it, if it is of an image storage class but has no Pixel Data, or if it
-// belongs to the chosen series. Other files no series lists (a DICOMDIR, a
-// report, notes) are left alone.
+// it, or if it is of an image storage class but has no Pixel Data. Other
+// files no series lists (a DICOMDIR, a report, notes, macOS's "._" side
+// files) are left alone.
 void checkUnlistedDicomFiles(const std::map<std::filesystem::path, DicomFileScan>& scans,
-                             const std::set<std::filesystem::path>& listed, const std::string& chosenId) {
+                             const std::set<std::filesystem::path>& listed) {
     for (const auto& [file, scan] : scans) {
         if (listed.count(file)) continue;
         if ((scan.marked || scan.named) && !scan.readable)
@@ -1015,10 +1029,6 @@ void checkUnlistedDicomFiles(const std::map<std::filesystem::path, DicomFileScan
             throw Error(file.string() + ": this DICOM image file in the series folder has no pixel data (it is "
                         "probably truncated), so it was left out of the series; copy or export the series again, "
                         "or remove the file if it is not part of the scan.");
-        if (scan.readable && !scan.seriesUid.empty() && chosenId.rfind(scan.seriesUid, 0) == 0)
-            throw Error(file.string() + ": this file belongs to DICOM series " + scan.seriesUid +
-                        " but holds no image GDCM can read (damaged or truncated), so the series would be read "
-                        "without it; copy or export the series again.");
     }
 }
 
@@ -1085,11 +1095,15 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
         std::set<std::filesystem::path> listed;
         for (const auto& sr : series)
             for (const auto& f : sr.files) listed.insert(std::filesystem::path(f).lexically_normal());
-        checkUnlistedDicomFiles(scans, listed, chosen->id);
+        checkUnlistedDicomFiles(scans, listed);
     }
     // Before ITK reads any of them (its header read decodes the first slice).
     if (chosen->files.size() > 1) {
-        for (const auto& f : chosen->files) checkDicomLength(f);
+        for (const auto& f : chosen->files) {
+            if (options.reading) options.reading(f);
+            checkDicomLength(f);
+        }
+        if (options.reading) options.reading(folder);
         checkSliceSpacing(folder, chosen->files);
     }
     if (chosen->files.size() == 1) {

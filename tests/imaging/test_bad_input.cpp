@@ -494,15 +494,22 @@ TEST(BadInput, ADicomFileCutShortIsRefusedNotReadInPart) {
         expectError([&] { loadVolume(dir / "series"); }, {"slice7.dcm", "left out of the series", "copy or export"});
     }
     writeBytes(last, lastBytes);
-    // Files in the folder that are not images of the series stay allowed.
-    // Every file is named through `reading` before GDCM opens it (the job
-    // isolation blames a crash on it), then the folder again.
+    // Files in the folder that are not images of the series stay allowed:
+    // notes, and macOS's AppleDouble "._" files (named .dcm, unreadable to
+    // GDCM). So does a slice stored without its preamble and mark (GDCM
+    // counts one in its lengths; the check must not).
     writeBytes(dir / "series" / "notes.txt", "scanned 2026-12-02");
+    writeBytes(dir / "series" / "._slice0.dcm", std::string("\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X", 16));
+    writeBytes(dir / "series" / "slice2.dcm", readAll(dir / "series" / "slice2.dcm").substr(132));
+    // Every file is named through `reading` before GDCM opens it (the job
+    // isolation blames a crash on it), then the folder again; the same for
+    // the series' slices as their lengths are checked.
     LoadOptions o;
     std::vector<std::string> named;
     o.reading = [&](const std::string& f) { named.push_back(fs::path(f).filename().string()); };
     EXPECT_EQ(loadVolume(dir / "series", o).dims(), openvdb::Coord(kDims[0], kDims[1], kDims[2]));
-    ASSERT_EQ(named.size(), std::size_t(kDims[2]) + 2);
+    ASSERT_EQ(named.size(), 2 * std::size_t(kDims[2]) + 3);  // slices and notes, the folder, slices, the folder
+    EXPECT_EQ(named[kDims[2] + 1], "series");
     EXPECT_EQ(named.back(), "series");
     for (int z = 0; z < kDims[2]; ++z)
         EXPECT_NE(std::find(named.begin(), named.end(), "slice" + std::to_string(z) + ".dcm"), named.end()) << z;
