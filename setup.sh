@@ -11,7 +11,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   # libraries isohex links
   libopenvdb-dev libboost-iostreams-dev libinsighttoolkit5-dev libeigen3-dev libtbb-dev
-  libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libtiff-dev libcsv-dev
+  libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libtiff-dev libgdcm-dev libcsv-dev
   libvtk9-dev libgmsh-dev libexodusii-dev libnetcdf-dev libcgal-dev
   libgtest-dev
   # independent tools the tests check isohex's output with

@@ -18,8 +18,6 @@
 #include <set>
 #include <sstream>
 
-#include <gdcmExplicitDataElement.h>
-#include <gdcmImplicitDataElement.h>
 #include <gdcmMediaStorage.h>
 #include <gdcmReader.h>
 #include <gdcmScanner.h>
@@ -681,37 +679,46 @@ private:
 // are of the file as it would write it again (a preamble it adds, VRs it
 // fixes), which is not the file on disk. A deflated data set is exempt (its
 // positions are in the inflated stream; one cut short fails GDCM's read).
-void checkDicomLength(const std::string& file) {
+//
+// Returns what is wrong, or nothing; `full` has read the whole file, and
+// `quiet` has kept GDCM's warnings of that read alone.
+std::string dicomPixelDataCut(const std::string& file, const gdcm::Reader& full, const QuietGdcm& quiet) {
     std::error_code ec;
     const std::uint64_t size = std::filesystem::file_size(file, ec);
-    if (ec) return;
-    QuietGdcm quiet;  // its "Incomplete Pixel Data" warning would only repeat ours
+    if (ec || full.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncoded()) return {};
     const gdcm::Tag pixelData(0x7fe0, 0x0010);
-    gdcm::Reader full;
-    full.SetFileName(file.c_str());
-    if (!full.Read())  // ITK read a deflated data set cut short as far as it went
-        throw Error(file + ": the DICOM file is damaged or truncated (GDCM cannot read its data set to the end); "
-                    "copy or export it again.");
-    if (full.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncoded()) return;
     const gdcm::DataSet& ds = full.GetFile().GetDataSet();
-    if (!ds.FindDataElement(pixelData)) return;
+    if (!ds.FindDataElement(pixelData)) return {};
     const gdcm::DataElement& pd = ds.GetDataElement(pixelData);
     std::uint64_t length = 0;
     if (!pd.GetVL().IsUndefined()) length = std::uint64_t(pd.GetVL());
     else if (const gdcm::SequenceOfFragments* f = pd.GetSequenceOfFragments()) length = std::uint64_t(f->ComputeLength());
-    else return;
+    else return {};
     gdcm::Reader upTo;
     upTo.SetFileName(file.c_str());
-    if (!upTo.ReadUpToTag(pixelData, {pixelData})) return;
+    if (!upTo.ReadUpToTag(pixelData, {pixelData})) return {};
     const std::uint64_t start = upTo.GetStreamCurrentPosition();
     // A read that ran to the end of the file did not stop at the Pixel Data
     // (GDCM's full read copes with a data set in another VR than the meta
     // header says, this one does not); then only GDCM's own warning tells.
     const bool cut = start < size ? length > size - start : quiet.said("Incomplete Pixel Data");
-    if (cut)
-        throw Error(file + ": the DICOM file is truncated (its pixel data starts at byte " + std::to_string(start) +
-                    " and declares " + std::to_string(length) + " bytes, the file has " + std::to_string(size) +
-                    "); copy or export it again.");
+    if (!cut) return {};
+    return file + ": the DICOM file is truncated (its pixel data starts at byte " + std::to_string(start) +
+           " and declares " + std::to_string(length) + " bytes, the file has " + std::to_string(size) +
+           "); copy or export it again.";
+}
+
+const char* const kDicomUnreadable =
+    ": the DICOM file is damaged or truncated (GDCM cannot read its data set to the end); copy or export it again.";
+
+// The check above for one DICOM file read on its own (a multi-frame file).
+void checkDicomLength(const std::string& file) {
+    QuietGdcm quiet;  // its "Incomplete Pixel Data" warning would only repeat ours
+    gdcm::Reader full;
+    full.SetFileName(file.c_str());
+    if (!full.Read()) throw Error(file + kDicomUnreadable);  // ITK read a deflated data set cut short
+    const std::string cut = dicomPixelDataCut(file, full, quiet);
+    if (!cut.empty()) throw Error(cut);
 }
 
 // The numbers of a DICOM decimal-string value (backslash-separated); empty if any
@@ -967,6 +974,7 @@ struct DicomFileScan {
     bool named = false;   // not marked, but named .dcm or .dicom
     bool readable = false;
     bool imageWithoutPixels = false;  // an image storage class, but no Pixel Data
+    std::string cut;                  // dicomPixelDataCut's finding
 };
 
 // Reads every file of the folder with GDCM before ITK's series scan does, one
@@ -981,7 +989,6 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
     for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
         if (entry.is_regular_file(ec)) files.push_back(entry.path().lexically_normal());
     std::sort(files.begin(), files.end());
-    QuietGdcm quiet;
     for (const auto& file : files) {
         if (file.filename().string().rfind("._", 0) == 0) continue;  // macOS AppleDouble side files
         DicomFileScan& scan = out[file];
@@ -996,6 +1003,7 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
             scan.named = ext == ".dcm" || ext == ".dicom";
         }
         if (options.reading) options.reading(file.string());
+        QuietGdcm quiet;  // per file: dicomPixelDataCut looks for this read's warning
         gdcm::Reader reader;
         reader.SetFileName(file.c_str());
         scan.readable = reader.Read();
@@ -1004,6 +1012,7 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
         gdcm::MediaStorage storage;
         storage.SetFromFile(reader.GetFile());
         scan.imageWithoutPixels = gdcm::MediaStorage::IsImage(storage) && !ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010));
+        scan.cut = dicomPixelDataCut(file.string(), reader, quiet);
     }
     if (options.reading) options.reading(dir.string());
     return out;
@@ -1100,10 +1109,14 @@ RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions
     // Before ITK reads any of them (its header read decodes the first slice).
     if (chosen->files.size() > 1) {
         for (const auto& f : chosen->files) {
-            if (options.reading) options.reading(f);
-            checkDicomLength(f);
+            const auto it = scans.find(std::filesystem::path(f).lexically_normal());
+            if (it == scans.end()) {
+                checkDicomLength(f);  // not expected: the scan read the same folder
+            } else {
+                if (!it->second.readable) throw Error(f + kDicomUnreadable);
+                if (!it->second.cut.empty()) throw Error(it->second.cut);
+            }
         }
-        if (options.reading) options.reading(folder);
         checkSliceSpacing(folder, chosen->files);
     }
     if (chosen->files.size() == 1) {

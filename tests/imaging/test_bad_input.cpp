@@ -502,14 +502,12 @@ TEST(BadInput, ADicomFileCutShortIsRefusedNotReadInPart) {
     writeBytes(dir / "series" / "._slice0.dcm", std::string("\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X", 16));
     writeBytes(dir / "series" / "slice2.dcm", readAll(dir / "series" / "slice2.dcm").substr(132));
     // Every file is named through `reading` before GDCM opens it (the job
-    // isolation blames a crash on it), then the folder again; the same for
-    // the series' slices as their lengths are checked.
+    // isolation blames a crash on it), then the folder again.
     LoadOptions o;
     std::vector<std::string> named;
     o.reading = [&](const std::string& f) { named.push_back(fs::path(f).filename().string()); };
     EXPECT_EQ(loadVolume(dir / "series", o).dims(), openvdb::Coord(kDims[0], kDims[1], kDims[2]));
-    ASSERT_EQ(named.size(), 2 * std::size_t(kDims[2]) + 3);  // slices and notes, the folder, slices, the folder
-    EXPECT_EQ(named[kDims[2] + 1], "series");
+    ASSERT_EQ(named.size(), std::size_t(kDims[2]) + 2);  // the slices and the notes, then the folder
     EXPECT_EQ(named.back(), "series");
     for (int z = 0; z < kDims[2]; ++z)
         EXPECT_NE(std::find(named.begin(), named.end(), "slice" + std::to_string(z) + ".dcm"), named.end()) << z;
