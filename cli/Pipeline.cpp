@@ -918,8 +918,31 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                  {"groups_changing_it", match->groupsChanging},
                  {"groups_mended", match->groupsMatched},
                  {"points_changed", match->pointsChanged},
+                 {"deep_search_trials", match->deepTrials},
                  {"discarded", match->discarded},
-                 {"isosurface", nlohmann::json::array()}};
+                 {"isosurface", nlohmann::json::array()},
+                 {"unmended", nlohmann::json::array()}};
+        // where the search fell short, in world coordinates (the box of the
+        // grid points the repair changed there) and on the grid
+        std::string where;
+        for (const auto& pl : match->unmended) {
+            const Vec3 a = g.point(pl.lo[0], pl.lo[1], pl.lo[2]), b = g.point(pl.hi[0], pl.hi[1], pl.hi[2]);
+            Vec3 lo, hi;
+            for (int d = 0; d < 3; ++d) {
+                lo[d] = std::min(a[d], b[d]);
+                hi[d] = std::max(a[d], b[d]);
+            }
+            block["unmended"].push_back({{"world_min", lo},
+                                         {"world_max", hi},
+                                         {"grid_min", pl.lo},
+                                         {"grid_max", pl.hi},
+                                         {"points", pl.points},
+                                         {"euler_change", pl.eulerChange}});
+            if (block["unmended"].size() <= 3)
+                where += std::string(where.empty() ? "" : ", ") + "(" + shortNumber(lo[0]) + ", " + shortNumber(lo[1]) +
+                         ", " + shortNumber(lo[2]) + ")";
+        }
+        if (match->unmended.size() > 3) where += ", ...";
         nlohmann::json& out = block["isosurface"];
         for (const auto& want : isosurface) {
             out.push_back({{"material", want.material}, {"components", want.components}, {"euler", want.euler}});
@@ -934,7 +957,8 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
             else if (match->groupsMatched < match->groupsChanging)
                 why = "the search mended " + std::to_string(match->groupsMatched) + " of the " +
                       std::to_string(match->groupsChanging) +
-                      " places (all materials) where the repair changed the isosurface's topology";
+                      " places (all materials) where the repair changed the isosurface's topology" +
+                      (where.empty() ? std::string() : "; not mended near " + where);
             else
                 why = "every place the first repair changed was mended; a later step (--fill-pits and its repair) "
                       "changed it";

@@ -2,7 +2,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 #include <tuple>
 #include <functional>
@@ -424,21 +426,32 @@ void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdge
     auto pt = [&](int x, int y, int z) { return x + w0 * (y + w1 * z); };
     // raw patterns of the cells with lowest corner at window points 0..w-2
     const int r0 = w0 - 1, r1 = w1 - 1, r2 = w2 - 1;
-    std::vector<std::uint8_t> raw(static_cast<std::size_t>(r0) * r1 * r2);
+    // scratch buffers kept per thread (the searches call this many times)
+    static thread_local std::vector<std::uint8_t> raw, signs;
+    static thread_local DisjointSets<std::int32_t> sets;
+    static thread_local std::vector<std::uint64_t> edgeSeen;  // bit per possible polygon edge
+    static thread_local std::vector<std::uint8_t> inRegion;
+    static thread_local std::vector<std::int32_t> firstPort;
+    raw.resize(static_cast<std::size_t>(r0) * r1 * r2);
+    int corner[8];  // offsets of a cell's corners from its lowest one in `in`
+    for (int v = 0; v < 8; ++v) corner[v] = pt(McWindow::kCorner[v][0], McWindow::kCorner[v][1], McWindow::kCorner[v][2]);
     for (int z = 0; z < r2; ++z)
-        for (int y = 0; y < r1; ++y)
+        for (int y = 0; y < r1; ++y) {
+            const std::uint8_t* row = in.data() + pt(0, y, z);
+            std::uint8_t* out = raw.data() + r0 * (y + r1 * z);
             for (int x = 0; x < r0; ++x) {
-                unsigned sg = 0;
-                for (int v = 0; v < 8; ++v)
-                    if (in[pt(x + McWindow::kCorner[v][0], y + McWindow::kCorner[v][1], z + McWindow::kCorner[v][2])])
-                        sg |= 1u << v;
-                raw[x + r0 * (y + r1 * z)] = static_cast<std::uint8_t>(sg);
+                const std::uint8_t* c = row + x;
+                out[x] = static_cast<std::uint8_t>((c[corner[0]] != 0) | (c[corner[1]] != 0) << 1 | (c[corner[2]] != 0) << 2 |
+                                                   (c[corner[3]] != 0) << 3 | (c[corner[4]] != 0) << 4 |
+                                                   (c[corner[5]] != 0) << 5 | (c[corner[6]] != 0) << 6 |
+                                                   (c[corner[7]] != 0) << 7);
             }
+        }
     // corrected patterns of the cells at window points 1..w-3 (index 0..w-4)
     const int s0 = w0 - 3, s1 = w1 - 3, s2 = w2 - 3;
     auto cid = [&](int x, int y, int z) { return x + s0 * (y + s1 * z); };
     const int cells = s0 * s1 * s2;
-    std::vector<std::uint8_t> signs(cells);
+    signs.resize(cells);
     static constexpr int kFace[7][3] = {{0, 0, 0}, {0, 0, -1}, {1, 0, 0}, {0, 0, 1}, {-1, 0, 0}, {0, -1, 0}, {0, 1, 0}};
     for (int z = 0; z < s2; ++z)
         for (int y = 0; y < s1; ++y)
@@ -450,16 +463,22 @@ void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdge
                 signs[cid(x, y, z)] = correctedSigns(r, nb, t);
             }
     const auto& g = t.edgeGroups;
-    auto inR = [&](int c) {
-        const int x = c % s0, y = c / s0 % s1, z = c / (s0 * s1);
-        return x >= 1 && x <= s0 - 2 && y >= 1 && y <= s1 - 2 && z >= 1 && z <= s2 - 2;
-    };
-    DisjointSets<std::int32_t> sets(static_cast<std::size_t>(cells) * 4);
+    inRegion.resize(cells);
+    for (int z = 0; z < s2; ++z)
+        for (int y = 0; y < s1; ++y)
+            for (int x = 0; x < s0; ++x)
+                inRegion[cid(x, y, z)] = x >= 1 && x <= s0 - 2 && y >= 1 && y <= s1 - 2 && z >= 1 && z <= s2 - 2;
+    auto inR = [&](int c) { return inRegion[c] != 0; };
+    sets.reset(static_cast<std::size_t>(cells) * 4);
     auto find = [&](int a) -> int { return sets.find(a); };
     long long v = 0, f = 0;
     for (int c = 0; c < cells; ++c)
         if (inR(c)) v += g[signs[c]][0];
-    std::vector<std::uint64_t> edges;
+    // A polygon edge joins vertices of two cells sharing a face: counted
+    // once by (lower cell, its vertex, axis, the other cell's vertex).
+    edgeSeen.assign((static_cast<std::size_t>(cells) * 48 + 63) / 64, 0);
+    long long polyEdges = 0;
+    const int step[3] = {1, s0, s0 * s1};
     // grid edges with both ends at window points 2..w-3 (offsets -2..k+1;
     // cell index = window point index - 1)
     const int hi[3] = {w0 - 3, w1 - 3, w2 - 3};
@@ -483,16 +502,24 @@ void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdge
                     for (int n = 0; n < 4; ++n) {
                         const int p = vert[n], q = vert[(n + 1) % 4];
                         sets.unite(p, q);
-                        if (inR(cellOf[n]) || inR(cellOf[(n + 1) % 4]))
-                            edges.push_back(static_cast<std::uint64_t>(std::min(p, q)) << 32 |
-                                            static_cast<std::uint64_t>(std::max(p, q)));
+                        const int c1 = cellOf[n], c2 = cellOf[(n + 1) % 4];
+                        if (!inR(c1) && !inR(c2)) continue;
+                        const int d = std::abs(c1 - c2);
+                        const int axis = d == step[0] ? 0 : d == step[1] ? 1 : 2;
+                        const int lowVert = c1 < c2 ? p : q, highVert = c1 < c2 ? q : p;
+                        const std::size_t key =
+                            ((static_cast<std::size_t>(lowVert) * 3 + axis) * 4) + static_cast<std::size_t>(highVert % 4);
+                        std::uint64_t& word = edgeSeen[key >> 6];
+                        const std::uint64_t bit = std::uint64_t{1} << (key & 63);
+                        if (!(word & bit)) {
+                            word |= bit;
+                            ++polyEdges;
+                        }
                     }
                 }
-    std::sort(edges.begin(), edges.end());
-    const long long e = std::unique(edges.begin(), edges.end()) - edges.begin();
-    out.chi = v - e + f;
+    out.chi = v - polyEdges + f;
     // ports: the vertices of the cells outside R, in a fixed order
-    std::vector<std::int32_t> firstPort(static_cast<std::size_t>(cells) * 4, -1);
+    firstPort.assign(static_cast<std::size_t>(cells) * 4, -1);
     out.portGroup.assign(static_cast<std::size_t>(cells) * 4, -1);
     for (int c = 0; c < cells; ++c) {
         if (inR(c)) continue;
@@ -550,6 +577,61 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     if (eulerChange) *eulerChange = after.chi - before.chi;
     return before.chi == after.chi && before.closed == after.closed && before.portGroup == after.portGroup;
 }
+
+// The polygon surface of material m in a fixed window (the box lo..hi of
+// grid points that may change, and 4 points around it), compared with the
+// window as it was when the probe was made: 0 when every change made since
+// inside the box keeps the surface's components and Euler characteristic
+// (as mcKeeps decides it), otherwise a count that grows with the difference
+// (the Euler change, pieces without a port gained or lost, pieces joining
+// or splitting ports). The deep search's measure.
+class McProbe {
+public:
+    McProbe(const Labels& l, std::array<int, 3> lo, std::array<int, 3> hi, std::int32_t m, const CellEdgeGroups& t)
+        : l_(l), lo_(lo), m_(m), t_(t) {
+        for (int a = 0; a < 3; ++a) box_.k[a] = hi[a] - lo[a] + 1;
+        in_.assign(box_.points(), 0);
+        fill();
+        mcLocal(in_, box_, t_, before_);
+        beforeGroups_ = groups(before_);
+    }
+    long long distance() {
+        fill();
+        mcLocal(in_, box_, t_, after_);
+        long long d = std::abs(after_.chi - before_.chi) + std::abs(after_.closed - before_.closed);
+        if (after_.portGroup != before_.portGroup) {
+            const long long ga = groups(after_);
+            d += ga == beforeGroups_ ? 1 : std::abs(ga - beforeGroups_);
+        }
+        return d;
+    }
+
+private:
+    static long long groups(const McLocal& s) {
+        long long n = 0;
+        for (std::size_t v = 0; v < s.portGroup.size(); ++v) n += s.portGroup[v] == static_cast<std::int32_t>(v);
+        return n;
+    }
+    void fill() {
+        const auto [nx, ny, nz] = l_.grid.dims;
+        const int w0 = box_.w(0), w1 = box_.w(1), w2 = box_.w(2);
+        for (int z = 0; z < w2; ++z)
+            for (int y = 0; y < w1; ++y)
+                for (int x = 0; x < w0; ++x) {
+                    const int a = lo_[0] + x - 4, b = lo_[1] + y - 4, c = lo_[2] + z - 4;
+                    const bool inside = a >= 0 && b >= 0 && c >= 0 && a < nx && b < ny && c < nz;
+                    in_[x + w0 * (y + w1 * z)] = inside && l_.material[l_.grid.index(a, b, c)] == m_;
+                }
+    }
+    const Labels& l_;
+    std::array<int, 3> lo_;
+    std::int32_t m_;
+    const CellEdgeGroups& t_;
+    McBox box_;
+    std::vector<std::uint8_t> in_;
+    McLocal before_, after_;
+    long long beforeGroups_ = 0;
+};
 
 bool mcKeeps(const Labels& l, int i, int j, int k, std::int32_t m, const CellEdgeGroups& t,
              long long* eulerChange = nullptr) {
@@ -1017,6 +1099,17 @@ long long cubeEuler(const Labels& l, const std::vector<std::size_t>& blocks) {
 // noisy place can take: three flips among 80 options are 82,160 trials).
 constexpr int kMatchDepth = 3;
 constexpr std::size_t kMatchTrials = 150'000;
+// The deep search (for what the flip search cannot mend): flips of boundary
+// points within kDeepReach of the group, kDeepBeam sets kept per round, at
+// most kDeepDepth flips and kDeepTrials trials; a unit of topology distance
+// weighs as much as kDeepTopologyWeight bad blocks; a beam stops after
+// kDeepPatience rounds without a better best score.
+constexpr int kDeepReach = 2;
+constexpr std::size_t kDeepBeam = 12;
+constexpr int kDeepDepth = 10;
+constexpr std::size_t kDeepTrials = 40'000;
+constexpr long long kDeepTopologyWeight = 4;
+constexpr int kDeepPatience = 2;
 
 // Lowest corners of the blocks holding any of the points, sorted, unique (into out).
 void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::vector<std::size_t>& out) {
@@ -1281,10 +1374,266 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         }
         return std::array<int, 6>{lo[0], lo[1], lo[2], hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
     };
+    auto place = [&](const std::vector<std::size_t>& points, long long d0) {
+        const auto box = extentOf(points);
+        TopologyMatchReport::Place pl;
+        pl.lo = {box[0], box[1], box[2]};
+        pl.hi = {box[0] + box[3] - 1, box[1] + box[4] - 1, box[2] + box[5] - 1};
+        pl.points = points.size();
+        pl.eulerChange = d0;
+        rep.unmended.push_back(pl);
+    };
     auto changeOf = [&](const std::vector<std::size_t>& points) {
         std::vector<PointChange> change;
         for (std::size_t p : points) change.emplace_back(p, repaired.material[p]);
         return change;
+    };
+    // Deep search, for a group (or part) the flip search could not mend: a
+    // beam search over sets of flips of points within kDeepReach of it
+    // (points on a material boundary, none next to another group or in
+    // `frozen`), on top of the repair's change. A set is scored by how far
+    // the polygon surface in a window around the box is from what it was
+    // before the group (McProbe, per material) and by the blocks it leaves
+    // bad. Each round extends the kDeepBeam best sets by one flip; the first
+    // round with a set that leaves every block manifold and keeps the surface
+    // (then checked again exactly, as in search) ends it, the set nearest the
+    // sampled labels winning. A beam whose best score has not improved for
+    // kDeepPatience rounds stops, as does one past kDeepDepth flips or
+    // kDeepTrials probed sets. later/laterBefore as in search.
+    auto deepSearch = [&](std::int32_t group, const std::vector<std::size_t>& points,
+                          const std::vector<PointChange>* later = nullptr,
+                          const std::vector<PointChange>* laterBefore = nullptr,
+                          const std::unordered_set<std::size_t>* frozen = nullptr) {
+        const auto box = extentOf(points);
+        std::array<int, 3> lo{}, hi{};
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::max(box[a] - kDeepReach, 1);
+            hi[a] = std::min(box[a] + box[3 + a] - 1 + kDeepReach, g.dims[a] - 2);
+        }
+        // the box and 1 around it (the points its blocks hold), as they are
+        // now (`after`, the group changed) and were before the group
+        std::vector<PointChange> after;
+        for (int z = lo[2] - 1; z <= hi[2] + 1; ++z)
+            for (int y = lo[1] - 1; y <= hi[1] + 1; ++y)
+                for (int x = lo[0] - 1; x <= hi[0] + 1; ++x) {
+                    const std::size_t p = g.index(x, y, z);
+                    after.emplace_back(p, work.material[p]);
+                }
+        std::vector<PointChange> before = after;
+        {
+            const std::unordered_set<std::size_t> inGroup(points.begin(), points.end());
+            for (auto& [p, m] : before)
+                if (inGroup.count(p)) m = sampled.material[p];
+        }
+        std::vector<std::int32_t> mats;  // the materials whose surface is judged
+        for (const auto& [p, m] : after) {
+            if (m != 0) mats.push_back(m);
+            if (sampled.material[p] != 0) mats.push_back(sampled.material[p]);
+        }
+        std::sort(mats.begin(), mats.end());
+        mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
+        apply(before);
+        std::vector<std::unique_ptr<McProbe>> probes;
+        for (std::int32_t m : mats) probes.push_back(std::make_unique<McProbe>(work, lo, hi, m, table));
+        apply(after);
+        // Options: flips of points on a material boundary in the box, none
+        // next to another group or in `frozen`; and moves that isolate a
+        // one-point piece (speck or pocket) of the sampled labels: the point
+        // takes its sampled material and its 26 neighbours that have that
+        // material take the one most of its 6 neighbours have in the sampled
+        // labels (no sequence of single flips reaches that without passing
+        // through states that score worse). One option is one step.
+        auto allowed = [&](int x, int y, int z) {
+            if (x < lo[0] || y < lo[1] || z < lo[2] || x > hi[0] || y > hi[1] || z > hi[2]) return false;
+            if (frozen && frozen->count(g.index(x, y, z))) return false;
+            for (int q = 0; q < 27; ++q) {
+                const auto it = at.find(g.index(x + q % 3 - 1, y + q / 3 % 3 - 1, z + q / 9 - 1));
+                if (it != at.end() && groups.find(it->second) != group) return false;
+            }
+            return true;
+        };
+        std::vector<std::vector<PointChange>> options;
+        for (int z = lo[2]; z <= hi[2]; ++z)
+            for (int y = lo[1]; y <= hi[1]; ++y)
+                for (int x = lo[0]; x <= hi[0]; ++x) {
+                    if (!allowed(x, y, z)) continue;
+                    const std::size_t p = g.index(x, y, z);
+                    bool boundary = false;
+                    std::vector<std::int32_t> to{0, sampled.material[p], repaired.material[p]};
+                    std::map<std::int32_t, int> sampled6;  // the sampled materials of the 6 neighbours
+                    for (int q = 0; q < 27; ++q) {
+                        const std::size_t o = g.index(x + q % 3 - 1, y + q / 3 % 3 - 1, z + q / 9 - 1);
+                        boundary = boundary || work.material[o] != work.material[p];
+                        if (q == 4 || q == 10 || q == 12 || q == 14 || q == 16 || q == 22) {
+                            to.push_back(work.material[o]);
+                            ++sampled6[sampled.material[o]];
+                        }
+                    }
+                    if (boundary) {
+                        std::sort(to.begin(), to.end());
+                        to.erase(std::unique(to.begin(), to.end()), to.end());
+                        for (std::int32_t m : to)
+                            if (m != work.material[p]) options.push_back({PointChange{p, m}});
+                    }
+                    const std::int32_t m = sampled.material[p];
+                    if (sampled6.count(m)) continue;  // not a one-point piece
+                    std::int32_t around = 0;
+                    int most = -1;
+                    for (const auto& [mat, n] : sampled6)
+                        if (n > most) {
+                            most = n;
+                            around = mat;
+                        }
+                    std::vector<PointChange> move;
+                    if (work.material[p] != m) move.emplace_back(p, m);
+                    bool ok = true;
+                    for (int q = 0; q < 27 && ok; ++q) {
+                        const int a = x + q % 3 - 1, b = y + q / 3 % 3 - 1, c = z + q / 9 - 1;
+                        const std::size_t o = g.index(a, b, c);
+                        if (q == 13 || work.material[o] != m) continue;
+                        ok = allowed(a, b, c);
+                        move.emplace_back(o, around);
+                    }
+                    if (ok && move.size() > 1) options.push_back(std::move(move));
+                }
+        // Bad blocks are counted as the flips change them: the box's blocks
+        // bad now, plus the change in the blocks around a set's flips. Later
+        // parts of a wide group in the box are changed as the repair changes
+        // them when blocks are judged, and left as they are for the surface.
+        std::vector<PointChange> laterHere, laterHereBefore;
+        if (later)
+            for (std::size_t n = 0; n < later->size(); ++n) {
+                const auto c = coords((*later)[n].first);
+                bool in = true;
+                for (int a = 0; a < 3; ++a) in = in && c[a] >= lo[a] - 1 && c[a] <= hi[a] + 1;
+                if (!in) continue;
+                laterHere.push_back((*later)[n]);
+                laterHereBefore.push_back((*laterBefore)[n]);
+            }
+        auto isBad = [&](std::size_t b) {
+            const auto [i, j, k] = g.coords(b);
+            const BlockView v = block(work, i, j, k);
+            return !uniformBlock(v.mat) && !blockManifold(v.mat);
+        };
+        std::vector<std::size_t> optionPoints(points);
+        for (const auto& o : options)
+            for (const auto& pc : o) optionPoints.push_back(pc.first);
+        std::unordered_set<std::size_t> baseBad;
+        apply(laterHere);
+        for (std::size_t b : blocksAround(g, optionPoints))
+            if (isBad(b)) baseBad.insert(b);
+        apply(laterHereBefore);
+        struct Trial {
+            std::vector<int> pick;  // option indices, ascending
+            long long score = 0;
+            std::size_t diff = 0;   // points off the sampled labels that were not before
+            double cost = 0;        // |field| at those
+        };
+        std::vector<std::size_t> flipped, blocks;
+        std::vector<PointChange> undo;
+        std::size_t trials = 0;
+        // Scores t; false (not probed) when it has more bad blocks than
+        // `threshold` (its score is at least that). goal: manifold and the
+        // surface kept exactly.
+        auto evaluate = [&](Trial& t, bool& goal, long long threshold) {
+            goal = false;
+            flipped.clear();
+            undo.clear();
+            for (int q : t.pick)
+                for (const auto& [p, to] : options[q]) {
+                    flipped.push_back(p);
+                    undo.emplace_back(p, work.material[p]);
+                    work.material[p] = to;
+                }
+            blocksAround(g, flipped, blocks);
+            long long bad = static_cast<long long>(baseBad.size());
+            apply(laterHere);
+            for (std::size_t b : blocks) bad += static_cast<long long>(isBad(b)) - static_cast<long long>(baseBad.count(b));
+            apply(laterHereBefore);
+            if (bad > threshold) {
+                apply(undo);
+                return false;
+            }
+            ++trials;
+            long long dist = 0;
+            for (auto& pr : probes) dist += pr->distance();
+            t.score = dist * kDeepTopologyWeight + bad;
+            t.diff = 0;
+            t.cost = 0;
+            for (const auto& [p, was] : before) {
+                const std::int32_t to = work.material[p];
+                if (to == was || to == sampled.material[p]) continue;
+                ++t.diff;
+                const auto c = coords(p);
+                t.cost += std::abs(domain.value(to != 0 ? to : sampled.material[p], g.point(c[0], c[1], c[2])));
+            }
+            if (dist == 0 && bad == 0) {
+                std::vector<PointChange> total;
+                for (const auto& [p, was] : before)
+                    if (work.material[p] != was) total.emplace_back(p, work.material[p]);
+                apply(before);
+                goal = changeKeepsPolygonTopology(work, total, table, nullptr);
+                apply(total);
+            }
+            apply(undo);
+            return true;
+        };
+        auto ranks = [](const Trial& a, const Trial& b) {
+            return std::tie(a.score, a.diff, a.cost, a.pick) < std::tie(b.score, b.diff, b.cost, b.pick);
+        };
+        std::vector<Trial> beam(1);
+        std::set<std::vector<int>> seen;
+        long long bestSoFar = std::numeric_limits<long long>::max();
+        int lastGain = 0;
+        for (int depth = 1; depth <= kDeepDepth && trials < kDeepTrials; ++depth) {
+            std::vector<Trial> next, goals;
+            std::multiset<long long> top;  // the kDeepBeam best scores of this round so far
+            for (const Trial& from : beam)
+                for (int q = 0; q < static_cast<int>(options.size()) && trials < kDeepTrials; ++q) {
+                    bool clash = false;
+                    for (int e : from.pick)
+                        for (const auto& a : options[e])
+                            for (const auto& b : options[q]) clash = clash || a.first == b.first;
+                    if (clash) continue;
+                    Trial t;
+                    t.pick = from.pick;
+                    t.pick.insert(std::upper_bound(t.pick.begin(), t.pick.end(), q), q);
+                    if (!seen.insert(t.pick).second) continue;
+                    bool goal = false;
+                    const long long threshold =
+                        top.size() < kDeepBeam ? std::numeric_limits<long long>::max() : *top.rbegin();
+                    if (!evaluate(t, goal, threshold)) continue;
+                    if (goal) {
+                        goals.push_back(std::move(t));
+                        continue;
+                    }
+                    top.insert(t.score);
+                    if (top.size() > kDeepBeam) top.erase(std::prev(top.end()));
+                    next.push_back(std::move(t));
+                }
+            if (!goals.empty()) {
+                const Trial& best = *std::min_element(goals.begin(), goals.end(), [](const Trial& a, const Trial& b) {
+                    return std::tie(a.diff, a.cost, a.pick) < std::tie(b.diff, b.cost, b.pick);
+                });
+                for (int q : best.pick) apply(options[q]);
+                rep.deepTrials += trials;
+                return true;
+            }
+            if (next.empty()) break;
+            const long long bestNow = std::min_element(next.begin(), next.end(), ranks)->score;
+            if (bestNow < bestSoFar) {
+                bestSoFar = bestNow;
+                lastGain = depth;
+            } else if (depth - lastGain >= kDeepPatience) {
+                break;
+            }
+            const std::size_t keep = std::min<std::size_t>(kDeepBeam, next.size());
+            std::partial_sort(next.begin(), next.begin() + static_cast<std::ptrdiff_t>(keep), next.end(), ranks);
+            next.resize(keep);
+            beam = std::move(next);
+        }
+        rep.deepTrials += trials;
+        return false;
     };
     auto process = [&](std::int32_t group, const std::vector<std::size_t>& points) {
         const std::vector<PointChange> change = changeOf(points);
@@ -1303,8 +1652,11 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             apply(change);
             // points next to the group first; then within 2, with two flips at most
             if (search(group, near, before, change, d0) ||
-                search(group, near2, before, change, d0, nullptr, nullptr, nullptr, 2))
+                search(group, near2, before, change, d0, nullptr, nullptr, nullptr, 2) ||
+                deepSearch(group, points))
                 ++rep.groupsMatched;
+            else
+                place(points, d0);
             return;
         }
         std::vector<PointChange> before;
@@ -1345,6 +1697,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         }
         const std::unordered_set<std::size_t> groupPoints(points.begin(), points.end());
         bool changing = false, mended = true;
+        const std::size_t placesBefore = rep.unmended.size();
         for (std::size_t n = 0; n < order.size(); ++n) {
             const std::vector<std::size_t>& part = order[n];
             const std::vector<PointChange> partChange = changeOf(part);
@@ -1366,8 +1719,10 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             changing = true;
             const bool found =
                 search(group, partNear, partBefore, partChange, dp, &later, &laterBefore, &frozen) ||
-                search(group, partNear2, partBefore, partChange, dp, &later, &laterBefore, &frozen, 2);
+                search(group, partNear2, partBefore, partChange, dp, &later, &laterBefore, &frozen, 2) ||
+                deepSearch(group, part, &later, &laterBefore, &frozen);
             mended = mended && found;
+            if (!found) place(part, dp);
         }
         if (changing) ++rep.groupsChanging;
         // the blocks around what changed (a flip is never next to another group)
@@ -1375,8 +1730,13 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         for (const auto& [p, was] : before)
             if (work.material[p] != was) touched.push_back(p);
         if (!manifoldAt(blocksAround(g, touched))) {
+            // the whole group keeps the repair's change: one place for it
             apply(before);
+            long long d = 0;
+            changeKeepsPolygonTopology(work, change, table, &d);
             apply(change);
+            rep.unmended.resize(placesBefore);
+            place(points, d);
             mended = false;
         }
         if (changing && mended) ++rep.groupsMatched;

@@ -158,6 +158,17 @@ struct TopologyMatchReport {
     std::size_t groupsMatched = 0;    // of those, mended: the group's change now keeps it
     std::size_t pointsChanged = 0;    // points whose label differs from the repair's now
     bool discarded = false;           // the result was not manifold: the repair's labels are kept
+    std::size_t deepTrials = 0;       // trials of the deep search
+    // The groups (or parts of wide groups) the search could not mend, in the
+    // order they were taken: their changed points' box on the grid (lowest
+    // point, highest point), how many points, and the Euler change of the
+    // polygon surface (all materials) the repair's change makes there.
+    struct Place {
+        std::array<int, 3> lo{}, hi{};
+        std::size_t points = 0;
+        long long eulerChange = 0;
+    };
+    std::vector<Place> unmended;
 };
 TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled, const Domain& domain,
                                          const CellEdgeGroups& table);
