@@ -1442,7 +1442,10 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         // takes its sampled material and its 26 neighbours that have that
         // material take the one most of its 6 neighbours have in the sampled
         // labels (no sequence of single flips reaches that without passing
-        // through states that score worse). One option is one step.
+        // through states that score worse); or the piece moved: a point
+        // within 2 of it whose 26 neighbours all have one other material
+        // takes its material (a piece of one point there is manifold). One
+        // option is one step.
         auto allowed = [&](int x, int y, int z) {
             if (x < lo[0] || y < lo[1] || z < lo[2] || x > hi[0] || y > hi[1] || z > hi[2]) return false;
             if (frozen && frozen->count(g.index(x, y, z))) return false;
@@ -1495,7 +1498,20 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                         move.emplace_back(o, around);
                     }
                     if (ok && move.size() > 1) options.push_back(std::move(move));
+                    // the piece moved
+                    for (int q = 0; q < 125; ++q) {
+                        const int a = x + q % 5 - 2, b = y + q / 5 % 5 - 2, c = z + q / 25 - 2;
+                        if (!allowed(a, b, c) || work.material[g.index(a, b, c)] == m) continue;
+                        bool interior = true;
+                        const std::int32_t here = work.material[g.index(a, b, c)];
+                        for (int r = 0; r < 27 && interior; ++r)
+                            interior = work.material[g.index(a + r % 3 - 1, b + r / 3 % 3 - 1, c + r / 9 - 1)] == here;
+                        if (interior) options.push_back({PointChange{g.index(a, b, c), m}});
+                    }
                 }
+        // (a point can be offered twice, from two pieces: keep one)
+        std::sort(options.begin(), options.end());
+        options.erase(std::unique(options.begin(), options.end()), options.end());
         // Bad blocks are counted as the flips change them: the box's blocks
         // bad now, plus the change in the blocks around a set's flips. Later
         // parts of a wide group in the box are changed as the repair changes
@@ -1721,8 +1737,8 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 search(group, partNear, partBefore, partChange, dp, &later, &laterBefore, &frozen) ||
                 search(group, partNear2, partBefore, partChange, dp, &later, &laterBefore, &frozen, 2) ||
                 deepSearch(group, part, &later, &laterBefore, &frozen);
-            mended = mended && found;
             if (!found) place(part, dp);
+            mended = mended && found;
         }
         if (changing) ++rep.groupsChanging;
         // the blocks around what changed (a flip is never next to another group)

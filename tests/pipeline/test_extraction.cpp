@@ -642,9 +642,9 @@ TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
     std::cout << "[figures] isosurface topology on random labellings: " << searched << " of 120 searched, "
               << mendedAll << " with every group mended, " << repairAloneDiffers
               << " of those where the repair alone differs from volumeToMesh\n";
-    // (measured: 82 searched, 117 with every group mended, 77 of them where
+    // (measured: 82 searched, 118 with every group mended, 78 of them where
     // the repair alone differs; 109 and 69 before the deep search)
-    EXPECT_GE(mendedAll, 113);
+    EXPECT_GE(mendedAll, 114);
     EXPECT_GE(repairAloneDiffers, 60);
 }
 
