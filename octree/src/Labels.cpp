@@ -1425,17 +1425,6 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             for (auto& [p, m] : before)
                 if (inGroup.count(p)) m = sampled.material[p];
         }
-        std::vector<std::int32_t> mats;  // the materials whose surface is judged
-        for (const auto& [p, m] : after) {
-            if (m != 0) mats.push_back(m);
-            if (sampled.material[p] != 0) mats.push_back(sampled.material[p]);
-        }
-        std::sort(mats.begin(), mats.end());
-        mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
-        apply(before);
-        std::vector<std::unique_ptr<McProbe>> probes;
-        for (std::int32_t m : mats) probes.push_back(std::make_unique<McProbe>(work, lo, hi, m, table));
-        apply(after);
         // Options: flips of points on a material boundary in the box, none
         // next to another group or in `frozen`; and moves that isolate a
         // one-point piece (speck or pocket) of the sampled labels: the point
@@ -1512,6 +1501,19 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         // (a point can be offered twice, from two pieces: keep one)
         std::sort(options.begin(), options.end());
         options.erase(std::unique(options.begin(), options.end()), options.end());
+        // The materials whose surface is judged: those the group's change or
+        // an option gives or takes a point
+        std::vector<std::int32_t> mats;
+        for (std::size_t p : points) mats.insert(mats.end(), {sampled.material[p], repaired.material[p]});
+        for (const auto& o : options)
+            for (const auto& [p, to] : o) mats.insert(mats.end(), {work.material[p], to});
+        std::sort(mats.begin(), mats.end());
+        mats.erase(std::unique(mats.begin(), mats.end()), mats.end());
+        apply(before);
+        std::vector<std::unique_ptr<McProbe>> probes;
+        for (std::int32_t m : mats)
+            if (m != 0) probes.push_back(std::make_unique<McProbe>(work, lo, hi, m, table));
+        apply(after);
         // Bad blocks are counted as the flips change them: the box's blocks
         // bad now, plus the change in the blocks around a set's flips. Later
         // parts of a wide group in the box are changed as the repair changes
