@@ -148,7 +148,13 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
 // points wide), each part checked from the state the earlier parts left and
 // searched the same way, with the later parts judged as the repair leaves
 // them; if its parts leave a block bad, the group keeps the repair's whole
-// change. A group or part the search cannot mend keeps the repair's change.
+// change. What that search cannot mend gets a deeper one: a beam search over
+// sets of up to 10 flips of boundary points within 2 (and moves that keep a
+// one-point speck or pocket of the sampled labels apart), scored by how far
+// the polygon surface in the window is from before and by the blocks left
+// bad, the first manifold set that keeps the surface (checked exactly)
+// winning (docs/DESIGN.md, "The deep search"). A group or part neither
+// search can mend keeps the repair's change and is listed in `unmended`.
 // So no window is wider than 12 + 4 + 8 points. `repaired` stays manifold
 // (checked; if not, it is left as it was and the report says discarded).
 // Deterministic, single-threaded.
