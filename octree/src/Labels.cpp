@@ -1400,6 +1400,9 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
     // sampled labels winning. A beam whose best score has not improved for
     // kDeepPatience rounds stops, as does one past kDeepDepth flips or
     // kDeepTrials probed sets. later/laterBefore as in search.
+    // what the deep search flipped (point, material before), in order: its
+    // box can reach beyond the points within 2 of the group
+    std::vector<PointChange> deepFlipped;
     auto deepSearch = [&](std::int32_t group, const std::vector<std::size_t>& points,
                           const std::vector<PointChange>* later = nullptr,
                           const std::vector<PointChange>* laterBefore = nullptr,
@@ -1633,7 +1636,11 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 const Trial& best = *std::min_element(goals.begin(), goals.end(), [](const Trial& a, const Trial& b) {
                     return std::tie(a.diff, a.cost, a.pick) < std::tie(b.diff, b.cost, b.pick);
                 });
-                for (int q : best.pick) apply(options[q]);
+                for (int q : best.pick)
+                    for (const auto& [p, to] : options[q]) {
+                        deepFlipped.emplace_back(p, work.material[p]);
+                        work.material[p] = to;
+                    }
                 rep.deepTrials += trials;
                 return true;
             }
@@ -1679,6 +1686,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         }
         std::vector<PointChange> before;
         for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
+        deepFlipped.clear();
         // 26-connected parts of a wide group, in grid order
         std::unordered_map<std::size_t, std::int32_t> index;
         for (std::size_t n = 0; n < points.size(); ++n) index.emplace(points[n], static_cast<std::int32_t>(n));
@@ -1747,8 +1755,10 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         std::vector<std::size_t> touched = points;
         for (const auto& [p, was] : before)
             if (work.material[p] != was) touched.push_back(p);
+        for (const auto& [p, was] : deepFlipped) touched.push_back(p);
         if (!manifoldAt(blocksAround(g, touched))) {
             // the whole group keeps the repair's change: one place for it
+            for (auto it = deepFlipped.rbegin(); it != deepFlipped.rend(); ++it) work.material[it->first] = it->second;
             apply(before);
             long long d = 0;
             changeKeepsPolygonTopology(work, change, table, &d);
