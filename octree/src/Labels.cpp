@@ -438,10 +438,10 @@ void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdge
     for (int z = 0; z < r2; ++z)
         for (int y = 0; y < r1; ++y) {
             const std::uint8_t* row = in.data() + pt(0, y, z);
-            std::uint8_t* out = raw.data() + r0 * (y + r1 * z);
+            std::uint8_t* patterns = raw.data() + r0 * (y + r1 * z);
             for (int x = 0; x < r0; ++x) {
                 const std::uint8_t* c = row + x;
-                out[x] = static_cast<std::uint8_t>((c[corner[0]] != 0) | (c[corner[1]] != 0) << 1 | (c[corner[2]] != 0) << 2 |
+                patterns[x] = static_cast<std::uint8_t>((c[corner[0]] != 0) | (c[corner[1]] != 0) << 1 | (c[corner[2]] != 0) << 2 |
                                                    (c[corner[3]] != 0) << 3 | (c[corner[4]] != 0) << 4 |
                                                    (c[corner[5]] != 0) << 5 | (c[corner[6]] != 0) << 6 |
                                                    (c[corner[7]] != 0) << 7);
@@ -1661,6 +1661,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         return false;
     };
     auto process = [&](std::int32_t group, const std::vector<std::size_t>& points) {
+        deepFlipped.clear();
         const std::vector<PointChange> change = changeOf(points);
         const auto box = extentOf(points);
         const bool wide = std::max({box[3], box[4], box[5]}) > kMaxExtent;
@@ -1686,7 +1687,6 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         }
         std::vector<PointChange> before;
         for (std::size_t p : near2) before.emplace_back(p, work.material[p]);
-        deepFlipped.clear();
         // 26-connected parts of a wide group, in grid order
         std::unordered_map<std::size_t, std::int32_t> index;
         for (std::size_t n = 0; n < points.size(); ++n) index.emplace(points[n], static_cast<std::int32_t>(n));
@@ -1764,7 +1764,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             changeKeepsPolygonTopology(work, change, table, &d);
             apply(change);
             rep.unmended.resize(placesBefore);
-            place(points, d);
+            if (changing) place(points, d);
             mended = false;
         }
         if (changing && mended) ++rep.groupsMatched;

@@ -149,8 +149,9 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
 // searched the same way, with the later parts judged as the repair leaves
 // them; if its parts leave a block bad, the group keeps the repair's whole
 // change. What that search cannot mend gets a deeper one: a beam search over
-// sets of up to 10 flips of boundary points within 2 (and moves that keep a
-// one-point speck or pocket of the sampled labels apart), scored by how far
+// sets of up to 10 options, each a flip of a boundary point within 2 or a
+// move that keeps a one-point speck or pocket of the sampled labels apart
+// (several points), scored by how far
 // the polygon surface in the window is from before and by the blocks left
 // bad, the first manifold set that keeps the surface (checked exactly)
 // winning (docs/DESIGN.md, "The deep search"). A group or part neither
