@@ -541,6 +541,22 @@ void mcLocal(const std::vector<std::uint8_t>& in, const McBox& b, const CellEdge
 
 using PointChange = std::pair<std::size_t, std::int32_t>;  // grid index, new material
 
+// The window of box `b` whose box starts at grid point lo: 1 where the
+// point has material m (points off the grid: 0).
+void fillWindow(const Labels& l, const std::array<int, 3>& lo, const McBox& b, std::int32_t m,
+                std::vector<std::uint8_t>& in) {
+    const auto [nx, ny, nz] = l.grid.dims;
+    const int w0 = b.w(0), w1 = b.w(1), w2 = b.w(2);
+    in.resize(b.points());
+    for (int z = 0; z < w2; ++z)
+        for (int y = 0; y < w1; ++y)
+            for (int x = 0; x < w0; ++x) {
+                const int i = lo[0] + x - 4, j = lo[1] + y - 4, k = lo[2] + z - 4;
+                const bool inside = i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz;
+                in[x + w0 * (y + w1 * z)] = inside && l.material[l.grid.index(i, j, k)] == m;
+            }
+}
+
 // Whether giving the points of `changes` their new materials keeps the
 // components and Euler characteristic of the polygoniser's surface of
 // material m (m's points inside, every other point outside).
@@ -558,15 +574,9 @@ bool mcKeeps(const Labels& l, const std::vector<PointChange>& changes, std::int3
     }
     McBox box;
     for (int a = 0; a < 3; ++a) box.k[a] = hi[a] - lo[a] + 1;
-    const int w0 = box.w(0), w1 = box.w(1), w2 = box.w(2);
-    std::vector<std::uint8_t> in(box.points(), 0);
-    for (int z = 0; z < w2; ++z)
-        for (int y = 0; y < w1; ++y)
-            for (int x = 0; x < w0; ++x) {
-                const int a = lo[0] + x - 4, b = lo[1] + y - 4, c = lo[2] + z - 4;
-                const bool inside = a >= 0 && b >= 0 && c >= 0 && a < nx && b < ny && c < nz;
-                in[x + w0 * (y + w1 * z)] = inside && l.material[l.grid.index(a, b, c)] == m;
-            }
+    const int w0 = box.w(0), w1 = box.w(1);
+    std::vector<std::uint8_t> in;
+    fillWindow(l, lo, box, m, in);
     McLocal before, after;
     mcLocal(in, box, t, before);
     for (const auto& [p, to] : changes) {
@@ -590,13 +600,12 @@ public:
     McProbe(const Labels& l, std::array<int, 3> lo, std::array<int, 3> hi, std::int32_t m, const CellEdgeGroups& t)
         : l_(l), lo_(lo), m_(m), t_(t) {
         for (int a = 0; a < 3; ++a) box_.k[a] = hi[a] - lo[a] + 1;
-        in_.assign(box_.points(), 0);
-        fill();
+        fillWindow(l_, lo_, box_, m_, in_);
         mcLocal(in_, box_, t_, before_);
         beforeGroups_ = groups(before_);
     }
     long long distance() {
-        fill();
+        fillWindow(l_, lo_, box_, m_, in_);
         mcLocal(in_, box_, t_, after_);
         long long d = std::abs(after_.chi - before_.chi) + std::abs(after_.closed - before_.closed);
         if (after_.portGroup != before_.portGroup) {
@@ -611,17 +620,6 @@ private:
         long long n = 0;
         for (std::size_t v = 0; v < s.portGroup.size(); ++v) n += s.portGroup[v] == static_cast<std::int32_t>(v);
         return n;
-    }
-    void fill() {
-        const auto [nx, ny, nz] = l_.grid.dims;
-        const int w0 = box_.w(0), w1 = box_.w(1), w2 = box_.w(2);
-        for (int z = 0; z < w2; ++z)
-            for (int y = 0; y < w1; ++y)
-                for (int x = 0; x < w0; ++x) {
-                    const int a = lo_[0] + x - 4, b = lo_[1] + y - 4, c = lo_[2] + z - 4;
-                    const bool inside = a >= 0 && b >= 0 && c >= 0 && a < nx && b < ny && c < nz;
-                    in_[x + w0 * (y + w1 * z)] = inside && l_.material[l_.grid.index(a, b, c)] == m_;
-                }
     }
     const Labels& l_;
     std::array<int, 3> lo_;
@@ -1213,6 +1211,15 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         return true;
     };
     // The points within 1 of `points`, sorted.
+    // Whether a changed point of another group lies within 1 of (x, y, z)
+    // (not on the grid's border).
+    auto nextToOtherGroup = [&](int x, int y, int z, std::int32_t group) {
+        for (int q = 0; q < 27; ++q) {
+            const auto it = at.find(g.index(x + q % 3 - 1, y + q / 3 % 3 - 1, z + q / 9 - 1));
+            if (it != at.end() && groups.find(it->second) != group) return true;
+        }
+        return false;
+    };
     auto around = [&](const std::vector<std::size_t>& points) {
         std::vector<std::size_t> near;
         for (std::size_t p : points) {
@@ -1259,13 +1266,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         for (std::size_t p : near) {
             const auto c = coords(p);
             if (isBorder(c) || (frozen && frozen->count(p))) continue;
-            bool nextToOther = false;  // a point of another group within 1
-            for (int q = 0; q < 27 && !nextToOther; ++q) {
-                const int x = c[0] + q % 3 - 1, y = c[1] + q / 3 % 3 - 1, z = c[2] + q / 9 - 1;
-                const auto it = at.find(g.index(x, y, z));
-                nextToOther = it != at.end() && groups.find(it->second) != group;
-            }
-            if (nextToOther) continue;
+            if (nextToOtherGroup(c[0], c[1], c[2], group)) continue;
             std::vector<std::int32_t> to{0, sampled.material[p], repaired.material[p]};
             for (int d = 0; d < 6; ++d) {
                 const int x = c[0] + (d == 0) - (d == 1), y = c[1] + (d == 2) - (d == 3), z = c[2] + (d == 4) - (d == 5);
@@ -1440,12 +1441,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         // option is one step.
         auto allowed = [&](int x, int y, int z) {
             if (x < lo[0] || y < lo[1] || z < lo[2] || x > hi[0] || y > hi[1] || z > hi[2]) return false;
-            if (frozen && frozen->count(g.index(x, y, z))) return false;
-            for (int q = 0; q < 27; ++q) {
-                const auto it = at.find(g.index(x + q % 3 - 1, y + q / 3 % 3 - 1, z + q / 9 - 1));
-                if (it != at.end() && groups.find(it->second) != group) return false;
-            }
-            return true;
+            return !(frozen && frozen->count(g.index(x, y, z))) && !nextToOtherGroup(x, y, z, group);
         };
         std::vector<std::vector<PointChange>> options;
         for (int z = lo[2]; z <= hi[2]; ++z)
