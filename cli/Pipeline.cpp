@@ -919,6 +919,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
                  {"groups_mended", match->groupsMatched},
                  {"points_changed", match->pointsChanged},
                  {"deep_search_trials", match->deepTrials},
+                 {"anneal_steps", match->annealSteps},
                  {"discarded", match->discarded},
                  {"isosurface", nlohmann::json::array()},
                  {"unmended", nlohmann::json::array()}};

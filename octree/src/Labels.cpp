@@ -12,6 +12,7 @@
 #include <unordered_map>
 #include <unordered_set>
 #include <sstream>
+#include <random>
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -1108,6 +1109,14 @@ constexpr int kDeepDepth = 10;
 constexpr std::size_t kDeepTrials = 40'000;
 constexpr long long kDeepTopologyWeight = 4;
 constexpr int kDeepPatience = 2;
+// The annealing after a beam that found nothing: up to kAnnealChains chains
+// of kAnnealSteps steps, the temperature falling from kAnnealT0 to kAnnealT1
+// (in units of the deep search's score), each option on costing
+// kAnnealOptionCost; at most kAnnealBudget steps in one run.
+constexpr int kAnnealChains = 6;
+constexpr long kAnnealSteps = 10'000;
+constexpr double kAnnealT0 = 1.5, kAnnealT1 = 0.5, kAnnealOptionCost = 2;
+constexpr std::size_t kAnnealBudget = 240'000;
 
 // Lowest corners of the blocks holding any of the points, sorted, unique (into out).
 void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::vector<std::size_t>& out) {
@@ -1652,6 +1661,121 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             std::partial_sort(next.begin(), next.begin() + static_cast<std::ptrdiff_t>(keep), next.end(), ranks);
             next.resize(keep);
             beam = std::move(next);
+        }
+        // Annealing, when the beam found nothing: chains of random single
+        // toggles of options (on or off), accepted by the Metropolis rule on
+        // score + kAnnealOptionCost per option on, at a temperature falling
+        // from kAnnealT0 to kAnnealT1; a chain that reaches a goal (checked
+        // exactly) has its set shrunk (options dropped, one or two at a time,
+        // while it stays a goal) and applied. Chains are seeded by their
+        // number, so the result does not depend on anything else.
+        std::vector<std::vector<std::int32_t>> onWas(options.size());  // materials an option replaced
+        std::unordered_map<std::size_t, int> takenBy;
+        std::vector<std::size_t> optBlocks;
+        auto badIn = [&](const std::vector<std::size_t>& bs) {
+            long long n = 0;
+            apply(laterHere);
+            for (std::size_t b2 : bs) n += isBad(b2);
+            apply(laterHereBefore);
+            return n;
+        };
+        auto toggle = [&](int q) {  // returns false on a clash
+            if (!onWas[q].empty()) {
+                for (std::size_t n = 0; n < options[q].size(); ++n) {
+                    work.material[options[q][n].first] = onWas[q][n];
+                    takenBy.erase(options[q][n].first);
+                }
+                onWas[q].clear();
+                return true;
+            }
+            for (const auto& pc : options[q])
+                if (takenBy.count(pc.first)) return false;
+            for (const auto& [p, to] : options[q]) {
+                onWas[q].push_back(work.material[p]);
+                takenBy.emplace(p, q);
+                work.material[p] = to;
+            }
+            return true;
+        };
+        for (int chain = 0; chain < kAnnealChains && !options.empty() && rep.annealSteps < kAnnealBudget; ++chain) {
+            std::mt19937 rng(static_cast<std::uint32_t>(chain + 1));
+            long long bad = static_cast<long long>(baseBad.size()), dist = 0;
+            for (auto& pr : probes) dist += pr->distance();
+            long long picks = 0;
+            bool reached = false;
+            for (long step = 0; step < kAnnealSteps && rep.annealSteps < kAnnealBudget; ++step) {
+                const double T = kAnnealT0 * std::pow(kAnnealT1 / kAnnealT0, static_cast<double>(step) / static_cast<double>(kAnnealSteps));
+                const int q = static_cast<int>(rng() % options.size());
+                const bool wasOn = !onWas[q].empty();
+                std::vector<std::size_t> pts;
+                for (const auto& pc : options[q]) pts.push_back(pc.first);
+                blocksAround(g, pts, optBlocks);
+                const long long b0 = badIn(optBlocks);
+                if (!toggle(q)) continue;
+                const long long b1 = badIn(optBlocks);
+                ++rep.annealSteps;
+                long long d = 0;
+                for (auto& pr : probes) d += pr->distance();
+                const long long newBad = bad - b0 + b1, newPicks = picks + (wasOn ? -1 : 1);
+                const double dE = static_cast<double>((d - dist) * kDeepTopologyWeight + (newBad - bad)) +
+                                  kAnnealOptionCost * static_cast<double>(newPicks - picks);
+                if (d == 0 && newBad == 0) {
+                    reached = true;
+                    break;
+                }
+                const std::uint32_t r = rng();
+                if (dE <= 0 || static_cast<double>(r) < std::exp(-dE / T) * 4294967296.0) {
+                    bad = newBad;
+                    dist = d;
+                    picks = newPicks;
+                } else {
+                    toggle(q);
+                }
+            }
+            Trial t;
+            for (int q = 0; q < static_cast<int>(options.size()); ++q)
+                if (!onWas[q].empty()) t.pick.push_back(q);
+            for (int q = static_cast<int>(options.size()) - 1; q >= 0; --q)
+                if (!onWas[q].empty()) toggle(q);
+            if (!reached) continue;
+            bool goal = false;
+            evaluate(t, goal, std::numeric_limits<long long>::max());
+            if (!goal) continue;
+            for (bool shrunk = true; shrunk;) {
+                shrunk = false;
+                for (std::size_t n = 0; n < t.pick.size(); ++n) {
+                    Trial u;
+                    u.pick = t.pick;
+                    u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n));
+                    bool g2 = false;
+                    evaluate(u, g2, 0);
+                    if (g2) {
+                        t = std::move(u);
+                        shrunk = true;
+                        --n;
+                    }
+                }
+                for (std::size_t n = 0; n < t.pick.size() && !shrunk; ++n)
+                    for (std::size_t n2 = n + 1; n2 < t.pick.size() && !shrunk; ++n2) {
+                        Trial u;
+                        u.pick = t.pick;
+                        u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n2));
+                        u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n));
+                        bool g2 = false;
+                        evaluate(u, g2, 0);
+                        if (g2) {
+                            t = std::move(u);
+                            shrunk = true;
+                        }
+                    }
+            }
+            for (int q : t.pick)
+                for (const auto& [p, to] : options[q]) {
+                    deepFlipped.emplace_back(p, work.material[p]);
+                    work.material[p] = to;
+                }
+            rep.deepTrials += trials;
+            return true;
         }
         rep.deepTrials += trials;
         return false;
