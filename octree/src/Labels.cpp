@@ -1116,7 +1116,7 @@ constexpr int kDeepPatience = 2;
 constexpr int kAnnealChains = 6;
 constexpr long kAnnealSteps = 10'000;
 constexpr double kAnnealT0 = 1.5, kAnnealT1 = 0.5, kAnnealOptionCost = 2;
-constexpr std::size_t kAnnealBudget = 240'000;
+constexpr std::size_t kAnnealBudget = 120'000;
 
 // Lowest corners of the blocks holding any of the points, sorted, unique (into out).
 void blocksAround(const Grid& g, const std::vector<std::size_t>& points, std::vector<std::size_t>& out) {

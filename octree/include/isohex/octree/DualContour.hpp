@@ -154,8 +154,11 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain,
 // (several points), scored by how far
 // the polygon surface in the window is from before and by the blocks left
 // bad, the first manifold set that keeps the surface (checked exactly)
-// winning (docs/DESIGN.md, "The deep search"). A group or part neither
-// search can mend keeps the repair's change and is listed in `unmended`.
+// winning (docs/DESIGN.md, "The deep search"). When the beam finds none,
+// seeded annealing chains toggle the same options at random, and a set they
+// reach is shrunk while it stays exact (docs/DESIGN.md, "Annealing"). A
+// group or part no search can mend keeps the repair's change and is listed
+// in `unmended`.
 // So no window is wider than 12 + 4 + 8 points. `repaired` stays manifold
 // (checked; if not, it is left as it was and the report says discarded).
 // Deterministic, single-threaded.
@@ -166,7 +169,7 @@ struct TopologyMatchReport {
     std::size_t pointsChanged = 0;    // points whose label differs from the repair's now
     bool discarded = false;           // the result was not manifold: the repair's labels are kept
     std::size_t deepTrials = 0;       // trials of the deep search's beam (and of shrinking an annealed set)
-    std::size_t annealSteps = 0;      // steps of its annealing (at most 240,000 in one run)
+    std::size_t annealSteps = 0;      // steps of its annealing (at most 120,000 in one run)
     // The groups (or parts of wide groups) the search could not mend, in the
     // order they were taken: their changed points' box on the grid (lowest
     // point, highest point), how many points, and the Euler change of the
