@@ -1668,7 +1668,8 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         // from kAnnealT0 to kAnnealT1; a chain that reaches a goal (checked
         // exactly) has its set shrunk (options dropped, one or two at a time,
         // while it stays a goal) and applied. Chains are seeded by their
-        // number, so the result does not depend on anything else.
+        // number; the run's budget is spent in grid order, so the result
+        // depends on the input only (not on the thread count).
         std::vector<std::vector<std::int32_t>> onWas(options.size());  // materials an option replaced
         std::unordered_map<std::size_t, int> takenBy;
         std::vector<std::size_t> optBlocks;
@@ -1703,26 +1704,46 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             for (auto& pr : probes) dist += pr->distance();
             long long picks = 0;
             bool reached = false;
+            Trial t;
             for (long step = 0; step < kAnnealSteps && rep.annealSteps < kAnnealBudget; ++step) {
+                ++rep.annealSteps;
                 const double T = kAnnealT0 * std::pow(kAnnealT1 / kAnnealT0, static_cast<double>(step) / static_cast<double>(kAnnealSteps));
                 const int q = static_cast<int>(rng() % options.size());
                 const bool wasOn = !onWas[q].empty();
+                bool clash = false;
+                for (const auto& pc : options[q]) clash = clash || (!wasOn && takenBy.count(pc.first) > 0);
+                if (clash) continue;
                 std::vector<std::size_t> pts;
                 for (const auto& pc : options[q]) pts.push_back(pc.first);
                 blocksAround(g, pts, optBlocks);
                 const long long b0 = badIn(optBlocks);
-                if (!toggle(q)) continue;
+                toggle(q);
                 const long long b1 = badIn(optBlocks);
-                ++rep.annealSteps;
                 long long d = 0;
                 for (auto& pr : probes) d += pr->distance();
                 const long long newBad = bad - b0 + b1, newPicks = picks + (wasOn ? -1 : 1);
+                if (d == 0 && newBad == 0) {
+                    // checked exactly from the state before the group; a set
+                    // the probes pass but the exact test does not is kept
+                    // and the chain goes on from it
+                    t.pick.clear();
+                    for (int o = 0; o < static_cast<int>(options.size()); ++o)
+                        if (!onWas[o].empty()) t.pick.push_back(o);
+                    for (int o : t.pick) toggle(o);
+                    bool goal = false;
+                    evaluate(t, goal, std::numeric_limits<long long>::max());
+                    if (goal) {
+                        reached = true;
+                        break;
+                    }
+                    for (int o : t.pick) toggle(o);
+                    bad = newBad;
+                    dist = d;
+                    picks = newPicks;
+                    continue;
+                }
                 const double dE = static_cast<double>((d - dist) * kDeepTopologyWeight + (newBad - bad)) +
                                   kAnnealOptionCost * static_cast<double>(newPicks - picks);
-                if (d == 0 && newBad == 0) {
-                    reached = true;
-                    break;
-                }
                 const std::uint32_t r = rng();
                 if (dE <= 0 || static_cast<double>(r) < std::exp(-dE / T) * 4294967296.0) {
                     bad = newBad;
@@ -1732,15 +1753,11 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                     toggle(q);
                 }
             }
-            Trial t;
-            for (int q = 0; q < static_cast<int>(options.size()); ++q)
-                if (!onWas[q].empty()) t.pick.push_back(q);
-            for (int q = static_cast<int>(options.size()) - 1; q >= 0; --q)
-                if (!onWas[q].empty()) toggle(q);
-            if (!reached) continue;
-            bool goal = false;
-            evaluate(t, goal, std::numeric_limits<long long>::max());
-            if (!goal) continue;
+            if (!reached) {
+                for (int o = static_cast<int>(options.size()) - 1; o >= 0; --o)
+                    if (!onWas[o].empty()) toggle(o);
+                continue;
+            }
             for (bool shrunk = true; shrunk;) {
                 shrunk = false;
                 for (std::size_t n = 0; n < t.pick.size(); ++n) {

@@ -168,8 +168,8 @@ struct TopologyMatchReport {
     std::size_t groupsMatched = 0;    // of those, mended: the group's change now keeps it
     std::size_t pointsChanged = 0;    // points whose label differs from the repair's now
     bool discarded = false;           // the result was not manifold: the repair's labels are kept
-    std::size_t deepTrials = 0;       // trials of the deep search's beam (and of shrinking an annealed set)
-    std::size_t annealSteps = 0;      // steps of its annealing (at most 120,000 in one run)
+    std::size_t deepTrials = 0;       // sets the deep search probed: its beam, exact checks and shrinking of annealed sets
+    std::size_t annealSteps = 0;      // steps of its annealing, clashing ones included (at most 120,000 in one run)
     // The groups (or parts of wide groups) the search could not mend, in the
     // order they were taken: their changed points' box on the grid (lowest
     // point, highest point), how many points, and the Euler change of the
