@@ -1604,6 +1604,16 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             apply(undo);
             return true;
         };
+        // applies a winning set (recorded for the wide-group fallback)
+        auto take = [&](const Trial& won) {
+            for (int q : won.pick)
+                for (const auto& [p, to] : options[q]) {
+                    deepFlipped.emplace_back(p, work.material[p]);
+                    work.material[p] = to;
+                }
+            rep.deepTrials += trials;
+            return true;
+        };
         auto ranks = [](const Trial& a, const Trial& b) {
             return std::tie(a.score, a.diff, a.cost, a.pick) < std::tie(b.score, b.diff, b.cost, b.pick);
         };
@@ -1641,13 +1651,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 const Trial& best = *std::min_element(goals.begin(), goals.end(), [](const Trial& a, const Trial& b) {
                     return std::tie(a.diff, a.cost, a.pick) < std::tie(b.diff, b.cost, b.pick);
                 });
-                for (int q : best.pick)
-                    for (const auto& [p, to] : options[q]) {
-                        deepFlipped.emplace_back(p, work.material[p]);
-                        work.material[p] = to;
-                    }
-                rep.deepTrials += trials;
-                return true;
+                return take(best);
             }
             if (next.empty()) break;
             const long long bestNow = std::min_element(next.begin(), next.end(), ranks)->score;
@@ -1672,7 +1676,7 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
         // depends on the input only (not on the thread count).
         std::vector<std::vector<std::int32_t>> onWas(options.size());  // materials an option replaced
         std::unordered_map<std::size_t, int> takenBy;
-        std::vector<std::size_t> optBlocks;
+        std::vector<std::vector<std::size_t>> blocksOf(options.size());  // the blocks around an option, when first drawn
         auto badIn = [&](const std::vector<std::size_t>& bs) {
             long long n = 0;
             apply(laterHere);
@@ -1680,23 +1684,20 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
             apply(laterHereBefore);
             return n;
         };
-        auto toggle = [&](int q) {  // returns false on a clash
+        auto toggle = [&](int q) {  // (switched on only when no point of it is taken)
             if (!onWas[q].empty()) {
                 for (std::size_t n = 0; n < options[q].size(); ++n) {
                     work.material[options[q][n].first] = onWas[q][n];
                     takenBy.erase(options[q][n].first);
                 }
                 onWas[q].clear();
-                return true;
+                return;
             }
-            for (const auto& pc : options[q])
-                if (takenBy.count(pc.first)) return false;
             for (const auto& [p, to] : options[q]) {
                 onWas[q].push_back(work.material[p]);
                 takenBy.emplace(p, q);
                 work.material[p] = to;
             }
-            return true;
         };
         for (int chain = 0; chain < kAnnealChains && !options.empty() && rep.annealSteps < kAnnealBudget; ++chain) {
             std::mt19937 rng(static_cast<std::uint32_t>(chain + 1));
@@ -1713,12 +1714,14 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                 bool clash = false;
                 for (const auto& pc : options[q]) clash = clash || (!wasOn && takenBy.count(pc.first) > 0);
                 if (clash) continue;
-                std::vector<std::size_t> pts;
-                for (const auto& pc : options[q]) pts.push_back(pc.first);
-                blocksAround(g, pts, optBlocks);
-                const long long b0 = badIn(optBlocks);
+                if (blocksOf[q].empty()) {
+                    std::vector<std::size_t> pts;
+                    for (const auto& pc : options[q]) pts.push_back(pc.first);
+                    blocksAround(g, pts, blocksOf[q]);
+                }
+                const long long b0 = badIn(blocksOf[q]);
                 toggle(q);
-                const long long b1 = badIn(optBlocks);
+                const long long b1 = badIn(blocksOf[q]);
                 long long d = 0;
                 for (auto& pr : probes) d += pr->distance();
                 const long long newBad = bad - b0 + b1, newPicks = picks + (wasOn ? -1 : 1);
@@ -1758,41 +1761,27 @@ TopologyMatchReport matchPolygonTopology(Labels& repaired, const Labels& sampled
                     if (!onWas[o].empty()) toggle(o);
                 continue;
             }
+            // t without options n (and n2 > n, if given); true, and t that
+            // set, when it is still a goal
+            auto dropped = [&](std::size_t n, std::size_t n2) {
+                Trial u;
+                u.pick = t.pick;
+                if (n2 < u.pick.size()) u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n2));
+                u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n));
+                bool still = false;
+                evaluate(u, still, 0);
+                if (still) t = std::move(u);
+                return still;
+            };
             for (bool shrunk = true; shrunk;) {
                 shrunk = false;
-                for (std::size_t n = 0; n < t.pick.size(); ++n) {
-                    Trial u;
-                    u.pick = t.pick;
-                    u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n));
-                    bool g2 = false;
-                    evaluate(u, g2, 0);
-                    if (g2) {
-                        t = std::move(u);
-                        shrunk = true;
-                        --n;
-                    }
-                }
+                for (std::size_t n = 0; n < t.pick.size();)
+                    if (dropped(n, t.pick.size())) shrunk = true;
+                    else ++n;
                 for (std::size_t n = 0; n < t.pick.size() && !shrunk; ++n)
-                    for (std::size_t n2 = n + 1; n2 < t.pick.size() && !shrunk; ++n2) {
-                        Trial u;
-                        u.pick = t.pick;
-                        u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n2));
-                        u.pick.erase(u.pick.begin() + static_cast<std::ptrdiff_t>(n));
-                        bool g2 = false;
-                        evaluate(u, g2, 0);
-                        if (g2) {
-                            t = std::move(u);
-                            shrunk = true;
-                        }
-                    }
+                    for (std::size_t n2 = n + 1; n2 < t.pick.size() && !shrunk; ++n2) shrunk = dropped(n, n2);
             }
-            for (int q : t.pick)
-                for (const auto& [p, to] : options[q]) {
-                    deepFlipped.emplace_back(p, work.material[p]);
-                    work.material[p] = to;
-                }
-            rep.deepTrials += trials;
-            return true;
+            return take(t);
         }
         rep.deepTrials += trials;
         return false;
