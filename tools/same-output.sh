@@ -1,0 +1,133 @@
+#!/usr/bin/env bash
+# Checks that a change leaves isohex's output unchanged: meshes a fixed set of
+# inputs (phantoms, the skull CT, the JHU label atlas, femur and a sphere
+# surface, --method sheets, compare, batch, insert-sheet, smooth, convert) with
+# two builds and compares what they write.
+#
+#   tools/same-output.sh BASE_REV [BIN]
+#       builds BASE_REV in build-base/ (a git worktree, built in build-base/build),
+#       runs the set with its isohex and with BIN (default ./build/cli/isohex) into
+#       build-same-output/{before,after},
+#       and compares: every mesh file byte for byte, every JSON report with its
+#       timings, versions and memory figures left out (keys may be added, never
+#       removed or changed). Exit 0 when all match, 1 otherwise.
+#   tools/same-output.sh --record BIN DIR
+#       only runs the set with BIN into DIR.
+#   tools/same-output.sh --compare DIR_A DIR_B
+#       only compares two recorded sets (A before, B after).
+#
+# Needs ./setup.sh's packages and ../shared/data beside the checkout.
+set -euo pipefail
+top=$(cd "$(dirname "$0")/.." && pwd)
+data=${ISOHEX_SHARED_DATA:-$top/../shared/data}
+py=/usr/bin/python3
+
+record() {  # BIN DIR
+    local bin=$1 out=$2
+    rm -rf "$out" && mkdir -p "$out/in"
+    $py "$top/samples/make_phantoms.py" "$out/in" --size 48 > /dev/null
+    local m=("$bin" mesh -q --force --threads 2)
+    (
+        set -x
+        for p in sphere torus thin_plate two_spheres; do
+            "${m[@]}" "$out/in/$p.nii.gz" --iso 50 -o "$out/$p.vtu" --report "$out/$p.json"
+        done
+        "${m[@]}" "$out/in/two_materials.nii.gz" --labels -o "$out/two_materials.vtu" -o "$out/two_materials.exo" \
+            -o "$out/two_materials.msh" -o "$out/two_materials.inp" -o "$out/two_materials.mesh" \
+            --report "$out/two_materials.json"
+        "${m[@]}" "$out/in/torus.nii.gz" --iso 50 --size 3 --boundary-layers 2 --mesh-exterior \
+            -o "$out/torus_exterior.vtu" --report "$out/torus_exterior.json"
+        "${m[@]}" "$out/in/sphere.nii.gz" --iso 50 --method voxel --level 1 -o "$out/sphere_voxel.vtu"
+        "${m[@]}" "$top/samples/skull_ct.nii.gz" --iso 2.9 -o "$out/skull.vtu" -o "$out/skull.exo" \
+            -o "$out/skull.msh" -o "$out/skull.inp" --report "$out/skull.json"
+        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --size 4 \
+            -o "$out/jhu.vtu" -o "$out/jhu.exo" --report "$out/jhu.json"
+        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --label 3,7 --size 2 \
+            --isosurface-topology -o "$out/jhu_topology.vtu" --report "$out/jhu_topology.json"
+        "${m[@]}" "$data/femur.off" -o "$out/femur.vtu" --report "$out/femur.json"
+        "${m[@]}" "$data/sphere966.off" --method sheets -o "$out/sphere_sheets.vtu" --report "$out/sphere_sheets.json"
+        "$bin" compare -q --threads 2 "$out/in/torus.nii.gz" --iso 50 --size 3 --json "$out/compare.json" \
+            --mesh-dir "$out/compare"
+        printf 'input,output,report,size,no_pillow,labels\n%s\n%s\n' \
+            "in/sphere.nii.gz,batch/sphere.vtu;batch/sphere.inp,batch/sphere.json,,," \
+            "in/two_materials.nii.gz,batch/labels.vtu,batch/labels.json,3,true,yes" > "$out/jobs.csv"
+        "$bin" batch "$out/jobs.csv" --iso 50 --size 4 -q --threads 2
+        "$bin" insert-sheet -q --force --threads 2 --mesh "$top/samples/spherical_cuts_block.vtu" \
+            --surface "$top/samples/spherical_cut_1.off" --surface "$top/samples/spherical_cut_2.off" \
+            --keep outside -o "$out/cut.vtu"
+        "$bin" smooth -q --force --threads 2 "$top/samples/twisted_bar.vtu" -o "$out/twisted_bar.vtu"
+        "$bin" convert --force "$out/skull.vtu" "$out/skull_converted.msh"
+        "$bin" quality --json "$out/skull.vtu" > "$out/skull_quality.json"
+    ) 2> "$out/commands.log"
+    rm -rf "$out/in"
+}
+
+compare() {  # DIR_A DIR_B
+    $py - "$1" "$2" <<'EOF'
+import json, os, re, sys
+a, b = sys.argv[1:3]
+# figures that differ from run to run, not outputs of the method
+volatile = re.compile(r"(seconds|_s$|^time|elapsed|version|memory|rss|peak|threads|^date|^host|git|command_line|eta)", re.I)
+def strip(x):
+    if isinstance(x, dict):
+        return {k: strip(v) for k, v in x.items() if not volatile.search(k)}
+    if isinstance(x, list):
+        return [strip(v) for v in x]
+    return x
+def missing(x, y, path=""):
+    """What x has that y lacks or holds differently (y may add keys)."""
+    if isinstance(x, dict) and isinstance(y, dict):
+        for k, v in x.items():
+            if k not in y:
+                yield f"{path}/{k}: removed"
+            else:
+                yield from missing(v, y[k], f"{path}/{k}")
+    elif isinstance(x, list) and isinstance(y, list) and len(x) == len(y):
+        for i, (u, v) in enumerate(zip(x, y)):
+            yield from missing(u, v, f"{path}[{i}]")
+    elif x != y:
+        yield f"{path}: {json.dumps(x)[:80]} -> {json.dumps(y)[:80]}"
+bad = 0
+files = sorted(os.path.relpath(os.path.join(r, f), a) for r, _, fs in os.walk(a) for f in fs if f != "commands.log")
+for rel in files:
+    pa, pb = os.path.join(a, rel), os.path.join(b, rel)
+    if not os.path.exists(pb):
+        print(f"MISSING  {rel}"); bad += 1; continue
+    if rel.endswith(".json"):
+        diffs = list(missing(strip(json.load(open(pa))), strip(json.load(open(pb)))))
+        if diffs:
+            bad += 1
+            print(f"DIFFERS  {rel}"); [print("         " + d) for d in diffs[:10]]
+        else:
+            print(f"same     {rel}")
+    elif open(pa, "rb").read() != open(pb, "rb").read():
+        print(f"DIFFERS  {rel} (bytes)"); bad += 1
+    else:
+        print(f"same     {rel}")
+print(f"{len(files) - bad} same, {bad} differ")
+sys.exit(1 if bad else 0)
+EOF
+}
+
+case "${1:-}" in
+    --record) record "$(realpath "$2")" "$3"; exit 0 ;;
+    --compare) compare "$2" "$3"; exit $? ;;
+esac
+base=${1:?usage: tools/same-output.sh BASE_REV [BIN] | --record BIN DIR}
+bin=$(realpath "${2:-$top/build/cli/isohex}")
+# The base is a worktree with its build folder inside it (build-base/build),
+# laid out like the checkout so a compiler cache shares their objects.
+wt=$top/build-base
+if [ ! -d "$wt" ]; then
+    git -C "$top" worktree add --detach "$wt" "$base" > /dev/null
+else
+    git -C "$wt" checkout -q --detach "$base"
+fi
+launcher=()
+command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+cmake -S "$wt" -B "$wt/build" "${launcher[@]}" -G Ninja -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+    -DISOHEX_SHARED_DATA="$data" > /dev/null
+cmake --build "$wt/build" -j"$(nproc)" --target isohex
+record "$wt/build/cli/isohex" "$top/build-same-output/before"
+record "$bin" "$top/build-same-output/after"
+compare "$top/build-same-output/before" "$top/build-same-output/after"
