@@ -16,11 +16,9 @@
 #include <openvdb/openvdb.h>
 
 #include "isohex/core/HexMesh.hpp"  // Vec3
+#include "isohex/core/Progress.hpp"
 
 namespace isohex::imaging {
-
-// Called with a stage name and the fraction done in [0,1]; may be empty.
-using Progress = std::function<void(std::string_view stage, double fraction)>;
 
 enum class VolumeKind { Intensity, Labels };
 

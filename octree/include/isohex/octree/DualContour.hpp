@@ -11,11 +11,10 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Progress.hpp"
 #include "isohex/octree/Domain.hpp"
 
 namespace isohex::octree {
-
-using Progress = std::function<void(std::string_view stage, double fraction)>;
 
 // Material label per grid point (x fastest), 0 = background.
 struct Labels {

@@ -20,15 +20,12 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Progress.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/NodeOptimizer.hpp"
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
 namespace isohex::smoothing {
-
-// stage is "untangle" or "optimize"; fraction in [0, 1] (an estimate: sweeps
-// done over the sweep limit). Called from the calling thread only.
-using Progress = std::function<void(std::string_view stage, double fraction)>;
 
 struct SmoothingOptions {
     // --- which nodes move

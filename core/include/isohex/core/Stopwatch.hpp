@@ -1,0 +1,18 @@
+#pragma once
+// Wall-clock time of a stage, for reports: started when made, read in seconds.
+#include <chrono>
+
+namespace isohex {
+
+class Stopwatch {
+public:
+    Stopwatch() : start_(Clock::now()) {}
+    double seconds() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
+    void restart() { start_ = Clock::now(); }
+
+private:
+    using Clock = std::chrono::steady_clock;
+    Clock::time_point start_;
+};
+
+}  // namespace isohex
