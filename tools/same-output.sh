@@ -22,10 +22,33 @@ top=$(cd "$(dirname "$0")/.." && pwd)
 data=${ISOHEX_SHARED_DATA:-$top/../shared/data}
 py=/usr/bin/python3
 
+noise_volume() {  # PATH: smoothed noise whose isosurface the topology search
+    # mends in several places with its beam and annealing searches, and leaves one
+    $py - "$1" <<'EOF'
+import sys, numpy as np, vtk
+from vtk.util import numpy_support as ns
+n = 20
+a = np.random.default_rng(95).random((n, n, n)) - 0.5
+for _ in range(2):
+    p = np.pad(a, 1, mode="edge")
+    a = sum(p[i:i + n, j:j + n, k:k + n] for i in range(3) for j in range(3) for k in range(3)) / 27.0
+a[:2] = a[-2:] = a[:, :2] = a[:, -2:] = a[:, :, :2] = a[:, :, -2:] = -0.2
+a = (a * 1000).astype(np.float32)
+img = vtk.vtkImageData()
+img.SetDimensions(*a.shape)
+img.GetPointData().SetScalars(ns.numpy_to_vtk(a.ravel(order="F"), deep=True))
+w = vtk.vtkNIFTIImageWriter()
+w.SetFileName(sys.argv[1])
+w.SetInputData(img)
+w.Write()
+EOF
+}
+
 record() {  # BIN DIR
     local bin=$1 out=$2
     rm -rf "$out" && mkdir -p "$out/in"
     $py "$top/samples/make_phantoms.py" "$out/in" --size 48 > /dev/null
+    noise_volume "$out/in/noise95.nii.gz"
     local m=("$bin" mesh -q --force --threads 2)
     (
         set -x
@@ -44,6 +67,8 @@ record() {  # BIN DIR
             -o "$out/jhu.vtu" -o "$out/jhu.exo" --report "$out/jhu.json"
         "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --label 3,7 --size 2 \
             --isosurface-topology -o "$out/jhu_topology.vtu" --report "$out/jhu_topology.json"
+        "${m[@]}" "$out/in/noise95.nii.gz" --iso 0 --size 1 --isosurface-topology \
+            -o "$out/noise95.vtu" --report "$out/noise95.json"
         "${m[@]}" "$data/femur.off" -o "$out/femur.vtu" --report "$out/femur.json"
         "${m[@]}" "$data/sphere966.off" --method sheets -o "$out/sphere_sheets.vtu" --report "$out/sphere_sheets.json"
         "$bin" compare -q --threads 2 "$out/in/torus.nii.gz" --iso 50 --size 3 --json "$out/compare.json" \
