@@ -93,11 +93,14 @@ import json, os, re, sys
 a, b = sys.argv[1:3]
 # figures that differ from run to run, not outputs of the method
 volatile = re.compile(r"(seconds|_s$|^time|elapsed|version|memory|rss|peak|threads|^date|^host|git|command_line|eta)", re.I)
-def strip(x):
+def strip(x, base):
+    """x without volatile figures, with the recorded folder's path as <out>."""
     if isinstance(x, dict):
-        return {k: strip(v) for k, v in x.items() if not volatile.search(k)}
+        return {k: strip(v, base) for k, v in x.items() if not volatile.search(k)}
     if isinstance(x, list):
-        return [strip(v) for v in x]
+        return [strip(v, base) for v in x]
+    if isinstance(x, str):
+        return x.replace(base, "<out>")
     return x
 def missing(x, y, path=""):
     """What x has that y lacks or holds differently (y may add keys)."""
@@ -119,7 +122,8 @@ for rel in files:
     if not os.path.exists(pb):
         print(f"MISSING  {rel}"); bad += 1; continue
     if rel.endswith(".json"):
-        diffs = list(missing(strip(json.load(open(pa))), strip(json.load(open(pb)))))
+        diffs = list(missing(strip(json.load(open(pa)), os.path.abspath(a)),
+                             strip(json.load(open(pb)), os.path.abspath(b))))
         if diffs:
             bad += 1
             print(f"DIFFERS  {rel}"); [print("         " + d) for d in diffs[:10]]
