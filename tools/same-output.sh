@@ -44,45 +44,43 @@ w.Write()
 EOF
 }
 
-record() {  # BIN DIR
+record() {  # BIN DIR: runs in DIR with relative paths, so the outputs name no folder
     local bin=$1 out=$2
     rm -rf "$out" && mkdir -p "$out/in"
     $py "$top/samples/make_phantoms.py" "$out/in" --size 48 > /dev/null
     noise_volume "$out/in/noise95.nii.gz"
+    cp "$top/samples/skull_ct.nii.gz" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" "$top/samples/twisted_bar.vtu" \
+        "$top/samples/spherical_cuts_block.vtu" "$top/samples/spherical_cut_1.off" "$top/samples/spherical_cut_2.off" \
+        "$data/femur.off" "$data/sphere966.off" "$out/in/"
     local m=("$bin" mesh -q --force --threads 2)
     (
+        cd "$out"
         set -x
         for p in sphere torus thin_plate two_spheres; do
-            "${m[@]}" "$out/in/$p.nii.gz" --iso 50 -o "$out/$p.vtu" --report "$out/$p.json"
+            "${m[@]}" "in/$p.nii.gz" --iso 50 -o "$p.vtu" --report "$p.json"
         done
-        "${m[@]}" "$out/in/two_materials.nii.gz" --labels -o "$out/two_materials.vtu" -o "$out/two_materials.exo" \
-            -o "$out/two_materials.msh" -o "$out/two_materials.inp" -o "$out/two_materials.mesh" \
-            --report "$out/two_materials.json"
-        "${m[@]}" "$out/in/torus.nii.gz" --iso 50 --size 3 --boundary-layers 2 --mesh-exterior \
-            -o "$out/torus_exterior.vtu" --report "$out/torus_exterior.json"
-        "${m[@]}" "$out/in/sphere.nii.gz" --iso 50 --method voxel --level 1 -o "$out/sphere_voxel.vtu"
-        "${m[@]}" "$top/samples/skull_ct.nii.gz" --iso 2.9 -o "$out/skull.vtu" -o "$out/skull.exo" \
-            -o "$out/skull.msh" -o "$out/skull.inp" --report "$out/skull.json"
-        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --size 4 \
-            -o "$out/jhu.vtu" -o "$out/jhu.exo" --report "$out/jhu.json"
-        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --label 3,7 --size 2 \
-            --isosurface-topology -o "$out/jhu_topology.vtu" --report "$out/jhu_topology.json"
-        "${m[@]}" "$out/in/noise95.nii.gz" --iso 0 --size 1 --isosurface-topology \
-            -o "$out/noise95.vtu" --report "$out/noise95.json"
-        "${m[@]}" "$data/femur.off" -o "$out/femur.vtu" --report "$out/femur.json"
-        "${m[@]}" "$data/sphere966.off" --method sheets -o "$out/sphere_sheets.vtu" --report "$out/sphere_sheets.json"
-        "$bin" compare -q --threads 2 "$out/in/torus.nii.gz" --iso 50 --size 3 --json "$out/compare.json" \
-            --mesh-dir "$out/compare"
+        "${m[@]}" in/two_materials.nii.gz --labels -o two_materials.vtu -o two_materials.exo \
+            -o two_materials.msh -o two_materials.inp -o two_materials.mesh --report two_materials.json
+        "${m[@]}" in/torus.nii.gz --iso 50 --size 3 --boundary-layers 2 --mesh-exterior \
+            -o torus_exterior.vtu --report torus_exterior.json
+        "${m[@]}" in/sphere.nii.gz --iso 50 --method voxel --level 1 -o sphere_voxel.vtu
+        "${m[@]}" in/skull_ct.nii.gz --iso 2.9 -o skull.vtu -o skull.exo -o skull.msh -o skull.inp --report skull.json
+        "${m[@]}" in/JHU-WhiteMatter-labels-2mm.nii.gz --labels --size 4 -o jhu.vtu -o jhu.exo --report jhu.json
+        "${m[@]}" in/JHU-WhiteMatter-labels-2mm.nii.gz --labels --label 3,7 --size 2 --isosurface-topology \
+            -o jhu_topology.vtu --report jhu_topology.json
+        "${m[@]}" in/noise95.nii.gz --iso 0 --size 1 --isosurface-topology -o noise95.vtu --report noise95.json
+        "${m[@]}" in/femur.off -o femur.vtu --report femur.json
+        "${m[@]}" in/sphere966.off --method sheets -o sphere_sheets.vtu --report sphere_sheets.json
+        "$bin" compare -q --threads 2 in/torus.nii.gz --iso 50 --size 3 --json compare.json --mesh-dir compare
         printf 'input,output,report,size,no_pillow,labels\n%s\n%s\n' \
             "in/sphere.nii.gz,batch/sphere.vtu;batch/sphere.inp,batch/sphere.json,,," \
-            "in/two_materials.nii.gz,batch/labels.vtu,batch/labels.json,3,true,yes" > "$out/jobs.csv"
-        "$bin" batch "$out/jobs.csv" --iso 50 --size 4 -q --threads 2
-        "$bin" insert-sheet -q --force --threads 2 --mesh "$top/samples/spherical_cuts_block.vtu" \
-            --surface "$top/samples/spherical_cut_1.off" --surface "$top/samples/spherical_cut_2.off" \
-            --keep outside -o "$out/cut.vtu"
-        "$bin" smooth -q --force --threads 2 "$top/samples/twisted_bar.vtu" -o "$out/twisted_bar.vtu"
-        "$bin" convert --force "$out/skull.vtu" "$out/skull_converted.msh"
-        "$bin" quality --json "$out/skull.vtu" > "$out/skull_quality.json"
+            "in/two_materials.nii.gz,batch/labels.vtu,batch/labels.json,3,true,yes" > jobs.csv
+        "$bin" batch jobs.csv --iso 50 --size 4 -q --threads 2
+        "$bin" insert-sheet -q --force --threads 2 --mesh in/spherical_cuts_block.vtu \
+            --surface in/spherical_cut_1.off --surface in/spherical_cut_2.off --keep outside -o cut.vtu
+        "$bin" smooth -q --force --threads 2 in/twisted_bar.vtu -o twisted_bar.vtu
+        "$bin" convert --force skull.vtu skull_converted.msh
+        "$bin" quality --json skull.vtu > skull_quality.json
     ) 2> "$out/commands.log"
     rm -rf "$out/in"
 }
