@@ -71,7 +71,7 @@ std::string listing(const std::vector<Series>& series) {
 // The series the series UID option names (the plain UID is accepted as a
 // prefix of the detailed id), or else the one with the most slices; throws
 // when none or several fit.
-void chooseSeries(DicomFolderRead& r) {
+const Series* chooseSeries(const DicomFolderRead& r) {
     const std::string& uid = r.options.seriesUid;
     if (!uid.empty()) {
         std::vector<const Series*> hits;
@@ -82,8 +82,7 @@ void chooseSeries(DicomFolderRead& r) {
                         (hits.empty() ? "is not in this folder" : "matches several series") +
                         ". The folder holds:" + listing(r.series) + "\nPass one of these as the series UID.");
         }
-        r.chosen = hits.front();
-        return;
+        return hits.front();
     }
     std::size_t most = 0;
     for (const auto& s : r.series) most = std::max(most, s.files.size());
@@ -96,7 +95,7 @@ void chooseSeries(DicomFolderRead& r) {
                     "), so which to mesh is ambiguous:" + listing(r.series) +
                     "\nChoose one with the series UID option.");
     }
-    r.chosen = largest.front();
+    return largest.front();
 }
 
 // Before ITK reads any file of the chosen series (its header read decodes the
@@ -189,7 +188,7 @@ RawVolume readSlices(const DicomFolderRead& r) {
 RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions& options) {
     DicomFolderRead r(dir, options);
     listSeries(r);
-    chooseSeries(r);
+    r.chosen = chooseSeries(r);
     checkSeriesFiles(r);
     // A single file is read as the image file it is if it holds all frames.
     if (r.chosen->files.size() == 1 && isMultiFrame(r.chosen->files.front()))
