@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <initializer_list>
 #include <sstream>
 
 #include <unistd.h>
@@ -217,19 +218,17 @@ void checkVdbLayout(const std::string& file) {
     if (version < 222 || offsets == 0) return;
     char uuid[36];
     if (!read(uuid, 36)) fail("it ends in its header");
-    std::int32_t metas = 0;
-    if (!read(&metas, 4) || metas < 0) fail("its metadata count is unreadable");
-    for (std::int32_t m = 0; m < metas; ++m) {
-        skipString("a metadata name");
-        skipString("a metadata type");
-        skipString("a metadata value");
-    }
-    std::int32_t grids = 0;
-    if (!read(&grids, 4) || grids < 0) fail("its grid count is unreadable");
+    auto readCount = [&](const char* what) {  // int32, not negative
+        std::int32_t n = 0;
+        if (!read(&n, 4) || n < 0) fail(std::string("its ") + what + " count is unreadable");
+        return n;
+    };
+    const std::int32_t metas = readCount("metadata");
+    for (std::int32_t m = 0; m < metas; ++m)
+        for (const char* what : {"a metadata name", "a metadata type", "a metadata value"}) skipString(what);
+    const std::int32_t grids = readCount("grid");
     for (std::int32_t g = 0; g < grids; ++g) {
-        skipString("a grid name");
-        skipString("a grid type");
-        skipString("an instance parent name");
+        for (const char* what : {"a grid name", "a grid type", "an instance parent name"}) skipString(what);
         std::int64_t gridPos = 0, blockPos = 0, endPos = 0;
         if (!read(&gridPos, 8) || !read(&blockPos, 8) || !read(&endPos, 8)) fail("it ends in a grid descriptor");
         const auto here = static_cast<std::int64_t>(pos());

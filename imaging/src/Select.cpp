@@ -183,41 +183,45 @@ LabelStats labelStatistics(const openvdb::Int32Grid& grid) {
     return {std::move(op.stats), op.pairs, op.differing};
 }
 
-Selection selectLabels(const Volume& vol, const SelectOptions& o) {
-    Selection sel;
-    const std::string src = describeVolume(vol);
-    const LabelStats all = labelStatistics(*vol.labels);
+// Refuses an intensity scan read as a label map. One stored as integers (an
+// 8-bit MRI, say) makes every grey value a material of scattered single
+// voxels: the repair then spends minutes and fails, or the mesh is hundreds
+// of specks. In a segmentation only voxels on a label's boundary differ from
+// a neighbour (a brain atlas: 5.5% of pairs; an 8-bit MRI: 88%); the
+// threshold leaves room for labels a few voxels wide.
+void refuseIntensityAsLabels(const std::string& src, const LabelStats& all) {
+    if (!(all.pairs >= 1000 && 2 * all.differing > all.pairs)) return;
     const LabelStatMap& stats = all.perLabel;
-    // An intensity scan stored as integers (ch2bet is uint8) read as a label
-    // map makes every grey value a material of scattered single voxels: the
-    // repair then spends minutes and fails, or the mesh is hundreds of
-    // specks. Refuse it up front. In a segmentation only voxels on a label's
-    // boundary differ from a neighbour (the JHU atlas: 5.5% of pairs, ch2bet
-    // 88%); the threshold leaves room for labels a few voxels wide.
-    if (all.pairs >= 1000 && 2 * all.differing > all.pairs) {
-        std::ostringstream m;
-        m << src << ": this does not look like a label map: " << (stats.size() - stats.count(0))
-          << " non-zero values, and " << std::lround(100.0 * double(all.differing) / double(all.pairs))
-          << "% of neighbouring non-zero voxels hold different values (in a segmentation most "
-             "neighbours share their label). Read as labels, every value would become a material "
-             "of scattered voxels. Mesh it as a scan (without --labels or --label; choose the "
-             "surface with --iso), or give the segmentation's label map instead.";
-        throw Error(m.str());
-    }
-    auto present = [&] {
-        std::ostringstream m;
-        int shown = 0;
-        for (const auto& [label, s] : stats) {
-            if (label == 0) continue;
-            if (shown++ == 40) {
-                m << " ...";
-                break;
-            }
-            m << (shown > 1 ? ", " : "") << label << " (" << s.voxels << " voxels)";
-        }
-        return shown ? m.str() : std::string("none");
-    };
+    std::ostringstream m;
+    m << src << ": this does not look like a label map: " << (stats.size() - stats.count(0))
+      << " non-zero values, and " << std::lround(100.0 * double(all.differing) / double(all.pairs))
+      << "% of neighbouring non-zero voxels hold different values (in a segmentation most "
+         "neighbours share their label). Read as labels, every value would become a material "
+         "of scattered voxels. Mesh it as a scan (without --labels or --label; choose the "
+         "surface with --iso), or give the segmentation's label map instead.";
+    throw Error(m.str());
+}
 
+// The non-zero labels present with their voxel counts (the first 40), for
+// the message about labels that are not.
+std::string presentLabels(const LabelStatMap& stats) {
+    std::ostringstream m;
+    int shown = 0;
+    for (const auto& [label, s] : stats) {
+        if (label == 0) continue;
+        if (shown++ == 40) {
+            m << " ...";
+            break;
+        }
+        m << (shown > 1 ? ", " : "") << label << " (" << s.voxels << " voxels)";
+    }
+    return shown ? m.str() : std::string("none");
+}
+
+// The labels to mesh, ascending and each once: those asked for, or every
+// non-zero label present. Throws on label 0, on labels not present, and when
+// there is nothing to mesh.
+std::vector<std::int32_t> wantedLabels(const std::string& src, const LabelStatMap& stats, const SelectOptions& o) {
     std::vector<std::int32_t> wanted;
     if (o.labels.empty()) {
         for (const auto& [label, s] : stats)
@@ -226,35 +230,42 @@ Selection selectLabels(const Volume& vol, const SelectOptions& o) {
             throw Error(src + ": every voxel is label 0 (background), so there is nothing to mesh. "
                         "Check that this is the right label map.");
         }
-    } else {
-        std::vector<std::int32_t> missing;
-        for (std::int32_t l : o.labels) {
-            if (l == 0) {
-                throw Error(src + ": label 0 is the background and cannot be meshed as a material; "
-                            "remove it from the label list.");
-            }
-            if (!stats.count(l))
-                missing.push_back(l);
-            else if (std::find(wanted.begin(), wanted.end(), l) == wanted.end())
-                wanted.push_back(l);
-        }
-        if (!missing.empty()) {
-            std::ostringstream m;
-            m << src << ": label" << (missing.size() > 1 ? "s " : " ");
-            for (std::size_t i = 0; i < missing.size(); ++i) m << (i ? ", " : "") << missing[i];
-            m << (missing.size() > 1 ? " are" : " is") << " not in the label map"
-              << (wanted.empty() ? ", so the selection is empty" : "")
-              << ". Labels present: " << present() << ".";
-            throw Error(m.str());
-        }
-        std::sort(wanted.begin(), wanted.end());
+        return wanted;
     }
+    std::vector<std::int32_t> missing;
+    for (std::int32_t l : o.labels) {
+        if (l == 0) {
+            throw Error(src + ": label 0 is the background and cannot be meshed as a material; "
+                        "remove it from the label list.");
+        }
+        if (!stats.count(l))
+            missing.push_back(l);
+        else if (std::find(wanted.begin(), wanted.end(), l) == wanted.end())
+            wanted.push_back(l);
+    }
+    if (!missing.empty()) {
+        std::ostringstream m;
+        m << src << ": label" << (missing.size() > 1 ? "s " : " ");
+        for (std::size_t i = 0; i < missing.size(); ++i) m << (i ? ", " : "") << missing[i];
+        m << (missing.size() > 1 ? " are" : " is") << " not in the label map"
+          << (wanted.empty() ? ", so the selection is empty" : "")
+          << ". Labels present: " << presentLabels(stats) << ".";
+        throw Error(m.str());
+    }
+    std::sort(wanted.begin(), wanted.end());
+    return wanted;
+}
 
+// The wanted labels with at least the min-label-voxels option's voxels; the
+// others go to `dropped`. Throws when none is left.
+std::vector<std::int32_t> keptLabels(const std::string& src, const LabelStatMap& stats,
+                                     const std::vector<std::int32_t>& wanted, const SelectOptions& o,
+                                     std::vector<DroppedLabel>& dropped) {
     std::vector<std::int32_t> kept;
     for (std::int32_t l : wanted) {
         const auto& s = stats.at(l);
         if (s.voxels < o.minLabelVoxels)
-            sel.dropped.push_back({l, s.voxels});
+            dropped.push_back({l, s.voxels});
         else
             kept.push_back(l);
     }
@@ -262,48 +273,61 @@ Selection selectLabels(const Volume& vol, const SelectOptions& o) {
         std::ostringstream m;
         m << src << ": every selected label has fewer than " << o.minLabelVoxels
           << " voxels (the min-label-voxels option), so the selection is empty:";
-        for (const auto& d : sel.dropped) m << " " << d.label << " (" << d.voxels << ")";
+        for (const auto& d : dropped) m << " " << d.label << " (" << d.voxels << ")";
         m << ". Lower min-label-voxels or select larger labels.";
         throw Error(m.str());
     }
+    return kept;
+}
 
+// One label's field over its box padded for the blur and the zero crossing:
+// 0.5 minus its (smoothed) indicator, negative inside. Throws if smoothing
+// leaves no voxel inside.
+openvdb::FloatGrid::Ptr labelField(const Volume& vol, std::int32_t label, const openvdb::CoordBBox& box,
+                                   const SelectOptions& o, const std::string& src) {
     const Vec3& sp = vol.spacing;
+    openvdb::CoordBBox region = box;
+    openvdb::Coord pad;
+    for (int a = 0; a < 3; ++a) pad[a] = 2 + (o.smoothSigma > 0 ? int(std::ceil(3.0 * o.smoothSigma / sp[a])) : 0);
+    region.min() -= pad;
+    region.max() += pad;
+    const openvdb::Coord d = region.dim();
+    std::vector<float> indicator(static_cast<std::size_t>(region.volume()), 0.0f);
+    tbb::parallel_for(tbb::blocked_range<int>(0, d.z()), [&](const tbb::blocked_range<int>& r) {
+        // One read-only accessor per task; nothing is written through it.
+        openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(vol.labels->tree());
+        for (int z = r.begin(); z != r.end(); ++z)
+            for (int y = 0; y < d.y(); ++y) {
+                std::size_t i = static_cast<std::size_t>(d.x()) * (y + std::size_t(d.y()) * z);
+                for (int x = 0; x < d.x(); ++x, ++i) {
+                    const openvdb::Coord c = region.min().offsetBy(x, y, z);
+                    indicator[i] = acc.getValue(c) == label ? 1.0f : 0.0f;
+                }
+            }
+    });
+    if (o.smoothSigma > 0.0) gaussianSmooth(indicator, d, sp, o.smoothSigma);
+    for (auto& v : indicator) v = 0.5f - v;
+    if (countBelowZero(indicator) == 0) {
+        throw Error(src + ": label " + std::to_string(label) + " vanishes after Gaussian smoothing with sigma " +
+                    std::to_string(o.smoothSigma) + "; use less smoothing or drop the label.");
+    }
+    auto grid = detail::denseToGrid(indicator.data(), region, 0.5f, vol.labels->transform().copy());
+    grid->setName("label_" + std::to_string(label));
+    return grid;
+}
+
+Selection selectLabels(const Volume& vol, const SelectOptions& o) {
+    Selection sel;
+    const std::string src = describeVolume(vol);
+    const LabelStats all = labelStatistics(*vol.labels);
+    const LabelStatMap& stats = all.perLabel;
+    refuseIntensityAsLabels(src, all);
+    const std::vector<std::int32_t> kept = keptLabels(src, stats, wantedLabels(src, stats, o), o, sel.dropped);
     for (std::size_t n = 0; n < kept.size(); ++n) {
         const std::int32_t label = kept[n];
         if (o.progress) o.progress("select", double(n) / double(kept.size()));
-        // The label's box plus room for the blur and for the zero crossing.
-        openvdb::CoordBBox region = stats.at(label).box;
-        openvdb::Coord pad;
-        for (int a = 0; a < 3; ++a)
-            pad[a] = 2 + (o.smoothSigma > 0 ? int(std::ceil(3.0 * o.smoothSigma / sp[a])) : 0);
-        region.min() -= pad;
-        region.max() += pad;
-        const openvdb::Coord d = region.dim();
-        std::vector<float> indicator(static_cast<std::size_t>(region.volume()), 0.0f);
-        tbb::parallel_for(tbb::blocked_range<int>(0, d.z()), [&](const tbb::blocked_range<int>& r) {
-            // One read-only accessor per task; nothing is written through it.
-            openvdb::tree::ValueAccessor<const openvdb::Int32Tree, false> acc(vol.labels->tree());
-            for (int z = r.begin(); z != r.end(); ++z)
-                for (int y = 0; y < d.y(); ++y) {
-                    std::size_t i = static_cast<std::size_t>(d.x()) * (y + std::size_t(d.y()) * z);
-                    for (int x = 0; x < d.x(); ++x, ++i) {
-                        const openvdb::Coord c = region.min().offsetBy(x, y, z);
-                        indicator[i] = acc.getValue(c) == label ? 1.0f : 0.0f;
-                    }
-                }
-        });
-        if (o.smoothSigma > 0.0) gaussianSmooth(indicator, d, sp, o.smoothSigma);
-        for (auto& v : indicator) v = 0.5f - v;
-        const std::int64_t inside = countBelowZero(indicator);
-        if (inside == 0) {
-            throw Error(src + ": label " + std::to_string(label) +
-                        " vanishes after Gaussian smoothing with sigma " +
-                        std::to_string(o.smoothSigma) + "; use less smoothing or drop the label.");
-        }
-        auto grid = detail::denseToGrid(indicator.data(), region, 0.5f,
-                                        vol.labels->transform().copy());
-        grid->setName("label_" + std::to_string(label));
-        sel.materials.push_back({label, stats.at(label).voxels, ImplicitField(grid, o.interpolation)});
+        const LabelStat& s = stats.at(label);
+        sel.materials.push_back({label, s.voxels, ImplicitField(labelField(vol, label, s.box, o, src), o.interpolation)});
     }
     if (o.progress) o.progress("select", 1.0);
     return sel;

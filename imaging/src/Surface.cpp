@@ -242,15 +242,75 @@ static void checkOffCounts(const std::string& file, const std::string& text) {
 // describes it: every element's items, list lengths included, must be in the
 // file, and the face lists' indices below the vertex count. Only the layout
 // is checked; Assimp still does the reading.
-static void checkPlyLayout(const std::string& file) {
-    std::ifstream in(file, std::ios::binary);
-    const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    auto fail = [&](const std::string& what) {
-        throw Error(file + ": " + what + ". The file is truncated or not a valid PLY file; re-export it.");
-    };
+namespace {
+
+// A PLY file walked as its header describes it: the whole file in memory, the
+// read position, and what the header declared. The phases run in order:
+// readHeader, checkDeclarations, checkBody.
+class PlyLayout {
+public:
+    explicit PlyLayout(const std::string& file) : file_(file) {
+        std::ifstream in(file, std::ios::binary);
+        data_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+
+    // The header: its lines up to end_header, with the format and each
+    // element's count and properties.
+    void readHeader() {
+        bool ended = false;
+        for (int lineNo = 1; pos_ < data_.size() && !ended; ++lineNo) {
+            std::size_t nl = data_.find('\n', pos_);
+            if (nl == std::string::npos) nl = data_.size();
+            std::istringstream line(data_.substr(pos_, nl - pos_));
+            pos_ = std::min(nl + 1, data_.size());  // a header cut before its last newline ends at the end
+            std::string word;
+            line >> word;
+            if (lineNo == 1) {
+                if (word != "ply") fail("the first line is not 'ply'");
+                continue;
+            }
+            if (word == "format") {
+                line >> format_;
+            } else if (word == "element") {
+                Element e;
+                if (!(line >> e.name >> e.count) || e.count < 0)
+                    fail("header line " + std::to_string(lineNo) + " is not 'element NAME COUNT'");
+                elements_.push_back(e);
+            } else if (word == "property") {
+                if (elements_.empty()) fail("header line " + std::to_string(lineNo) + " has a property before any element");
+                elements_.back().props.push_back(readProperty(line, lineNo));
+            } else if (word == "end_header") {
+                ended = true;
+            }
+        }
+        if (!ended) fail("the header has no end_header line");
+    }
+
+    // The format is one PLY knows, and there are at least 3 vertices.
+    void checkDeclarations() {
+        ascii_ = format_ == "ascii";
+        little_ = format_ == "binary_little_endian";
+        if (!ascii_ && !little_ && format_ != "binary_big_endian")
+            fail("the header's format '" + format_ + "' is not ascii or binary");
+        for (const Element& e : elements_)
+            if (e.name == "vertex") vertices_ = e.count;
+        if (vertices_ < 3) fail("the header declares no vertex element with at least 3 vertices");
+    }
+
+    // The body, element by element: every item is in the file, list lengths
+    // are whole and the faces' vertex indices name vertices.
+    void checkBody() {
+        if (ascii_) text_.str(data_.substr(pos_));
+        for (const Element& e : elements_) {
+            if (e.props.empty()) continue;  // nothing stored per item
+            for (long long i = 0; i < e.count; ++i) checkItem(e, i);
+        }
+    }
+
+private:
     struct Property {
-        int countSize = 0;   // list: bytes of the length; 0 for a scalar
-        int size = 0;        // bytes of the value (of each item for a list)
+        int countSize = 0;  // list: bytes of the length; 0 for a scalar
+        int size = 0;       // bytes of the value (of each item for a list)
         bool integer = false, isSigned = false;
         bool vertexIndices = false;  // the face list of vertex indices
     };
@@ -259,7 +319,13 @@ static void checkPlyLayout(const std::string& file) {
         long long count = 0;
         std::vector<Property> props;
     };
-    auto typeSize = [](const std::string& t, bool& integer, bool& isSigned) {
+
+    [[noreturn]] void fail(const std::string& what) const {
+        throw Error(file_ + ": " + what + ". The file is truncated or not a valid PLY file; re-export it.");
+    }
+
+    // Bytes of a PLY scalar type (0 if unknown), and whether it is an integer and signed.
+    static int typeSize(const std::string& t, bool& integer, bool& isSigned) {
         integer = t != "float" && t != "float32" && t != "double" && t != "float64";
         isSigned = t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32";
         if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
@@ -267,73 +333,44 @@ static void checkPlyLayout(const std::string& file) {
         if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" || t == "float32") return 4;
         if (t == "double" || t == "float64") return 8;
         return 0;
-    };
-    // The header: lines up to end_header.
-    std::size_t pos = 0;
-    std::string format;
-    std::vector<Element> elements;
-    bool ended = false;
-    for (int lineNo = 1; pos < data.size() && !ended; ++lineNo) {
-        std::size_t nl = data.find('\n', pos);
-        if (nl == std::string::npos) nl = data.size();
-        std::istringstream line(data.substr(pos, nl - pos));
-        pos = std::min(nl + 1, data.size());  // a header cut before its last newline ends at the end
-        std::string word;
-        line >> word;
-        if (lineNo == 1) {
-            if (word != "ply") fail("the first line is not 'ply'");
-            continue;
-        }
-        if (word == "format") {
-            line >> format;
-        } else if (word == "element") {
-            Element e;
-            if (!(line >> e.name >> e.count) || e.count < 0) fail("header line " + std::to_string(lineNo) + " is not 'element NAME COUNT'");
-            elements.push_back(e);
-        } else if (word == "property") {
-            if (elements.empty()) fail("header line " + std::to_string(lineNo) + " has a property before any element");
-            std::string t;
-            line >> t;
-            Property pr;
-            if (t == "list") {
-                std::string ct, it;
-                line >> ct >> it;
-                bool ci = false, cs = false;
-                pr.countSize = typeSize(ct, ci, cs);
-                pr.size = typeSize(it, pr.integer, pr.isSigned);
-                if (pr.countSize == 0 || pr.size == 0 || !ci)
-                    fail("header line " + std::to_string(lineNo) + " has a list property of unknown types '" + ct + " " + it + "'");
-                std::string name;
-                line >> name;
-                pr.vertexIndices = name == "vertex_indices" || name == "vertex_index";
-            } else {
-                pr.size = typeSize(t, pr.integer, pr.isSigned);
-                if (pr.size == 0) fail("header line " + std::to_string(lineNo) + " has a property of unknown type '" + t + "'");
-            }
-            elements.back().props.push_back(pr);
-        } else if (word == "end_header") {
-            ended = true;
-        }
     }
-    if (!ended) fail("the header has no end_header line");
-    const bool ascii = format == "ascii";
-    const bool little = format == "binary_little_endian";
-    if (!ascii && !little && format != "binary_big_endian") fail("the header's format '" + format + "' is not ascii or binary");
-    long long vertices = -1;
-    for (const Element& e : elements)
-        if (e.name == "vertex") vertices = e.count;
-    if (vertices < 3) fail("the header declares no vertex element with at least 3 vertices");
-    // The body, element by element.
-    std::istringstream text(ascii ? data.substr(pos) : std::string());
-    auto readBinary = [&](int size, bool integer, bool isSigned, double& value) {
-        if (data.size() - pos < static_cast<std::size_t>(size)) return false;
+
+    // The rest of a "property" header line: a scalar type, or "list" with its
+    // length and item types and the property's name.
+    Property readProperty(std::istringstream& line, int lineNo) const {
+        std::string t;
+        line >> t;
+        Property pr;
+        if (t == "list") {
+            std::string ct, it;
+            line >> ct >> it;
+            bool ci = false, cs = false;
+            pr.countSize = typeSize(ct, ci, cs);
+            pr.size = typeSize(it, pr.integer, pr.isSigned);
+            if (pr.countSize == 0 || pr.size == 0 || !ci)
+                fail("header line " + std::to_string(lineNo) + " has a list property of unknown types '" + ct + " " + it + "'");
+            std::string name;
+            line >> name;
+            pr.vertexIndices = name == "vertex_indices" || name == "vertex_index";
+        } else {
+            pr.size = typeSize(t, pr.integer, pr.isSigned);
+            if (pr.size == 0) fail("header line " + std::to_string(lineNo) + " has a property of unknown type '" + t + "'");
+        }
+        return pr;
+    }
+
+    // One binary value at the read position; false if the data ends first.
+    // Only integers are looked at (a real value reads as 0).
+    bool readBinary(int size, bool integer, bool isSigned, double& value) {
+        if (data_.size() - pos_ < static_cast<std::size_t>(size)) return false;
         unsigned char b[8];
-        for (int i = 0; i < size; ++i) b[i] = static_cast<unsigned char>(data[pos + static_cast<std::size_t>(little ? i : size - 1 - i)]);
-        pos += static_cast<std::size_t>(size);
+        for (int i = 0; i < size; ++i)
+            b[i] = static_cast<unsigned char>(data_[pos_ + static_cast<std::size_t>(little_ ? i : size - 1 - i)]);
+        pos_ += static_cast<std::size_t>(size);
         std::uint64_t u = 0;
         for (int i = size - 1; i >= 0; --i) u = (u << 8) | b[i];
         if (!integer) {
-            value = 0;  // only integers are looked at
+            value = 0;
         } else if (isSigned) {
             const std::uint64_t sign = std::uint64_t{1} << (8 * size - 1);
             value = static_cast<double>(static_cast<long long>(u ^ sign) - static_cast<long long>(sign));
@@ -341,48 +378,66 @@ static void checkPlyLayout(const std::string& file) {
             value = static_cast<double>(u);
         }
         return true;
-    };
-    // ASCII values as tokens: only list lengths and vertex indices are
-    // looked at (other values may be nan or inf, which a PLY may hold in its
-    // normals or colours).
-    std::string token;
-    auto readAscii = [&](double& value, bool needed) {
-        if (!(text >> token)) return false;
+    }
+
+    // One ASCII value as a token; false if the data ends first. Only list
+    // lengths and vertex indices (`needed`) are parsed: other values may be
+    // nan or inf, which a PLY may hold in its normals or colours.
+    bool readAscii(double& value, bool needed) {
+        if (!(text_ >> token_)) return false;
         if (!needed) return true;
         char* end = nullptr;
-        value = std::strtod(token.c_str(), &end);
-        if (end == token.c_str() || *end != '\0') value = std::numeric_limits<double>::quiet_NaN();
+        value = std::strtod(token_.c_str(), &end);
+        if (end == token_.c_str() || *end != '\0') value = std::numeric_limits<double>::quiet_NaN();
         return true;
-    };
-    for (const Element& e : elements) {
+    }
+
+    // Item `i` of element `e`: each property's values, a list's length first.
+    void checkItem(const Element& e, long long i) {
         const bool face = e.name == "face";
-        if (e.props.empty()) continue;  // nothing stored per item
-        for (long long i = 0; i < e.count; ++i) {
-            auto cut = [&] {
-                fail("the header promises " + std::to_string(e.count) + " " + e.name + " item(s) but the data ends at " +
-                     e.name + " " + std::to_string(i));
-            };
-            for (const Property& pr : e.props) {
-                double n = 1, v = 0;
-                if (pr.countSize > 0) {
-                    if (!(ascii ? readAscii(n, true) : readBinary(pr.countSize, true, false, n))) cut();
-                    if (!(n >= 0) || n != std::floor(n) || n > static_cast<double>(data.size()))
-                        fail(e.name + " " + std::to_string(i) + " has a list length of " + std::to_string(n));
-                }
-                for (long long k = 0; k < static_cast<long long>(n); ++k) {
-                    const bool index = face && pr.vertexIndices && pr.integer;
-                    if (!(ascii ? readAscii(v, index) : readBinary(pr.size, pr.integer, pr.isSigned, v))) cut();
-                    if (index && !(std::isfinite(v) && v == std::floor(v)))
-                        fail("face " + std::to_string(i) + " has a vertex index that is not a whole number");
-                    if (index && !(v >= 0 && v < static_cast<double>(vertices)))
-                        fail("face " + std::to_string(i) + " uses vertex " + std::to_string(static_cast<long long>(v)) +
-                             " but there are only " + std::to_string(vertices) + " vertices (0 to " +
-                             std::to_string(vertices - 1) + ")");
-                }
+        auto cut = [&] {
+            fail("the header promises " + std::to_string(e.count) + " " + e.name + " item(s) but the data ends at " +
+                 e.name + " " + std::to_string(i));
+        };
+        for (const Property& pr : e.props) {
+            double n = 1, v = 0;
+            if (pr.countSize > 0) {
+                if (!(ascii_ ? readAscii(n, true) : readBinary(pr.countSize, true, false, n))) cut();
+                if (!(n >= 0) || n != std::floor(n) || n > static_cast<double>(data_.size()))
+                    fail(e.name + " " + std::to_string(i) + " has a list length of " + std::to_string(n));
+            }
+            for (long long k = 0; k < static_cast<long long>(n); ++k) {
+                const bool index = face && pr.vertexIndices && pr.integer;
+                if (!(ascii_ ? readAscii(v, index) : readBinary(pr.size, pr.integer, pr.isSigned, v))) cut();
+                if (index && !(std::isfinite(v) && v == std::floor(v)))
+                    fail("face " + std::to_string(i) + " has a vertex index that is not a whole number");
+                if (index && !(v >= 0 && v < static_cast<double>(vertices_)))
+                    fail("face " + std::to_string(i) + " uses vertex " + std::to_string(static_cast<long long>(v)) +
+                         " but there are only " + std::to_string(vertices_) + " vertices (0 to " +
+                         std::to_string(vertices_ - 1) + ")");
             }
         }
     }
+
+    const std::string file_;
+    std::string data_;
+    std::size_t pos_ = 0;  // header, then binary body: the next byte to read
+    std::string format_;
+    std::vector<Element> elements_;
+    bool ascii_ = false, little_ = false;
+    long long vertices_ = -1;
+    std::istringstream text_;  // an ASCII body
+    std::string token_;
+};
+
+void checkPlyLayout(const std::string& file) {
+    PlyLayout ply(file);
+    ply.readHeader();
+    ply.checkDeclarations();
+    ply.checkBody();
 }
+
+}  // namespace
 
 TriangleSurface loadSurface(const std::filesystem::path& path) {
     const std::string file = path.string();

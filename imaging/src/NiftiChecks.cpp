@@ -1,0 +1,177 @@
+// NIfTI checks around ITK's reader (see FormatChecks.hpp). The header is read
+// with gzread, which reads an uncompressed file as it is, so one path serves
+// .nii and .nii.gz.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <type_traits>
+
+#include <zlib.h>
+
+#include "FormatChecks.hpp"
+
+namespace isohex::imaging::detail {
+namespace {
+
+// The start of a NIfTI-1 (348-byte) or NIfTI-2 (540-byte) header, read with
+// gzread (which reads an uncompressed file as it is, so one path serves .nii
+// and .nii.gz), its byte order and version worked out. The checks below read
+// their fields from it.
+struct NiftiHeader {
+    unsigned char bytes[548] = {};
+    int got = 0;            // bytes read
+    bool known = false;     // sizeof_hdr is 348 or 540 in either byte order
+    bool v1 = true, swap = false;
+    bool compressed = false;  // gzip data, whatever the name says
+
+    explicit NiftiHeader(const std::string& file) {
+        gzFile gz = gzopen(file.c_str(), "rb");
+        if (!gz) return;
+        got = gzread(gz, bytes, sizeof bytes);
+        compressed = gzdirect(gz) == 0;
+        gzclose(gz);
+        if (got < 4) return;
+        const auto size = field<std::uint32_t>(0);
+        const auto swapped = __builtin_bswap32(size);
+        swap = size != 348 && size != 540;
+        known = swap ? swapped == 348 || swapped == 540 : true;
+        v1 = (swap ? swapped : size) == 348;
+    }
+    // The value of type T at byte `at`, in the file's byte order.
+    template <class T>
+    T field(int at) const {
+        unsigned char b[sizeof(T)];
+        std::memcpy(b, bytes + at, sizeof(T));
+        if (swap) std::reverse(b, b + sizeof(T));
+        T v;
+        std::memcpy(&v, b, sizeof(T));
+        return v;
+    }
+    // A real field at byte at1 (NIfTI-1, float) or at2 (NIfTI-2, double).
+    double real(int at1, int at2) const { return v1 ? double(field<float>(at1)) : field<double>(at2); }
+    // vox_offset as stored (float in NIfTI-1, int64 in NIfTI-2).
+    double voxOffset() const { return v1 ? double(field<float>(108)) : double(field<std::uint64_t>(168)); }
+};
+
+// Uncompressed bytes in a gzip file, reading it through to the end. A cut
+// gzip stream ends early, which the NIfTI reader would zero-fill silently.
+// Damaged compressed data (zlib's Z_DATA_ERROR: a bad CRC or length check,
+// an invalid block) is refused here with its own message: ITK reads the
+// voxels before the check bytes, so it would otherwise pass unnoticed or
+// look like a truncation.
+std::uint64_t gunzippedSize(const std::string& file) {
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return 0;
+    std::vector<char> chunk(1 << 20);
+    std::uint64_t total = 0;
+    int n;
+    while ((n = gzread(gz, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0) total += n;
+    int code = Z_OK;
+    std::string message = n < 0 ? gzerror(gz, &code) : "";
+    gzclose(gz);
+    if (message.rfind(file + ": ", 0) == 0) message.erase(0, file.size() + 2);  // zlib puts the path first
+    if (code == Z_DATA_ERROR)
+        throw Error(file + ": the compressed data is damaged (zlib: " + message +
+                    "). Copy or export the file again.");
+    return total;
+}
+
+}  // namespace
+
+// NIfTI's reader zero-fills missing voxel bytes with only a debug message, so
+// check the size against the header ourselves: the file's size, or for a
+// .nii.gz its uncompressed size (reading it through: a cut gzip stream ends
+// early), against vox_offset plus the voxel bytes.
+void checkNiftiDataSize(const std::string& file, std::uint64_t dataBytes, bool gzipped) {
+    const NiftiHeader h(file);
+    if (h.got < 352 || !h.known) return;  // too short for a header; ITK has judged it already
+    const double voxOffset = h.voxOffset();
+    if (!gzipped && (h.compressed || !(voxOffset >= 0))) return;  // (a gzip stream named .nii: its file size says nothing)
+    const std::uint64_t need = std::uint64_t(gzipped ? std::max(voxOffset, 352.0) : voxOffset) + dataBytes;
+    const std::uint64_t have = gzipped ? gunzippedSize(file) : std::filesystem::file_size(file);
+    if (have < need) throwTruncated(file, need, have, gzipped ? "uncompressed bytes" : "bytes");
+}
+
+// NIfTI orientation fields that are not finite make ITK's reader abort the
+// process (vnl's matrix code calls abort() on a NaN in srow_x, which ends a
+// whole batch). Checked before
+// ITK reads the header: pixdim[1..3] always, the quaternion and offsets when
+// qform_code is set, the affine rows when sform_code is set. gzread reads an
+// uncompressed file as it is, so one path serves .nii and .nii.gz.
+void checkNiftiOrientation(const std::string& file) {
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;  // ITK judges short headers
+    auto require = [&](const char* field, int k, double v) {
+        if (!std::isfinite(v))
+            throw Error(file + ": the NIfTI header's " + field + "[" + std::to_string(k) + "] is " +
+                        (std::isnan(v) ? "NaN" : "infinite") +
+                        "; the image orientation cannot be read. Fix or re-export the header and retry.");
+    };
+    for (int k = 1; k <= 3; ++k) require("pixdim", k, h.real(76 + 4 * k, 104 + 8 * k));
+    const int qform = h.v1 ? h.field<std::int16_t>(252) : h.field<std::int32_t>(344);
+    const int sform = h.v1 ? h.field<std::int16_t>(254) : h.field<std::int32_t>(348);
+    if (qform > 0) {
+        for (int k = 0; k < 3; ++k) require("quatern_bcd", k, h.real(256 + 4 * k, 352 + 8 * k));
+        for (int k = 0; k < 3; ++k) require("qoffset_xyz", k, h.real(268 + 4 * k, 376 + 8 * k));
+    }
+    if (sform > 0) {
+        const char* rows[3] = {"srow_x", "srow_y", "srow_z"};
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 4; ++k) require(rows[r], k, h.real(280 + 16 * r + 4 * k, 400 + 32 * r + 8 * k));
+    }
+}
+
+// nifti1_io (inside ITK's NIfTI reader) replaces NaN and infinite float
+// voxels with 0, with only a debug message, so a NIfTI scan never reached
+// isohex's NaN policy (refuse, or outside with --nan-as-outside) and was
+// meshed with zeros in the holes. This reads the float voxels of the chosen
+// volume (`frame` of `frames`, component `comp`) again and puts NaN back
+// where the file has a non-finite value.
+void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
+                           std::int64_t frames, int comp) {
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;
+    const auto dt = h.field<std::uint16_t>(h.v1 ? 70 : 12);
+    if (dt != 16 && dt != 64) return;  // only float32 and float64 voxels can be non-finite
+    const double stored = h.voxOffset();
+    if (!std::isfinite(stored)) return;
+    const double voxOffset = std::max(stored, h.v1 ? 352.0 : 544.0);
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz) return;
+    std::unique_ptr<std::remove_pointer_t<gzFile>, int (*)(gzFile)> guard(gz, gzclose);
+    const bool swap = h.swap;
+    const std::size_t width = dt == 16 ? 4 : 8;
+    const auto n = static_cast<std::int64_t>(values.size());
+    // NIfTI order: x fastest, then y, z, t (frames), then the components.
+    const std::int64_t first = (std::int64_t(comp) * frames + frame) * n;
+    if (gzseek(gz, static_cast<z_off_t>(voxOffset + double(first) * double(width)), SEEK_SET) < 0) return;
+    std::vector<unsigned char> chunk(width * 65536);
+    for (std::int64_t i = 0; i < n;) {
+        const std::int64_t count = std::min<std::int64_t>(65536, n - i);
+        const int want = static_cast<int>(count * static_cast<std::int64_t>(width));
+        if (gzread(gz, chunk.data(), static_cast<unsigned>(want)) != want) return;  // short: the size checks report it
+        for (std::int64_t k = 0; k < count; ++k) {
+            const unsigned char* b = chunk.data() + k * static_cast<std::int64_t>(width);
+            bool finite;
+            if (width == 4) {
+                std::uint32_t u;
+                std::memcpy(&u, b, 4);
+                if (swap) u = __builtin_bswap32(u);
+                finite = (u & 0x7f800000u) != 0x7f800000u;
+            } else {
+                std::uint64_t u;
+                std::memcpy(&u, b, 8);
+                if (swap) u = __builtin_bswap64(u);
+                finite = (u & 0x7ff0000000000000ull) != 0x7ff0000000000000ull;
+            }
+            if (!finite) values[static_cast<std::size_t>(i + k)] = std::numeric_limits<float>::quiet_NaN();
+        }
+        i += count;
+    }
+}
+
+}  // namespace isohex::imaging::detail
