@@ -1,8 +1,10 @@
 #include "isohex/core/Dual.hpp"
 
 #include <algorithm>
+#include <array>
+#include <utility>
 
-#include "Parallel.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/DisjointSets.hpp"
 
 namespace isohex {
@@ -25,7 +27,7 @@ std::vector<Index> numberClasses(DisjointSets<Index>& uf, std::size_t n, std::si
 // Rows of hexes per class, from per-hex triples of class ids; each row sorted
 // and free of repeats (a self-intersecting sheet meets a hex twice).
 Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t classes) {
-    Csr c = detail::bucketItems(classes, hexClass.size() * 3,
+    Csr c = parallel::bucketItems(classes, hexClass.size() * 3,
                                 [&](std::size_t i) { return hexClass[i / 3][i % 3]; });
     Csr out;
     out.offsets.assign(classes + 1, 0);
@@ -42,39 +44,64 @@ Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t
     return out;
 }
 
+// The classes of `items` dual items (edges or quads) that link(h, uf) joins
+// hex by hex, numbered by their smallest item; itemOf(h, d) is the item of hex
+// h in direction d, which names the class that crosses the hex that way.
+struct DualClasses {
+    std::vector<Index> itemClass;
+    Csr classItems;
+    std::vector<std::array<Index, 3>> hexClasses;
+    Csr classHexes;
+};
+
+template <class Link, class ItemOf>
+DualClasses dualClasses(std::size_t hexes, std::size_t items, Link link, ItemOf itemOf) {
+    DisjointSets<Index> uf(items);
+    for (std::size_t h = 0; h < hexes; ++h) link(h, uf);
+    DualClasses c;
+    std::size_t count = 0;
+    c.itemClass = numberClasses(uf, items, count);
+    c.classItems = parallel::bucketItems(count, items, [&](std::size_t i) { return c.itemClass[i]; });
+    c.hexClasses.resize(hexes);
+    for (std::size_t h = 0; h < hexes; ++h)
+        for (int d = 0; d < 3; ++d) c.hexClasses[h][d] = c.itemClass[itemOf(h, d)];
+    c.classHexes = hexesPerClass(c.hexClasses, count);
+    return c;
+}
+
 }  // namespace
 
 DualSheets buildSheets(const HexMesh& mesh, const Topology& topo) {
-    const std::size_t H = mesh.hexes.size();
-    DisjointSets<Index> uf(topo.edges.size());
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d)
-            for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
+    // The four parallel edges of a hex in each direction lie in one sheet.
+    DualClasses c = dualClasses(
+        mesh.hexes.size(), topo.edges.size(),
+        [&](std::size_t h, DisjointSets<Index>& uf) {
+            for (int d = 0; d < 3; ++d)
+                for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
+        },
+        [&](std::size_t h, int d) { return topo.hexEdges[h][4 * d]; });
     DualSheets s;
-    std::size_t count = 0;
-    s.edgeSheet = numberClasses(uf, topo.edges.size(), count);
-    s.sheetEdges = detail::bucketItems(count, topo.edges.size(), [&](std::size_t e) { return s.edgeSheet[e]; });
-    s.hexSheets.resize(H);
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) s.hexSheets[h][d] = s.edgeSheet[topo.hexEdges[h][4 * d]];
-    s.sheetHexes = hexesPerClass(s.hexSheets, count);
+    s.edgeSheet = std::move(c.itemClass);
+    s.sheetEdges = std::move(c.classItems);
+    s.sheetHexes = std::move(c.classHexes);
+    s.hexSheets = std::move(c.hexClasses);
     return s;
 }
 
 DualChords buildChords(const HexMesh& mesh, const Topology& topo) {
-    const std::size_t H = mesh.hexes.size();
-    DisjointSets<Index> uf(topo.quads.size());
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
-    DualChords c;
-    std::size_t count = 0;
-    c.quadChord = numberClasses(uf, topo.quads.size(), count);
-    c.chordQuads = detail::bucketItems(count, topo.quads.size(), [&](std::size_t q) { return c.quadChord[q]; });
-    c.hexChords.resize(H);
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) c.hexChords[h][d] = c.quadChord[topo.hexQuads[h][2 * d]];
-    c.chordHexes = hexesPerClass(c.hexChords, count);
-    return c;
+    // The two opposite faces of a hex in each direction lie in one chord.
+    DualClasses c = dualClasses(
+        mesh.hexes.size(), topo.quads.size(),
+        [&](std::size_t h, DisjointSets<Index>& uf) {
+            for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
+        },
+        [&](std::size_t h, int d) { return topo.hexQuads[h][2 * d]; });
+    DualChords ch;
+    ch.quadChord = std::move(c.itemClass);
+    ch.chordQuads = std::move(c.classItems);
+    ch.chordHexes = std::move(c.classHexes);
+    ch.hexChords = std::move(c.hexClasses);
+    return ch;
 }
 
 }  // namespace isohex

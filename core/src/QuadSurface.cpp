@@ -6,14 +6,14 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
-#include "Parallel.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/DisjointSets.hpp"
 
 namespace isohex {
 
 ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std::size_t nodeCount, bool closed) {
     // node -> (quad, corner) items
-    const Csr around = detail::bucketItems(nodeCount, quads.size() * 4,
+    const Csr around = parallel::bucketItems(nodeCount, quads.size() * 4,
                                            [&](std::size_t i) { return quads[i / 4][i % 4]; });
     return checkManifold(quads.data(), around.offsets.data(), around.items.data(), nodeCount, closed);
 }
