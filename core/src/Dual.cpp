@@ -45,63 +45,50 @@ Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t
 }
 
 // The classes of `items` dual items (edges or quads) that link(h, uf) joins
-// hex by hex, numbered by their smallest item; itemOf(h, d) is the item of hex
-// h in direction d, which names the class that crosses the hex that way.
-struct DualClasses {
-    std::vector<Index> itemClass;
-    Csr classItems;
-    std::vector<std::array<Index, 3>> hexClasses;
-    Csr classHexes;
-};
-
+// hex by hex, numbered by their smallest item, with each class's items and
+// hexes; itemOf(h, d) is the item of hex h in direction d, which names the
+// class that crosses the hex that way.
 template <class Link, class ItemOf>
-DualClasses dualClasses(std::size_t hexes, std::size_t items, Link link, ItemOf itemOf) {
+void dualClasses(std::size_t hexes, std::size_t items, Link link, ItemOf itemOf, std::vector<Index>& itemClass,
+                 Csr& classItems, std::vector<std::array<Index, 3>>& hexClasses, Csr& classHexes) {
     DisjointSets<Index> uf(items);
     for (std::size_t h = 0; h < hexes; ++h) link(h, uf);
-    DualClasses c;
     std::size_t count = 0;
-    c.itemClass = numberClasses(uf, items, count);
-    c.classItems = parallel::bucketItems(count, items, [&](std::size_t i) { return c.itemClass[i]; });
-    c.hexClasses.resize(hexes);
+    itemClass = numberClasses(uf, items, count);
+    classItems = parallel::bucketItems(count, items, [&](std::size_t i) { return itemClass[i]; });
+    hexClasses.resize(hexes);
     for (std::size_t h = 0; h < hexes; ++h)
-        for (int d = 0; d < 3; ++d) c.hexClasses[h][d] = c.itemClass[itemOf(h, d)];
-    c.classHexes = hexesPerClass(c.hexClasses, count);
-    return c;
+        for (int d = 0; d < 3; ++d) hexClasses[h][d] = itemClass[itemOf(h, d)];
+    classHexes = hexesPerClass(hexClasses, count);
 }
 
 }  // namespace
 
 DualSheets buildSheets(const HexMesh& mesh, const Topology& topo) {
     // The four parallel edges of a hex in each direction lie in one sheet.
-    DualClasses c = dualClasses(
+    DualSheets s;
+    dualClasses(
         mesh.hexes.size(), topo.edges.size(),
         [&](std::size_t h, DisjointSets<Index>& uf) {
             for (int d = 0; d < 3; ++d)
                 for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
         },
-        [&](std::size_t h, int d) { return topo.hexEdges[h][4 * d]; });
-    DualSheets s;
-    s.edgeSheet = std::move(c.itemClass);
-    s.sheetEdges = std::move(c.classItems);
-    s.sheetHexes = std::move(c.classHexes);
-    s.hexSheets = std::move(c.hexClasses);
+        [&](std::size_t h, int d) { return topo.hexEdges[h][4 * d]; }, s.edgeSheet, s.sheetEdges, s.hexSheets,
+        s.sheetHexes);
     return s;
 }
 
 DualChords buildChords(const HexMesh& mesh, const Topology& topo) {
     // The two opposite faces of a hex in each direction lie in one chord.
-    DualClasses c = dualClasses(
+    DualChords c;
+    dualClasses(
         mesh.hexes.size(), topo.quads.size(),
         [&](std::size_t h, DisjointSets<Index>& uf) {
             for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
         },
-        [&](std::size_t h, int d) { return topo.hexQuads[h][2 * d]; });
-    DualChords ch;
-    ch.quadChord = std::move(c.itemClass);
-    ch.chordQuads = std::move(c.classItems);
-    ch.chordHexes = std::move(c.classHexes);
-    ch.hexChords = std::move(c.hexClasses);
-    return ch;
+        [&](std::size_t h, int d) { return topo.hexQuads[h][2 * d]; }, c.quadChord, c.chordQuads, c.hexChords,
+        c.chordHexes);
+    return c;
 }
 
 }  // namespace isohex

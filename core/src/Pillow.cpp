@@ -597,7 +597,8 @@ public:
                 const std::vector<Index>& copyOf, const BigVec<Vec3>& push, int maxHalvings)
         : mesh_(mesh), H_(firstNewHex), NI_(static_cast<Index>(mesh.nodeCount() - copies.count())), b_(b),
           copies_(copies), copyOf_(copyOf), push_(push), maxK_(std::max(0, maxHalvings)),
-          halvings_(copies.count(), 0), want_(copies.count(), 0), watch_(b.hexes.size() + (mesh.hexCount() - firstNewHex)) {}
+          halvings_(copies.count(), 0), want_(copies.count(), 0),
+          watch_(b.hexes.size() + (mesh.hexCount() - firstNewHex)) {}
 
     // Runs the rounds; returns the number of hexes still inverted when the
     // copies were first placed.

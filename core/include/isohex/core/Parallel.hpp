@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
@@ -142,6 +143,19 @@ Acc blockReduce(std::size_t n, std::size_t block, Fold fold, Combine combine) {
     Acc total{};
     for (const Acc& a : part) combine(total, a);
     return total;
+}
+
+// The items visit(r, out) appends to `out` for the subranges r of [0, n), in
+// parallel (each thread into its own list), gathered and sorted: the same
+// list for any thread count.
+template <class T, class Visit>
+std::vector<T> collectSorted(std::size_t n, std::size_t grain, Visit visit) {
+    tbb::enumerable_thread_specific<std::vector<T>> local;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const auto& r) { visit(r, local.local()); });
+    std::vector<T> all;
+    for (auto& l : local) all.insert(all.end(), l.begin(), l.end());
+    std::sort(all.begin(), all.end());
+    return all;
 }
 
 // tbb::parallel_reduce over [0, n) with an accumulator that has merge();
