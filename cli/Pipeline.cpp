@@ -24,7 +24,7 @@
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Pillow.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/octree/RepairedDomain.hpp"

@@ -22,7 +22,9 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Collapse.hpp"
+#include "isohex/core/Dice.hpp"
+#include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Topology.hpp"
 
 namespace isohex::cli {
@@ -82,7 +84,7 @@ nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t see
         const auto pick = randomSheets(s, 1, seed + round, fundamental);
         if (pick.empty()) break;
         try {
-            extract(mesh, t, s, pick[0]);
+            collapse(mesh, t, s, pick[0]);
             ++extracted;
         } catch (const Error&) {
             ++refused;

@@ -1,8 +1,10 @@
 #include "isohex/core/Dual.hpp"
 
 #include <algorithm>
+#include <array>
+#include <utility>
 
-#include "Parallel.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/DisjointSets.hpp"
 
 namespace isohex {
@@ -25,7 +27,7 @@ std::vector<Index> numberClasses(DisjointSets<Index>& uf, std::size_t n, std::si
 // Rows of hexes per class, from per-hex triples of class ids; each row sorted
 // and free of repeats (a self-intersecting sheet meets a hex twice).
 Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t classes) {
-    Csr c = detail::bucketItems(classes, hexClass.size() * 3,
+    Csr c = parallel::bucketItems(classes, hexClass.size() * 3,
                                 [&](std::size_t i) { return hexClass[i / 3][i % 3]; });
     Csr out;
     out.offsets.assign(classes + 1, 0);
@@ -42,38 +44,50 @@ Csr hexesPerClass(const std::vector<std::array<Index, 3>>& hexClass, std::size_t
     return out;
 }
 
+// The classes of `items` dual items (edges or quads) that link(h, uf) joins
+// hex by hex, numbered by their smallest item, with each class's items and
+// hexes; itemOf(h, d) is the item of hex h in direction d, which names the
+// class that crosses the hex that way.
+template <class Link, class ItemOf>
+void dualClasses(std::size_t hexes, std::size_t items, Link link, ItemOf itemOf, std::vector<Index>& itemClass,
+                 Csr& classItems, std::vector<std::array<Index, 3>>& hexClasses, Csr& classHexes) {
+    DisjointSets<Index> uf(items);
+    for (std::size_t h = 0; h < hexes; ++h) link(h, uf);
+    std::size_t count = 0;
+    itemClass = numberClasses(uf, items, count);
+    classItems = parallel::bucketItems(count, items, [&](std::size_t i) { return itemClass[i]; });
+    hexClasses.resize(hexes);
+    for (std::size_t h = 0; h < hexes; ++h)
+        for (int d = 0; d < 3; ++d) hexClasses[h][d] = itemClass[itemOf(h, d)];
+    classHexes = hexesPerClass(hexClasses, count);
+}
+
 }  // namespace
 
 DualSheets buildSheets(const HexMesh& mesh, const Topology& topo) {
-    const std::size_t H = mesh.hexes.size();
-    DisjointSets<Index> uf(topo.edges.size());
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d)
-            for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
+    // The four parallel edges of a hex in each direction lie in one sheet.
     DualSheets s;
-    std::size_t count = 0;
-    s.edgeSheet = numberClasses(uf, topo.edges.size(), count);
-    s.sheetEdges = detail::bucketItems(count, topo.edges.size(), [&](std::size_t e) { return s.edgeSheet[e]; });
-    s.hexSheets.resize(H);
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) s.hexSheets[h][d] = s.edgeSheet[topo.hexEdges[h][4 * d]];
-    s.sheetHexes = hexesPerClass(s.hexSheets, count);
+    dualClasses(
+        mesh.hexes.size(), topo.edges.size(),
+        [&](std::size_t h, DisjointSets<Index>& uf) {
+            for (int d = 0; d < 3; ++d)
+                for (int k = 1; k < 4; ++k) uf.unite(topo.hexEdges[h][4 * d], topo.hexEdges[h][4 * d + k]);
+        },
+        [&](std::size_t h, int d) { return topo.hexEdges[h][4 * d]; }, s.edgeSheet, s.sheetEdges, s.hexSheets,
+        s.sheetHexes);
     return s;
 }
 
 DualChords buildChords(const HexMesh& mesh, const Topology& topo) {
-    const std::size_t H = mesh.hexes.size();
-    DisjointSets<Index> uf(topo.quads.size());
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
+    // The two opposite faces of a hex in each direction lie in one chord.
     DualChords c;
-    std::size_t count = 0;
-    c.quadChord = numberClasses(uf, topo.quads.size(), count);
-    c.chordQuads = detail::bucketItems(count, topo.quads.size(), [&](std::size_t q) { return c.quadChord[q]; });
-    c.hexChords.resize(H);
-    for (std::size_t h = 0; h < H; ++h)
-        for (int d = 0; d < 3; ++d) c.hexChords[h][d] = c.quadChord[topo.hexQuads[h][2 * d]];
-    c.chordHexes = hexesPerClass(c.hexChords, count);
+    dualClasses(
+        mesh.hexes.size(), topo.quads.size(),
+        [&](std::size_t h, DisjointSets<Index>& uf) {
+            for (int d = 0; d < 3; ++d) uf.unite(topo.hexQuads[h][2 * d], topo.hexQuads[h][2 * d + 1]);
+        },
+        [&](std::size_t h, int d) { return topo.hexQuads[h][2 * d]; }, c.quadChord, c.chordQuads, c.hexChords,
+        c.chordHexes);
     return c;
 }
 

@@ -2,31 +2,27 @@
 
 #include <algorithm>
 
-#include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-
-#include "Parallel.hpp"
 #include "isohex/core/DisjointSets.hpp"
+#include "isohex/core/Parallel.hpp"
 
 namespace isohex {
 
 ManifoldCheck checkManifold(const std::vector<std::array<Index, 4>>& quads, std::size_t nodeCount, bool closed) {
     // node -> (quad, corner) items
-    const Csr around = detail::bucketItems(nodeCount, quads.size() * 4,
-                                           [&](std::size_t i) { return quads[i / 4][i % 4]; });
+    const Csr around = parallel::bucketItems(nodeCount, quads.size() * 4,
+                                             [&](std::size_t i) { return quads[i / 4][i % 4]; });
     return checkManifold(quads.data(), around.offsets.data(), around.items.data(), nodeCount, closed);
 }
 
 ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowOffsets, const Index* rowItems,
                             std::size_t nodeCount, bool closed) {
     std::vector<std::uint8_t> nodeBad(nodeCount, 0);
-    tbb::enumerable_thread_specific<std::vector<std::array<Index, 2>>> badEdgesLocal;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodeCount, 256), [&](const auto& r) {
+    ManifoldCheck out;
+    using Edge = std::array<Index, 2>;
+    out.badEdges = parallel::collectSorted<Edge>(nodeCount, 256, [&](const auto& r, std::vector<Edge>& bad) {
         // (neighbour node, local quad slot) pairs and a tiny union-find over the quads at v
         std::vector<std::pair<Index, Index>> spokes;
         DisjointSets<Index> fans;
-        auto& bad = badEdgesLocal.local();
         for (std::size_t v = r.begin(); v != r.end(); ++v) {
             const std::size_t n = static_cast<std::size_t>(rowOffsets[v + 1] - rowOffsets[v]);
             if (n == 0) continue;
@@ -55,9 +51,6 @@ ManifoldCheck checkManifold(const std::array<Index, 4>* quads, const Index* rowO
             if (fans.countSets() > 1) nodeBad[v] = 1;
         }
     });
-    ManifoldCheck out;
-    for (auto& local : badEdgesLocal) out.badEdges.insert(out.badEdges.end(), local.begin(), local.end());
-    std::sort(out.badEdges.begin(), out.badEdges.end());
     for (std::size_t v = 0; v < nodeCount; ++v)
         if (nodeBad[v]) out.badNodes.push_back(static_cast<Index>(v));
     return out;

@@ -8,7 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "Parallel.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 
@@ -16,7 +16,7 @@ namespace isohex {
 
 namespace {
 
-using detail::bucketItems;
+using parallel::bucketItems;
 
 
 void checkIndices(const HexMesh& mesh) {
@@ -121,34 +121,35 @@ void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::str
                     "); rebuild it with buildTopology()");
 }
 
-Topology buildTopology(const HexMesh& mesh) {
-    checkIndices(mesh);
-    Topology t;
-    const std::size_t H = mesh.hexes.size();
-    const std::size_t N = mesh.nodes.size();
-    const auto& hexes = mesh.hexes;
-    using Range = tbb::blocked_range<std::size_t>;
+namespace {
 
-    // ---- node -> hexes (rows sorted)
-    t.nodeHexes = bucketItems(N, H * 8, [&](std::size_t i) { return hexes[i / 8][i % 8]; });
-    tbb::parallel_for(Range(0, t.nodeHexes.items.size(), 8192), [&](const Range& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) t.nodeHexes.items[i] /= 8;
+using Range = tbb::blocked_range<std::size_t>;
+
+// node -> hexes holding it, rows sorted (a hex holding a node twice is listed twice).
+Csr nodeHexRows(const std::vector<Hex>& hexes, std::size_t N) {
+    Csr c = bucketItems(N, hexes.size() * 8, [&](std::size_t i) { return hexes[i / 8][i % 8]; });
+    tbb::parallel_for(Range(0, c.items.size(), 8192), [&](const Range& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) c.items[i] /= 8;
     });
+    return c;
+}
 
-    // ---- quads. The hexes holding a face are the hexes holding both ends of
-    // one of its diagonals (then checked against the full face). Each quad is
-    // owned by its smallest hex; numbering follows the owners' order, so it
-    // is independent of the thread count.
-    t.hexQuads.resize(H);
-    // Per hex face: how many hexes hold it, and the smallest other holder
-    // with its local face (the owner when it is smaller than this hex).
-    struct FaceLink {
-        std::array<Index, 6> other;
-        std::array<std::int8_t, 6> otherFace;
-        std::array<std::uint8_t, 6> holders;
-    };
+// Per hex face: how many hexes hold it, and the smallest other holder with
+// its local face (the owner when it is smaller than this hex).
+struct FaceLink {
+    std::array<Index, 6> other;
+    std::array<std::int8_t, 6> otherFace;
+    std::array<std::uint8_t, 6> holders;
+    bool owned(std::size_t h, int f) const { return other[f] == kNone || other[f] > static_cast<Index>(h); }
+};
+
+// Links every hex face to the other hexes holding it: those holding both ends
+// of one of its diagonals, checked against the full face. quadBase[h + 1]
+// gets the number of faces hex h owns.
+std::vector<FaceLink> linkFaces(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::vector<Index>& quadBase) {
+    const std::size_t H = hexes.size();
     std::vector<FaceLink> link(H);
-    std::vector<Index> quadBase(H + 1, 0);
+    quadBase.assign(H + 1, 0);
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
@@ -159,7 +160,7 @@ Topology buildTopology(const HexMesh& mesh) {
                 for (int b = a + 1; b < 8; ++b) repeats = repeats || hexes[h][a] == hexes[h][b];
             for (int f = 0; f < 6; ++f) {
                 const auto& lf = hexcell::kFaces[f];
-                const int n = intersectRows(t.nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
+                const int n = intersectRows(nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
                 L.other[f] = kNone;
                 L.otherFace[f] = -1;
                 unsigned holders = 1;  // this hex
@@ -178,21 +179,46 @@ Topology buildTopology(const HexMesh& mesh) {
                     for (int g = 0; g < 6; ++g)
                         if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++holders;
                 L.holders[f] = static_cast<std::uint8_t>(std::min(holders, 255u));
-                if (L.other[f] == kNone || L.other[f] > static_cast<Index>(h)) ++owned;
+                if (L.owned(h, f)) ++owned;
             }
             quadBase[h + 1] = owned;
         }
     });
+    return link;
+}
+
+// quad -> every hex holding it, from the per-quad holder counts (shifted by
+// one); in hex order, so each row comes out sorted.
+void listQuadHolders(Topology& t, std::size_t H, std::vector<Index> holderCount) {
+    const std::size_t Q = t.quads.size();
+    for (std::size_t q = 0; q < Q; ++q) holderCount[q + 1] += holderCount[q];
+    t.quadHexesAll.offsets = std::move(holderCount);
+    t.quadHexesAll.items.assign(static_cast<std::size_t>(t.quadHexesAll.offsets[Q]), kNone);
+    std::vector<Index> fill(t.quadHexesAll.offsets.begin(), t.quadHexesAll.offsets.end() - 1);
+    for (std::size_t h = 0; h < H; ++h)
+        for (int f = 0; f < 6; ++f) {
+            const Index q = t.hexQuads[h][f];
+            if (fill[q] < t.quadHexesAll.offsets[q + 1]) t.quadHexesAll.items[fill[q]++] = static_cast<Index>(h);
+        }
+}
+
+// Numbers the quads: each is owned by its smallest hex and numbered in owner
+// order (independent of the thread count); faces a hex does not own take the
+// id of the owner's face. Then lists every hex holding each quad.
+void numberQuads(Topology& t, const std::vector<Hex>& hexes) {
+    const std::size_t H = hexes.size();
+    t.hexQuads.resize(H);
+    std::vector<Index> quadBase;
+    std::vector<FaceLink> link = linkFaces(t.nodeHexes, hexes, quadBase);
     for (std::size_t h = 0; h < H; ++h) quadBase[h + 1] += quadBase[h];
     const std::size_t Q = quadBase[H];
     t.quads.resize(Q);
     std::vector<Index> holderCount(Q + 1, 0);
-    auto owns = [&](std::size_t h, int f) { return link[h].other[f] == kNone || link[h].other[f] > static_cast<Index>(h); };
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
             Index q = quadBase[h];
             for (int f = 0; f < 6; ++f) {
-                if (!owns(h, f)) continue;
+                if (!link[h].owned(h, f)) continue;
                 const auto& lf = hexcell::kFaces[f];
                 Quad& quad = t.quads[q];
                 for (int i = 0; i < 4; ++i) quad.nodes[i] = hexes[h][lf[i]];
@@ -205,26 +231,20 @@ Topology buildTopology(const HexMesh& mesh) {
             }
         }
     });
-    // Faces a hex does not own take the id of the owner's face.
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h)
             for (int f = 0; f < 6; ++f)
-                if (!owns(h, f)) t.hexQuads[h][f] = t.hexQuads[link[h].other[f]][link[h].otherFace[f]];
+                if (!link[h].owned(h, f)) t.hexQuads[h][f] = t.hexQuads[link[h].other[f]][link[h].otherFace[f]];
     });
     link = {};
-    for (std::size_t q = 0; q < Q; ++q) holderCount[q + 1] += holderCount[q];
-    t.quadHexesAll.offsets = std::move(holderCount);
-    t.quadHexesAll.items.assign(static_cast<std::size_t>(t.quadHexesAll.offsets[Q]), kNone);
-    {
-        std::vector<Index> fill(t.quadHexesAll.offsets.begin(), t.quadHexesAll.offsets.end() - 1);
-        for (std::size_t h = 0; h < H; ++h)  // hex order: each row comes out sorted
-            for (int f = 0; f < 6; ++f) {
-                const Index q = t.hexQuads[h][f];
-                if (fill[q] < t.quadHexesAll.offsets[q + 1]) t.quadHexesAll.items[fill[q]++] = static_cast<Index>(h);
-            }
-    }
+    listQuadHolders(t, H, std::move(holderCount));
+}
 
-    // ---- edges: held by the hexes holding both ends; owned by the smallest.
+// Numbers the edges: an edge is held by the hexes holding both its ends and
+// owned by the smallest, within it by the first local edge with these ends;
+// numbered in owner order, the others take the owner's id.
+void numberEdges(Topology& t, const std::vector<Hex>& hexes) {
+    const std::size_t H = hexes.size();
     t.hexEdges.resize(H);
     std::vector<std::uint16_t> ownedEdges(H, 0);
     std::vector<Index> edgeBase(H + 1, 0);
@@ -235,7 +255,6 @@ Topology buildTopology(const HexMesh& mesh) {
             Index owned = 0;
             for (int e = 0; e < 12; ++e) {
                 const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
-                // the smallest holder, and within it the first local edge with these ends
                 const Index first = smallestHolder(t.nodeHexes, hexes, a, b, cand);
                 if (first == static_cast<Index>(h) && localEdgeWith(hexes[h], a, b) == e) {
                     bits |= static_cast<std::uint16_t>(1u << e);
@@ -269,10 +288,13 @@ Topology buildTopology(const HexMesh& mesh) {
                 t.hexEdges[h][e] = t.hexEdges[owner][localEdgeWith(hexes[owner], a, b)];
             }
     });
+}
 
-    // ---- boundary, interfaces, invalid quads
-    t.nodeOnBoundary.assign(N, 0);
-    for (std::size_t q = 0; q < Q; ++q) {
+// Sorts the quads into boundary (one hex), interface (two of different
+// material) and overfull (more than two), and marks the boundary nodes.
+void classifyQuads(Topology& t, const HexMesh& mesh) {
+    t.nodeOnBoundary.assign(mesh.nodes.size(), 0);
+    for (std::size_t q = 0; q < t.quads.size(); ++q) {
         const auto n = t.quadHexesAll.size(q);
         const Quad& quad = t.quads[q];
         if (n == 1) {
@@ -285,8 +307,19 @@ Topology buildTopology(const HexMesh& mesh) {
             t.overfullQuads.push_back(static_cast<Index>(q));
         }
     }
-    for (std::size_t v = 0; v < N; ++v)
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
         if (t.nodeOnBoundary[v]) t.boundaryNodes.push_back(static_cast<Index>(v));
+}
+
+}  // namespace
+
+Topology buildTopology(const HexMesh& mesh) {
+    checkIndices(mesh);
+    Topology t;
+    t.nodeHexes = nodeHexRows(mesh.hexes, mesh.nodes.size());
+    numberQuads(t, mesh.hexes);
+    numberEdges(t, mesh.hexes);
+    classifyQuads(t, mesh);
     return t;
 }
 

@@ -8,12 +8,11 @@
 
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 
-#include "Parallel.hpp"
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/Quality.hpp"
 
 namespace isohex {
@@ -45,22 +44,6 @@ private:
         smallest.insert(std::upper_bound(smallest.begin(), smallest.end(), id), id);
     }
 };
-
-// parallel_reduce over [0, n) with an accumulator that has merge(); `visit`
-// gets a whole subrange so it can keep scratch buffers across iterations.
-template <class Acc, class Visit>
-Acc reduceOver(std::size_t n, std::size_t grain, Visit visit) {
-    return tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(0, n, grain), Acc{},
-        [&](const tbb::blocked_range<std::size_t>& r, Acc acc) {
-            visit(r, acc);
-            return acc;
-        },
-        [](Acc a, const Acc& b) {
-            a.merge(b);
-            return a;
-        });
-}
 
 std::array<Index, 8> sortedNodes(const Hex& h) {
     std::array<Index, 8> s = h;
@@ -127,7 +110,7 @@ struct HexAcc {
 };
 
 HexAcc checkHexes(const HexMesh& mesh, const Topology& topo) {
-    return reduceOver<HexAcc>(mesh.hexes.size(), 1024, [&](const auto& r, HexAcc& acc) {
+    return parallel::reduceOver<HexAcc>(mesh.hexes.size(), 1024, [&](const auto& r, HexAcc& acc) {
         for (std::size_t hi = r.begin(); hi != r.end(); ++hi) {
             const Index h = static_cast<Index>(hi);
             const Hex& hex = mesh.hexes[hi];
@@ -182,7 +165,7 @@ HexAcc checkHexes(const HexMesh& mesh, const Topology& topo) {
 // Two hexes on opposite sides of a quad traverse it in opposite directions. If
 // both traverse it the same way, one of them lies folded onto the other.
 Found checkOrientation(const HexMesh& mesh, const Topology& topo) {
-    return reduceOver<Found>(topo.quads.size(), 4096, [&](const auto& r, Found& acc) {
+    return parallel::reduceOver<Found>(topo.quads.size(), 4096, [&](const auto& r, Found& acc) {
         for (std::size_t qi = r.begin(); qi != r.end(); ++qi) {
             const Index q = static_cast<Index>(qi);
             const Quad& quad = topo.quads[qi];
@@ -219,7 +202,7 @@ SurfaceIndex indexSurfaces(const HexMesh& mesh, const Topology& topo) {
             s.quad.push_back(q);
             s.surface.push_back(static_cast<Index>(p));
         }
-    s.nodeItems = detail::bucketItems(mesh.nodes.size(), s.quad.size() * 4, [&](std::size_t i) {
+    s.nodeItems = parallel::bucketItems(mesh.nodes.size(), s.quad.size() * 4, [&](std::size_t i) {
         return topo.quads[s.quad[i / 4]].nodes[i % 4];
     });
     return s;
@@ -247,7 +230,7 @@ Index edgeId(const HexMesh& mesh, const Topology& topo, Index hex, Index a, Inde
 // edge) the count of that surface's quads on the edge.
 SurfaceAcc checkSurfaceFans(const HexMesh& mesh, const Topology& topo, const SurfaceIndex& s) {
     const Csr& rows = s.nodeItems;
-    return reduceOver<SurfaceAcc>(mesh.nodes.size(), 1024, [&](const auto& r, SurfaceAcc& acc) {
+    return parallel::reduceOver<SurfaceAcc>(mesh.nodes.size(), 1024, [&](const auto& r, SurfaceAcc& acc) {
         std::vector<Index> row;                  // distinct surface quads at the node
         std::vector<std::pair<Index, int>> nb;   // (other end of an edge through v, position in row)
         DisjointSets<int> fanSets;               // the quads of one surface at the node, joined into fans
@@ -323,7 +306,7 @@ SurfaceAcc checkSurfaceFans(const HexMesh& mesh, const Topology& topo, const Sur
 // Two surface quads (of any surfaces) sharing two or more edges.
 Found checkQuadDoublets(const Topology& topo, const SurfaceIndex& s) {
     const Csr& rows = s.nodeItems;
-    return reduceOver<Found>(s.quad.size(), 1024, [&](const auto& r, Found& acc) {
+    return parallel::reduceOver<Found>(s.quad.size(), 1024, [&](const auto& r, Found& acc) {
         for (std::size_t sq = r.begin(); sq != r.end(); ++sq) {
             const Index q = s.quad[sq];
             const auto& n = topo.quads[q].nodes;
@@ -399,7 +382,7 @@ ValidityReport validate(const HexMesh& mesh, const Topology& topo) {
     Found overfull;
     for (Index q : topo.overfullQuads) overfull.add(q);
 
-    const Found unused = reduceOver<Found>(mesh.nodes.size(), 8192, [&](const auto& r, Found& acc) {
+    const Found unused = parallel::reduceOver<Found>(mesh.nodes.size(), 8192, [&](const auto& r, Found& acc) {
         for (std::size_t v = r.begin(); v != r.end(); ++v)
             if (topo.nodeHexes.size(v) == 0) acc.add(static_cast<Index>(v));
     });

@@ -16,7 +16,8 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/QuadSurface.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Collapse.hpp"
+#include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/sheets/Polish.hpp"
 #include "isohex/sheets/SheetInsertion.hpp"
@@ -177,7 +178,7 @@ TEST(SheetInsertion, InsertingAndExtractingTheTwoSheetsRestoresTheMesh) {
     {
         const Topology t = buildTopology(m);
         const DualSheets d = buildSheets(m, t);
-        EXPECT_EQ(extract(m, t, d, sheetThroughEdge(m, t, d, N, mid)), res.interfaceQuads);
+        EXPECT_EQ(collapse(m, t, d, sheetThroughEdge(m, t, d, N, mid)), res.interfaceQuads);
     }
     {
         Index a = kNone, b = kNone;
@@ -189,7 +190,7 @@ TEST(SheetInsertion, InsertingAndExtractingTheTwoSheetsRestoresTheMesh) {
         ASSERT_NE(b, kNone);
         const Topology t = buildTopology(m);
         const DualSheets d = buildSheets(m, t);
-        EXPECT_EQ(extract(m, t, d, sheetThroughEdge(m, t, d, a, b)), res.interfaceQuads);
+        EXPECT_EQ(collapse(m, t, d, sheetThroughEdge(m, t, d, a, b)), res.interfaceQuads);
     }
     ASSERT_EQ(m.hexCount(), original.hexCount());
     ASSERT_EQ(m.nodeCount(), original.nodeCount());

@@ -6,7 +6,7 @@
 
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Pillow.hpp"
 #include "isohex/core/Topology.hpp"
 #include "Projectors.hpp"
 #include "support/Blocks.hpp"

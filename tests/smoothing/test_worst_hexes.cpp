@@ -13,7 +13,7 @@
 #include "Projectors.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Pillow.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"

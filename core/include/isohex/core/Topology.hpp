@@ -11,19 +11,10 @@
 #include <string>
 #include <vector>
 
+#include "isohex/core/Csr.hpp"
 #include "isohex/core/HexMesh.hpp"
 
 namespace isohex {
-
-// Compressed rows: the items of row r are items[offsets[r] .. offsets[r+1]).
-struct Csr {
-    std::vector<Index> offsets;  // rows + 1 entries
-    std::vector<Index> items;
-    std::size_t rows() const { return offsets.empty() ? 0 : offsets.size() - 1; }
-    std::size_t size(std::size_t r) const { return offsets[r + 1] - offsets[r]; }
-    const Index* begin(std::size_t r) const { return items.data() + offsets[r]; }
-    const Index* end(std::size_t r) const { return items.data() + offsets[r + 1]; }
-};
 
 // A unique quadrilateral. `nodes` are in the order hex[0] sees them, so the
 // right-hand normal points out of hex[0]. hex[1] is kNone on the boundary.

@@ -9,7 +9,10 @@
 
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
-#include "isohex/core/Sheets.hpp"
+#include "isohex/core/Collapse.hpp"
+#include "isohex/core/Dice.hpp"
+#include "isohex/core/Pillow.hpp"
+#include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Validate.hpp"
 #include "support/Blocks.hpp"
 
@@ -241,7 +244,7 @@ TEST(Dice, MultipliesTheSheetsHexesByCopiesPlusOne) {
     EXPECT_EQ(s2.count(), s.count() + 2);
 }
 
-TEST(Dice, ThenExtractingTheCopiesRestoresCountsAndValidity) {
+TEST(Dice, ThenCollapsingTheCopiesRestoresCountsAndValidity) {
     HexMesh m = classifiedBlock(3, 3, 3);
     const std::size_t hexes = m.hexCount(), nodes = m.nodeCount();
     {
@@ -262,7 +265,7 @@ TEST(Dice, ThenExtractingTheCopiesRestoresCountsAndValidity) {
             if (allNew) copySheet = static_cast<Index>(sh);
         }
         ASSERT_NE(copySheet, kNone);
-        extract(m, t, s, copySheet);
+        collapse(m, t, s, copySheet);
     }
     EXPECT_EQ(m.hexCount(), hexes);
     EXPECT_EQ(m.nodeCount(), nodes);
@@ -270,28 +273,28 @@ TEST(Dice, ThenExtractingTheCopiesRestoresCountsAndValidity) {
     EXPECT_EQ(invertedCount(m), 0u);
 }
 
-TEST(Extract, RemovingThePillowRestoresTheOriginalMeshExactly) {
+TEST(Collapse, RemovingThePillowRestoresTheOriginalMeshExactly) {
     HexMesh m = classifiedBlock(3, 3, 2);
     const HexMesh original = m;
     const PillowResult r = pillowAllMaterials(m).front();
     const Topology t = buildTopology(m);
     const DualSheets s = buildSheets(m, t);
     const Index sheet = sheetThroughEdge(m, t, s, r.firstNewNode, r.copyOf[0]);
-    extract(m, t, s, sheet);
+    collapse(m, t, s, sheet);
     EXPECT_EQ(m.nodes, original.nodes);
     EXPECT_EQ(m.nodeClass, original.nodeClass);
     EXPECT_EQ(m.hexes, original.hexes);
     EXPECT_EQ(m.material, original.material);
 }
 
-TEST(Extract, RefusesToCollapseASurfaceThroughTheSolid) {
+TEST(Collapse, RefusesToCollapseASurfaceThroughTheSolid) {
     // in a 1-hex-thick plate every z-edge joins the top and bottom surfaces
     HexMesh m = classifiedBlock(3, 3, 1);
     const HexMesh before = m;
     const Topology t = buildTopology(m);
     const DualSheets s = buildSheets(m, t);
     const Index sheet = sheetThroughEdge(m, t, s, 0, 16);  // a z-edge
-    EXPECT_THROW(extract(m, t, s, sheet), Error);
+    EXPECT_THROW(collapse(m, t, s, sheet), Error);
     EXPECT_EQ(m.hexes, before.hexes);
 }
 

@@ -1,0 +1,20 @@
+#pragma once
+// Collapsing a dual sheet: removing one layer of hexes by merging the two
+// ends of each of its edges.
+#include <cstddef>
+
+#include "isohex/core/Dual.hpp"
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
+
+namespace isohex {
+
+// Removes a sheet by collapsing its edges (seed 3.3.3.1). Refuses (throws
+// isohex::Error saying why, mesh untouched) when that would merge nodes of two
+// different surfaces or curves, pinch a surface (an edge between two nodes of
+// one surface that runs through the solid), remove every hex of a material,
+// or leave an invalid mesh. Returns the number of hexes removed. `topo` and
+// `sheets` are those of `mesh` and are out of date afterwards.
+std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet);
+
+}  // namespace isohex
