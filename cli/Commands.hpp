@@ -22,7 +22,5 @@ void addSmoothCommand(CLI::App& app);
 void addCompareCommand(CLI::App& app);
 void addBatchCommand(CLI::App& app);
 void addInsertSheetCommand(CLI::App& app);
-// --threads N for the rest of the process (tbb::global_control)
-void applyThreads(int threads);
 
 }  // namespace isohex::cli

@@ -11,42 +11,27 @@
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
+#include "JobStage.hpp"
+#include "Progress.hpp"
 #include "isohex/core/AtomicFile.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 
 namespace isohex::cli {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-// The stage the child is in, written by the child into a page shared with
-// the parent (MAP_SHARED survives the child's crash; a pipe message might
-// not have been sent).
-struct StageSlot {
-    char stage[64];
-    char file[1024];  // the file being read, when it is not the job's input (insert-sheet's surfaces)
-};
-StageSlot* gSlot = nullptr;  // set in the child of an isolated job only
-std::string gInput;          // the job's input, for ISOHEX_TEST_CRASH=...@text (isolated or not)
-
-StageSlot* sharedSlot() {
-    static StageSlot* slot = [] {
-        void* p = ::mmap(nullptr, sizeof(StageSlot), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
-        return p == MAP_FAILED ? nullptr : static_cast<StageSlot*>(p);
-    }();
-    return slot;
-}
 
 // While the parent waits: SIGINT, SIGTERM and SIGHUP go on to the child,
 // whose own handler removes the files it was writing; the parent raises the
@@ -135,33 +120,6 @@ void removeLeftovers(const std::vector<std::string>& files, const std::vector<bo
     }
 }
 
-// Messages travel as byte arrays: a file name need not be UTF-8, and JSON
-// strings would replace such bytes.
-nlohmann::json bytesOf(const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); }
-std::string textOf(const nlohmann::json& j) {
-    if (!j.is_array()) return {};
-    const auto b = j.get<std::vector<std::uint8_t>>();
-    return std::string(b.begin(), b.end());
-}
-
-nlohmann::json toJson(const JobResult& r) {
-    return {{"status", r.status},     {"message", bytesOf(r.message)},
-            {"hexes", r.hexes},       {"min", r.minScaledJacobian}, {"mean", r.meanScaledJacobian},
-            {"inverted", r.inverted}, {"below02", r.below02},      {"seconds", r.seconds}};
-}
-
-JobResult fromJson(const nlohmann::json& j) {
-    JobResult r;
-    r.status = j.at("status").get<std::string>();
-    r.message = textOf(j.at("message"));
-    r.hexes = j.at("hexes").get<std::size_t>();
-    r.minScaledJacobian = j.at("min").is_number() ? j.at("min").get<double>() : 0.0;
-    r.meanScaledJacobian = j.at("mean").is_number() ? j.at("mean").get<double>() : 0.0;
-    r.inverted = j.at("inverted").get<std::size_t>();
-    r.below02 = j.at("below02").get<std::size_t>();
-    r.seconds = j.at("seconds").get<double>();
-    return r;
-}
 
 void flushAll() {
     std::cout.flush();
@@ -177,6 +135,13 @@ void flushAll() {
     nlohmann::json msg;
     try {
         msg = {{"result", work()}};
+    } catch (const SettingError& e) {
+        // the settings by kind: the parent names them as its front end does
+        nlohmann::json parts = nlohmann::json::array();
+        for (const MessagePart& p : e.parts())
+            parts.push_back(std::holds_alternative<Setting>(p) ? nlohmann::json{{"setting", static_cast<int>(std::get<Setting>(p))}}
+                                                               : nlohmann::json{{"text", bytesOf(std::get<std::string>(p))}});
+        msg = {{"error", "user"}, {"message", bytesOf(e.what())}, {"parts", parts}};
     } catch (const Error& e) {
         msg = {{"error", "user"}, {"message", bytesOf(e.what())}};
     } catch (const std::bad_alloc&) {
@@ -199,47 +164,11 @@ void flushAll() {
     ::_exit(sent ? 0 : 1);
 }
 
-void copyInto(char* slot, std::size_t size, std::string_view text) {
-    const std::size_t n = std::min(text.size(), size - 1);
-    std::memcpy(slot, text.data(), n);
-    slot[n] = '\0';
-}
-
-// ISOHEX_TEST_CRASH=<stage>[:kill][@<text>]: see Isolate.hpp.
-void injectedFault(std::string_view stage, const std::string& subject) {
-    const char* crash = std::getenv("ISOHEX_TEST_CRASH");
-    if (!crash) return;
-    std::string c(crash), only;
-    if (const auto at = c.find('@'); at != std::string::npos) {
-        only = c.substr(at + 1);
-        c.resize(at);
-    }
-    if (!only.empty() && subject.find(only) == std::string::npos) return;
-    if (c == stage) std::raise(SIGSEGV);
-    if (c == std::string(stage) + ":kill") std::raise(SIGKILL);
-}
-
 }  // namespace
-
-void stageBegins(std::string_view stage) {
-    if (gSlot) {
-        copyInto(gSlot->stage, sizeof gSlot->stage, stage);
-        gSlot->file[0] = '\0';
-    }
-    injectedFault(stage, gInput);
-}
-
-void nowReading(const std::string& file) {
-    if (gSlot) {
-        copyInto(gSlot->stage, sizeof gSlot->stage, "load");
-        copyInto(gSlot->file, sizeof gSlot->file, file);
-    }
-    injectedFault("load", file);
-}
 
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
                            const std::function<nlohmann::json()>& work) {
-    gInput = input;
+    jobStarts(input);
     if (!isolationOn()) return work();
     // Without its own process a job that crashes would end isohex (and a
     // batch), and its threads would stay in the process later jobs fork
@@ -248,7 +177,7 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
         return Error(input + ": cannot start the process for this job (" + what + ": " + std::strerror(errno) +
                      "); the machine is out of processes or memory. Retry when it has some to spare.");
     };
-    StageSlot* slot = sharedSlot();
+    StageSlot* slot = sharedStageSlot();
     if (slot == nullptr) throw cannotStart("mmap");
     int fds[2];
     if (::pipe2(fds, O_CLOEXEC) != 0) throw cannotStart("pipe");
@@ -302,7 +231,7 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
     if (child == 0) {
         restore();
         ::close(fds[0]);
-        gSlot = slot;
+        recordStagesIn(slot);
         childMain(work, fds[1], parent);
     }
     gChild = child;
@@ -341,18 +270,25 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
     }
     if (msg.contains("result")) return msg["result"];
     const std::string kind = msg.value("error", "internal");
+    if (kind == "user" && msg.contains("parts")) {
+        std::vector<MessagePart> parts;
+        for (const auto& p : msg["parts"]) {
+            if (p.contains("setting")) parts.emplace_back(static_cast<Setting>(p["setting"].get<int>()));
+            else parts.emplace_back(textOf(p["text"]));
+        }
+        throw SettingError(std::move(parts));
+    }
     if (kind == "user") throw Error(textOf(msg["message"]));
     if (kind == "memory") throw std::bad_alloc();
     throw std::runtime_error(textOf(msg["message"]));
 }
 
-JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
-    std::vector<std::string> files = job.outputs;
-    if (!job.plot.empty()) files.push_back(job.plot);
-    if (!job.report.empty()) files.push_back(job.report);
-    JobResult r = fromJson(runIsolated(job.input, files, [&] { return toJson(runJob(job, sink)); }));
-    r.input = job.input;
-    return r;
+nlohmann::json bytesOf(const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); }
+
+std::string textOf(const nlohmann::json& j) {
+    if (!j.is_array()) return {};
+    const auto b = j.get<std::vector<std::uint8_t>>();
+    return std::string(b.begin(), b.end());
 }
 
 }  // namespace isohex::cli

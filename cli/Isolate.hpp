@@ -1,6 +1,7 @@
 #pragma once
-// A meshing job (and the work of compare, quality, convert, smooth and
-// insert-sheet) in a child process of its own.
+// A meshing job (cli/Jobs.hpp runs each through it), and the work of
+// compare, quality, convert, smooth and insert-sheet, in a child process of
+// its own.
 //
 // The libraries that read scans do not all check what they read: OpenVDB
 // crashes on a .vdb whose compressed grid data is damaged (segmentation
@@ -26,9 +27,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include "Jobs.hpp"
-#include "Progress.hpp"
-
 namespace isohex::cli {
 
 // work() in a child process, as described above: returns what it returned
@@ -39,23 +37,9 @@ namespace isohex::cli {
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
                            const std::function<nlohmann::json()>& work);
 
-// runJob(job, sink) in a child process, as described above. Throws
-// isohex::Error (also for a crashed or killed child), std::bad_alloc or
-// std::runtime_error (an internal error) as runJob would.
-JobResult runJobIsolated(const Job& job, ProgressSink& sink);
-
-// Called when a stage begins (ProgressSink::begin): inside an isolated job
-// it records the stage for the parent's message. It also serves the tests'
-// fault injection: with ISOHEX_TEST_CRASH=<stage> the process raises SIGSEGV
-// when that stage begins (ISOHEX_TEST_CRASH=<stage>:kill raises SIGKILL);
-// a suffix @<text> limits it to jobs whose input path (or the path
-// nowReading names) contains the text. The handling of a crashing library is then tested without depending
-// on one library's bug.
-void stageBegins(std::string_view stage);
-
-// A command that reads its files itself says which one it is reading: the
-// "load" stage begins, a crash names that file, and ISOHEX_TEST_CRASH's
-// @<text> is matched against it.
-void nowReading(const std::string& file);
+// Messages travel between the processes as byte arrays: a file name need
+// not be UTF-8, and JSON strings would replace such bytes.
+nlohmann::json bytesOf(const std::string& s);
+std::string textOf(const nlohmann::json& bytes);
 
 }  // namespace isohex::cli

@@ -1,6 +1,5 @@
 #include "Jobs.hpp"
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -16,6 +15,7 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
 
 namespace isohex::cli {
@@ -70,23 +70,23 @@ bool upToDate(const Job& job) {
 }
 
 JobResult runJob(const Job& job, ProgressSink& sink) {
-    const auto t0 = std::chrono::steady_clock::now();
+    const Stopwatch total;
     MeshArgs args = job.args;
-    args.finish();
+    checkSettings(args);
     // Every file the job writes (meshes, report, plot) is checked before
     // minutes of meshing: not an existing file without --force, not a
     // folder, in a folder that exists, and not named twice.
     std::vector<std::string> files = job.outputs;  // in the order they are written
     if (!job.plot.empty()) files.push_back(job.plot);
     if (!job.report.empty()) files.push_back(job.report);
-    const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.force);
+    const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.run.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
     MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
-    const auto tq = std::chrono::steady_clock::now();
+    const Stopwatch quality;
     const HexQuality q = computeQuality(out.mesh);
     const QualitySummary s = summarize(out.mesh, q);
     const ValidityReport v = validate(out.mesh);
-    const double qualitySeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tq).count();
+    const double qualitySeconds = quality.seconds();
     nlohmann::json report = out.report;
     const nlohmann::json qj = toJson(s);
     for (const auto& [k, val] : qj.items()) report[k] = val;
@@ -94,9 +94,9 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     nlohmann::json timings;
     for (const auto& [stage, secs] : sink.timings().items()) timings[stage] = secs;
     timings["quality"] = qualitySeconds;
-    const auto tw = std::chrono::steady_clock::now();
+    const Stopwatch writing;
     io::WriteOptions w;
-    w.overwrite = args.force;
+    w.overwrite = args.run.force;
     w.scaledJacobian = q.scaledJacobian;
     // Each file is written whole or not at all (a temporary file renamed);
     // if one fails, the files this job created before it are removed again,
@@ -117,28 +117,28 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     };
     try {
         for (const auto& o : job.outputs) {
-            const auto t = std::chrono::steady_clock::now();
+            const Stopwatch one;
             sink.begin("write");
             io::write(out.mesh, o, w);
             track(written);
             ++written;
-            sink.end("write", std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
+            sink.end("write", one.seconds());
         }
-        timings["write"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
-        timings["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        timings["write"] = writing.seconds();
+        timings["total"] = total.seconds();
         report["timings_s"] = timings;
         report["peak_memory_mb"] = peakMemoryMb();
         report["huge_pages"] = hugePagesRequested();
         report["outputs"] = job.outputs;
         report["versions"] = versionsJson();
         if (!job.plot.empty()) {
-            writeHistogramSvg(job.plot, args.force, "Scaled Jacobian of " + stemOf(job.input),
+            writeHistogramSvg(job.plot, args.run.force, "Scaled Jacobian of " + stemOf(job.input),
                               {{out.report["pillow"].value("enabled", false) ? "with fundamental sheet" : "without sheet",
                                 s.histogram, s.degenerate}});
             track(written);
             ++written;
         }
-        if (!job.report.empty()) writeJsonFile(report, job.report, args.force);
+        if (!job.report.empty()) writeJsonFile(report, job.report, args.run.force);
     } catch (...) {
         for (std::size_t i = 0; i < written; ++i) {  // the meshes, then the plot
             std::error_code ec;
@@ -163,13 +163,45 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     return r;
 }
 
-std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode) {
+namespace {
+
+// A job's result as the isolated child sends it to the parent.
+nlohmann::json resultJson(const JobResult& r) {
+    return {{"status", r.status},     {"message", bytesOf(r.message)},
+            {"hexes", r.hexes},       {"min", r.minScaledJacobian}, {"mean", r.meanScaledJacobian},
+            {"inverted", r.inverted}, {"below02", r.below02},      {"seconds", r.seconds}};
+}
+
+JobResult resultFrom(const nlohmann::json& j) {
+    JobResult r;
+    r.status = j.at("status").get<std::string>();
+    r.message = textOf(j.at("message"));
+    r.hexes = j.at("hexes").get<std::size_t>();
+    r.minScaledJacobian = j.at("min").is_number() ? j.at("min").get<double>() : 0.0;
+    r.meanScaledJacobian = j.at("mean").is_number() ? j.at("mean").get<double>() : 0.0;
+    r.inverted = j.at("inverted").get<std::size_t>();
+    r.below02 = j.at("below02").get<std::size_t>();
+    r.seconds = j.at("seconds").get<double>();
+    return r;
+}
+}  // namespace
+
+JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
+    std::vector<std::string> files = job.outputs;
+    if (!job.plot.empty()) files.push_back(job.plot);
+    if (!job.report.empty()) files.push_back(job.report);
+    JobResult r = resultFrom(runIsolated(job.input, files, [&] { return resultJson(runJob(job, sink)); }));
+    r.input = job.input;
+    return r;
+}
+
+std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names) {
     std::vector<JobResult> results;
     std::size_t failed = 0;
     for (std::size_t i = 0; i < jobs.size(); ++i) {
         const Job& job = jobs[i];
         ProgressSink sink(mode, "[" + std::to_string(i + 1) + "/" + std::to_string(jobs.size()) + "] " + stemOf(job.input));
-        if (!force && !job.args.force && upToDate(job)) {
+        if (!force && !job.args.run.force && upToDate(job)) {
             results.push_back({job.input, "skipped", "outputs are up to date (use --force to redo)"});
             sink.event("job_skipped", {{"input", job.input}});
             continue;
@@ -180,7 +212,7 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
         } catch (const std::exception& e) {
             ++failed;
-            const std::string message = boundedMessage(e.what(), 65536);
+            const std::string message = boundedMessage(userMessage(e, names), 65536);
             results.push_back({job.input, "failed", message});
             sink.note("error", message);
             sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});

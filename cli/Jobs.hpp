@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "ErrorText.hpp"
 #include "MeshOptions.hpp"
 
 namespace isohex::cli {
@@ -32,6 +33,11 @@ struct JobResult {
 // (after which no output of the job is half-written: each file is atomic).
 JobResult runJob(const Job& job, ProgressSink& sink);
 
+// runJob(job, sink) in a child process of its own (cli/Isolate.hpp). Throws
+// isohex::Error (also for a crashed or killed child), std::bad_alloc or
+// std::runtime_error (an internal error) as runJob would.
+JobResult runJobIsolated(const Job& job, ProgressSink& sink);
+
 // Every file a command will write, checked before any work: not named twice,
 // not a folder, in a folder that exists, not one of the inputs, and not an
 // existing file unless force. Throws isohex::Error naming the path; returns,
@@ -46,6 +52,8 @@ std::string stemOf(const std::string& input);
 
 // Runs every job (skipping up-to-date ones unless force), printing a summary
 // table to stdout; returns the number of failed jobs.
-std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode);
+// A failed job's message names the settings the user can change the `names`
+// way (the flags of `mesh`, the manifest columns of `batch`).
+std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names);
 
 }  // namespace isohex::cli

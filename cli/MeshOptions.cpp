@@ -1,172 +1,407 @@
 #include "MeshOptions.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
+#include <map>
+#include <optional>
 #include <sstream>
+#include <type_traits>
 
 #include "isohex/core/Error.hpp"
 
 namespace isohex::cli {
 
-void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
-    MeshSettings& s = a.settings;
-    auto* sel = "Selection";
-    cmd->add_option("--iso", s.select.iso, "Intensity of the surface (default: Otsu's threshold, reported)")->group(sel);
-    cmd->add_option("--inside", a.insideMode, "Which side of --iso is solid: above (bone in CT) or below (pores, air)")
-        ->check(CLI::IsMember({"above", "below"}))
-        ->group(sel);
-    cmd->add_flag("--labels", a.labels, "Read an integer image as a label map and mesh every label (0 = background)")
-        ->group(sel);
-    cmd->add_option("--label", a.labelList, "Mesh only these labels, e.g. 3 or 3,7 (implies --labels)")->group(sel);
-    cmd->add_flag("--keep-largest", s.keepLargest,
-                  "Keep only the largest connected region of each material (drops noise specks)")
-        ->group(sel);
-    cmd->add_flag("--fill-pits", s.fillPits,
-                  "Fill background pits and wells one element wide before meshing (the boundary sheet cannot "
-                  "give their floor a good hex; topology is kept)")
-        ->group(sel);
-    cmd->add_flag("--isosurface-topology", s.isosurfaceTopology,
-                  "Keep the components and tunnels of the isosurface drawn on the element grid (OpenVDB's "
-                  "volumeToMesh), sub-element specks, pockets and tunnels included, where a local search can "
-                  "(slower; the hexes at such places are poorer)")
-        ->group(sel);
-    cmd->add_option("--min-label-voxels", s.select.minLabelVoxels, "Drop (and report) labels with fewer voxels")
-        ->group(sel);
-    cmd->add_option("--smooth", s.select.smoothSigma, "Gaussian pre-smoothing, standard deviation in mm")->group(sel);
-    cmd->add_option("--interpolation", a.interpolation, "Field interpolation: trilinear or quadratic")
-        ->check(CLI::IsMember({"trilinear", "quadratic"}))
-        ->group(sel);
-    auto* in = "Input";
-    cmd->add_option("--series", s.load.seriesUid, "DICOM folder: the SeriesInstanceUID to read")->group(in);
-    cmd->add_option("--grid", s.load.gridName, ".vdb file: the grid to read")->group(in);
-    cmd->add_option("--volume-index", s.load.volumeIndex, "4-D or multi-component image: which volume/component")
-        ->check(CLI::Range(0, 2147483647))
-        ->group(in);
-    cmd->add_flag("--nan-as-outside", s.load.nanAsOutside, "Treat NaN/Inf voxels as outside instead of refusing")
-        ->group(in);
-    cmd->add_option("--max-memory", s.load.maxMemoryMB, "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need more (default: 80% of the machine's memory)")
-        ->check(CLI::Validator(
-            [](const std::string& v) {
-                char* end = nullptr;
-                const double mb = std::strtod(v.c_str(), &end);
-                return end != v.c_str() && *end == '\0' && std::isfinite(mb) && mb > 0
-                           ? std::string()
-                           : "--max-memory takes a number of megabytes above 0 (got '" + v + "')";
-            },
-            "", "positive"))
-        ->group(in);
-    cmd->add_option("--slice-spacing", a.sliceSpacing, "Folder of 2-D slices: voxel spacing X Y Z in mm")
-        ->expected(3)
-        ->group(in);
-    auto* grid = "Mesh";
-    cmd->add_option("--size", s.size, "Element edge length in world units (mm); default: the coarsest grid level "
-                                      "that keeps the surface's topology")
-        ->group(grid);
-    cmd->add_option("--level", s.level, "Grid level: elements 2^level voxels wide (instead of --size)")->group(grid);
-    cmd->add_option("--method", s.method,
-                    "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets "
-                    "(surfaces only: a grid cut by two sheets along the triangles, seed 5.4)")
-        ->check(CLI::IsMember({"dual", "voxel", "sheets"}))
-        ->group(grid);
-    cmd->add_flag("!--no-pillow", s.pillow, "Do not insert the fundamental boundary sheet")->group(grid);
-    cmd->add_option("--boundary-layers", s.boundaryLayers, "Layers of hexes in the boundary sheet (default 1)")
-        ->check(CLI::Range(1, 16))
-        ->group(grid);
-    cmd->add_flag("--mesh-exterior", s.meshExterior, "Also mesh the background out to a box around the object")
-        ->group(grid);
-    auto* fixBoundary = cmd->add_flag("--fix-boundary", s.fixBoundary, "Optimise interior nodes only; surface nodes stay where extracted")
-        ->group(grid);
-    auto* noOptimize = cmd->add_flag("!--no-optimize", s.optimize, "Skip untangling and mean-ratio optimisation")->group(grid);
-    auto* noWorst = cmd->add_flag("!--no-worst-hex-pass", s.worstHexPass,
-                                  "After the mean-ratio optimisation, do not run the max-min pass on the hexes "
-                                  "below --worst-hex-target")
-                        ->group(grid);
-    cmd->add_option("--worst-hex-target", s.worstHexTarget,
-                    "Scaled Jacobian the max-min pass lifts hexes towards (default 0.3). Higher can raise the "
-                    "minimum on smooth surfaces, for a slightly lower mean and more time; where hexes are stuck "
-                    "(thin folds, pits) it can leave more below 0.2")
-        ->check(CLI::Range(0.0, 1.0))
-        ->excludes(noWorst)
-        ->group(grid);
-    cmd->add_option("--surface-tolerance", s.surfaceTolerance,
-                    "How far, in voxels, the max-min pass may leave a boundary or interface node off its "
-                    "isosurface to lift a hex below --worst-hex-target (default 0.09, under the report's "
-                    "0.1-voxel fidelity bound; 0 keeps every node on the surface)")
-        ->check(CLI::Range(0.0, 1.0))
-        ->excludes(noWorst)
-        ->excludes(fixBoundary)
-        ->excludes(noOptimize)
-        ->group(grid);
-    cmd->add_option("--retries", s.retries,
-                    "When hexes stay inverted or below --retry-below after optimisation, up to this many times give "
-                    "a grid point next to them another material (never changing a material's components, tunnels "
-                    "or cavities) and mesh again, keeping the better result (default 3; 0 never)")
-        ->check(CLI::Range(0, 16))
-        ->group(grid);
-    cmd->add_option("--retry-below", s.retryBelow,
-                    "Scaled Jacobian below which a hex left by the optimiser counts as stuck for --retries, as an "
-                    "inverted one does (default 0.05; 0: inverted hexes only). Higher gives better worst hexes for "
-                    "the time of meshing again")
-        ->check(CLI::Range(0.0, 1.0))
-        ->group(grid);
+namespace {
+
+// Where a row keeps its value in the arguments.
+template <class T>
+using Access = T& (*)(MeshArgs&);
+
+// The check of one value, made into the flag's validator and the column's
+// message alike.
+struct Check {
+    enum class Kind { None, Between, NotNegative, Positive };
+    Kind kind = Kind::None;
+    double lo = 0, hi = 0;
+    std::string says;  // what a bad value must be, e.g. "must be between 1 and 16"
+
+    bool passes(double v) const {
+        switch (kind) {
+            case Kind::None: return true;
+            case Kind::Between: return v >= lo && v <= hi;
+            case Kind::NotNegative: return v >= 0;
+            case Kind::Positive: return v > 0 && std::isfinite(v);
+        }
+        return true;
+    }
+};
+
+std::string numberText(double v) {
+    if (v == std::floor(v) && std::fabs(v) < 1e15) return std::to_string(static_cast<long long>(v));
+    std::ostringstream s;
+    s << v;
+    return s.str();
 }
 
-void addRunOptions(CLI::App* cmd, MeshArgs& a) {
-    cmd->add_option("--threads", a.threads, "Worker threads (default: all cores); results do not depend on it")
-        ->check(CLI::Range(1, 1024));
-    cmd->add_flag("-q,--quiet", a.quiet, "No progress output (warnings and errors still print)");
-    cmd->add_flag("--log-json", a.logJson, "Progress and messages as one JSON object per line on stderr");
-    cmd->add_flag("--force", a.force, "Overwrite existing output files");
+Check none() { return {}; }
+// lo <= value <= hi; `unit` ends the column's message, e.g. "(voxels)".
+Check between(double lo, double hi, const std::string& unit = "") {
+    return {Check::Kind::Between, lo, hi,
+            "must be between " + numberText(lo) + " and " + numberText(hi) + (unit.empty() ? "" : " " + unit)};
+}
+Check notNegative() { return {Check::Kind::NotNegative, 0, 0, "must not be negative"}; }
+Check positive(const std::string& says) { return {Check::Kind::Positive, 0, 0, says}; }
+
+// The flag's validator for `check` on values of type V. A range keeps
+// CLI11's own (its help shows the range); the other checks say what the
+// column says, with the flag and the value.
+template <class V>
+CLI::Validator validator(const Check& check, const std::string& flag) {
+    if (check.kind == Check::Kind::Between) return CLI::Range(static_cast<V>(check.lo), static_cast<V>(check.hi));
+    return CLI::Validator(
+        [check, flag](const std::string& v) {
+            char* end = nullptr;
+            const double x = std::strtod(v.c_str(), &end);
+            const bool number = end != v.c_str() && *end == '\0' && std::isfinite(x);
+            return number && check.passes(x) ? std::string() : flag + " " + check.says + " (got '" + v + "')";
+        },
+        "", check.says);
 }
 
-void MeshArgs::finish() {
-    settings.select.insideBelow = insideMode == "below";
-    settings.select.interpolation =
-        interpolation == "quadratic" ? imaging::Interpolation::Quadratic : imaging::Interpolation::Trilinear;
-    if (!labelList.empty()) {
-        labels = true;
-        std::stringstream ss(labelList);
-        std::string item;
-        while (std::getline(ss, item, ',')) {
-            try {
-                std::size_t used = 0;
-                const long v = std::stol(item, &used);
-                if (used != item.size()) throw std::invalid_argument(item);
-                settings.select.labels.push_back(static_cast<std::int32_t>(v));
-            } catch (const std::exception&) {
-                throw Error("--label expects integers separated by commas, e.g. --label 3,7 (got '" + labelList + "')");
-            }
+template <class T>
+struct Unwrapped {
+    using type = T;
+};
+template <class T>
+struct Unwrapped<std::optional<T>> {
+    using type = T;
+};
+
+// A number of type V in a field: a whole number for an integer type.
+template <class V>
+auto parseValue(const std::string& s) {
+    if constexpr (std::is_floating_point_v<V>) return toNumber(s);
+    else return toInteger(s);
+}
+
+MeshOption row(const std::string& name, const char* group, const char* help, const char* columnHelp) {
+    MeshOption o;
+    o.name = name;
+    o.group = group;
+    o.help = help;
+    o.columnHelp = columnHelp;
+    return o;
+}
+
+// A number (T: double, int, std::int64_t, or an optional one: unset means
+// the pipeline's default).
+template <class T>
+MeshOption number(const std::string& name, const char* group, const char* help, const char* columnHelp, Access<T> at,
+                  const Check& check) {
+    using V = typename Unwrapped<T>::type;
+    MeshOption o = row(name, group, help, columnHelp);
+    o.addFlag = [name, help, at, check](CLI::App& cmd, MeshArgs& a) {
+        CLI::Option* opt = cmd.add_option("--" + name, at(a), help);
+        if (check.kind != Check::Kind::None) opt->check(validator<V>(check, "--" + name));
+        return opt;
+    };
+    o.setColumn = [at, check](const Field& f, MeshArgs& a) {
+        const auto v = parseValue<V>(f.scalar());
+        if (!check.passes(static_cast<double>(v))) throw FieldError{check.says};
+        at(a) = static_cast<V>(v);
+    };
+    return o;
+}
+
+// An on/off switch; `negated`: the flag turns the setting off (--no-pillow).
+MeshOption onOff(const std::string& name, const char* group, const char* help, const char* columnHelp,
+                 Access<bool> at, bool negated = false) {
+    MeshOption o = row(name, group, help, columnHelp);
+    o.addFlag = [name, help, at, negated](CLI::App& cmd, MeshArgs& a) {
+        return cmd.add_flag((negated ? "!--" : "--") + name, at(a), help);
+    };
+    o.setColumn = [at, negated](const Field& f, MeshArgs& a) { at(a) = toBool(f.scalar()) != negated; };
+    return o;
+}
+
+MeshOption text(const std::string& name, const char* group, const char* help, const char* columnHelp,
+                Access<std::string> at) {
+    MeshOption o = row(name, group, help, columnHelp);
+    o.addFlag = [name, help, at](CLI::App& cmd, MeshArgs& a) { return cmd.add_option("--" + name, at(a), help); };
+    o.setColumn = [at](const Field& f, MeshArgs& a) { at(a) = f.scalar(); };
+    return o;
+}
+
+// One of named values: the flag and the column take a name, the settings
+// get the value.
+template <class T>
+MeshOption choice(const std::string& name, const char* group, const char* help, const char* columnHelp,
+                  std::vector<std::pair<std::string, T>> choices, Access<T> at) {
+    MeshOption o = row(name, group, help, columnHelp);
+    std::vector<std::string> names;
+    for (const auto& c : choices) names.push_back(c.first);
+    o.addFlag = [name, help, at, choices, names](CLI::App& cmd, MeshArgs& a) {
+        return cmd
+            .add_option_function<std::string>(
+                "--" + name, [&a, at, choices](const std::string& v) { at(a) = toChoice(v, choices); }, help)
+            ->check(CLI::IsMember(names));
+    };
+    o.setColumn = [at, choices](const Field& f, MeshArgs& a) { at(a) = toChoice(f.scalar(), choices); };
+    return o;
+}
+
+// --label 3,7: kept as text until checkSettings; a column may also separate
+// the labels by ';' or ' ' (or be a JSON array).
+MeshOption labelList() {
+    static const char* help = "Mesh only these labels, e.g. 3 or 3,7 (implies --labels)";
+    MeshOption o = row("label", "Selection", help, "labels to mesh, e.g. \"3,7\" (or 3;7)");
+    o.addFlag = [](CLI::App& cmd, MeshArgs& a) { return cmd.add_option("--label", a.labelList, help); };
+    o.setColumn = [](const Field& f, MeshArgs& a) {
+        std::string joined;
+        for (const auto& item : f.items(",; ")) {
+            toInteger(item);
+            joined += (joined.empty() ? "" : ",") + trim(item);
+        }
+        if (joined.empty()) throw FieldError{"expected label numbers such as 3,7"};
+        a.labelList = joined;
+    };
+    return o;
+}
+
+// --slice-spacing X Y Z: three positive numbers.
+MeshOption sliceSpacing() {
+    static const char* help = "Folder of 2-D slices: voxel spacing X Y Z in mm";
+    MeshOption o = row("slice-spacing", "Input", help, "three numbers \"X Y Z\"");
+    const Check check = positive("must be positive");
+    o.addFlag = [check](CLI::App& cmd, MeshArgs& a) {
+        return cmd.add_option("--slice-spacing", a.sliceSpacing, help)
+            ->expected(3)
+            ->check(validator<double>(check, "--slice-spacing"));
+    };
+    o.setColumn = [check](const Field& f, MeshArgs& a) {
+        const auto items = f.items(" ;,");
+        if (items.size() != 3) throw FieldError{"expected three numbers X Y Z"};
+        a.sliceSpacing.clear();
+        for (const auto& s : items) {
+            const double v = toNumber(s);
+            if (!check.passes(v)) throw FieldError{"spacings " + check.says};
+            a.sliceSpacing.push_back(v);
+        }
+    };
+    return o;
+}
+
+// The selection rows: which part of the scan becomes the mesh.
+void addSelectionRows(std::vector<MeshOption>& t) {
+    const char* g = "Selection";
+    t.push_back(number<std::optional<double>>(
+        "iso", g, "Intensity of the surface (default: Otsu's threshold, reported)", "surface intensity",
+        [](MeshArgs& a) -> auto& { return a.settings.select.iso; }, none()));
+    t.back().setting = Setting::Iso;
+    t.push_back(choice<bool>("inside", g, "Which side of --iso is solid: above (bone in CT) or below (pores, air)",
+                             "above or below", {{"above", false}, {"below", true}},
+                             [](MeshArgs& a) -> auto& { return a.settings.select.insideBelow; }));
+    t.push_back(onOff("labels", g, "Read an integer image as a label map and mesh every label (0 = background)",
+                      "true: read as a label map, every label", [](MeshArgs& a) -> auto& { return a.labels; }));
+    t.back().setting = Setting::Labels;
+    t.push_back(labelList());
+    t.back().setting = Setting::Label;
+    t.push_back(onOff("keep-largest", g,
+                      "Keep only the largest connected region of each material (drops noise specks)", "true/false",
+                      [](MeshArgs& a) -> auto& { return a.settings.keepLargest; }));
+    t.push_back(onOff("fill-pits", g,
+                      "Fill background pits and wells one element wide before meshing (the boundary sheet cannot "
+                      "give their floor a good hex; topology is kept)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.fillPits; }));
+    t.push_back(onOff("isosurface-topology", g,
+                      "Keep the components and tunnels of the isosurface drawn on the element grid (OpenVDB's "
+                      "volumeToMesh), sub-element specks, pockets and tunnels included, where a local search can "
+                      "(slower; the hexes at such places are poorer)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.isosurfaceTopology; }));
+    t.push_back(number<std::int64_t>("min-label-voxels", g, "Drop (and report) labels with fewer voxels",
+                                     "whole number",
+                                     [](MeshArgs& a) -> auto& { return a.settings.select.minLabelVoxels; },
+                                     notNegative()));
+    t.push_back(number<double>("smooth", g, "Gaussian pre-smoothing, standard deviation in mm",
+                               "Gaussian sigma in mm",
+                               [](MeshArgs& a) -> auto& { return a.settings.select.smoothSigma; }, notNegative()));
+    t.push_back(choice<imaging::Interpolation>(
+        "interpolation", g, "Field interpolation: trilinear or quadratic", "trilinear or quadratic",
+        {{"trilinear", imaging::Interpolation::Trilinear}, {"quadratic", imaging::Interpolation::Quadratic}},
+        [](MeshArgs& a) -> auto& { return a.settings.select.interpolation; }));
+}
+
+// The input rows: how the scan is read.
+void addInputRows(std::vector<MeshOption>& t) {
+    const char* g = "Input";
+    t.push_back(text("series", g, "DICOM folder: the SeriesInstanceUID to read", "DICOM SeriesInstanceUID",
+                     [](MeshArgs& a) -> auto& { return a.settings.load.seriesUid; }));
+    t.push_back(text("grid", g, ".vdb file: the grid to read", ".vdb grid name",
+                     [](MeshArgs& a) -> auto& { return a.settings.load.gridName; }));
+    t.push_back(number<int>("volume-index", g, "4-D or multi-component image: which volume/component",
+                            "whole number", [](MeshArgs& a) -> auto& { return a.settings.load.volumeIndex; },
+                            between(0, 2147483647)));
+    t.push_back(onOff("nan-as-outside", g, "Treat NaN/Inf voxels as outside instead of refusing", "true/false",
+                      [](MeshArgs& a) -> auto& { return a.settings.load.nanAsOutside; }));
+    t.push_back(number<double>(
+        "max-memory", g,
+        "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need "
+        "more (default: 80% of the machine's memory)",
+        "MB", [](MeshArgs& a) -> auto& { return a.settings.load.maxMemoryMB; },
+        positive("must be a number of megabytes above 0")));
+    t.push_back(sliceSpacing());
+    t.back().setting = Setting::SliceSpacing;
+}
+
+// The mesh rows: the grid, the method, the boundary sheet and the optimiser.
+void addMeshRows(std::vector<MeshOption>& t) {
+    const char* g = "Mesh";
+    t.push_back(number<std::optional<double>>(
+        "size", g,
+        "Element edge length in world units (mm); default: the coarsest grid level that keeps the surface's "
+        "topology",
+        "element edge length (mm)", [](MeshArgs& a) -> auto& { return a.settings.size; },
+        positive("must be a positive length")));
+    t.back().setting = Setting::Size;
+    t.push_back(number<std::optional<int>>("level", g,
+                                           "Grid level: elements 2^level voxels wide (instead of --size)",
+                                           "grid level 0..10", [](MeshArgs& a) -> auto& { return a.settings.level; },
+                                           between(0, 10)));
+    t.push_back(choice<std::string>(
+        "method", g,
+        "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets (surfaces only: a grid "
+        "cut by two sheets along the triangles, seed 5.4)",
+        "dual, voxel or sheets", {{"dual", "dual"}, {"voxel", "voxel"}, {"sheets", "sheets"}},
+        [](MeshArgs& a) -> auto& { return a.settings.method; }));
+    t.push_back(onOff("no-pillow", g, "Do not insert the fundamental boundary sheet", "true/false",
+                      [](MeshArgs& a) -> auto& { return a.settings.pillow; }, true));
+    t.push_back(number<int>("boundary-layers", g, "Layers of hexes in the boundary sheet (default 1)", "1..16",
+                            [](MeshArgs& a) -> auto& { return a.settings.boundaryLayers; }, between(1, 16)));
+    t.push_back(onOff("mesh-exterior", g, "Also mesh the background out to a box around the object", "true/false",
+                      [](MeshArgs& a) -> auto& { return a.settings.meshExterior; }));
+    t.push_back(onOff("fix-boundary", g, "Optimise interior nodes only; surface nodes stay where extracted",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.fixBoundary; }));
+    t.push_back(onOff("no-optimize", g, "Skip untangling and mean-ratio optimisation", "true/false",
+                      [](MeshArgs& a) -> auto& { return a.settings.optimize; }, true));
+}
+
+// The rows of the max-min pass and the retries, after the optimiser's.
+void addWorstHexRows(std::vector<MeshOption>& t) {
+    const char* g = "Mesh";
+    t.push_back(onOff("no-worst-hex-pass", g,
+                      "After the mean-ratio optimisation, do not run the max-min pass on the hexes below "
+                      "--worst-hex-target",
+                      nullptr, [](MeshArgs& a) -> auto& { return a.settings.worstHexPass; }, true));
+    t.push_back(number<double>(
+        "worst-hex-target", g,
+        "Scaled Jacobian the max-min pass lifts hexes towards (default 0.3). Higher can raise the minimum on smooth "
+        "surfaces, for a slightly lower mean and more time; where hexes are stuck (thin folds, pits) it can leave "
+        "more below 0.2",
+        nullptr, [](MeshArgs& a) -> auto& { return a.settings.worstHexTarget; }, between(0.0, 1.0)));
+    t.back().excludes = {"no-worst-hex-pass"};
+    t.push_back(number<std::optional<double>>(
+        "surface-tolerance", g,
+        "How far, in voxels, the max-min pass may leave a boundary or interface node off its isosurface to lift a "
+        "hex below --worst-hex-target (default 0.09, under the report's 0.1-voxel fidelity bound; 0 keeps every "
+        "node on the surface)",
+        "voxels 0..1", [](MeshArgs& a) -> auto& { return a.settings.surfaceTolerance; },
+        between(0.0, 1.0, "(voxels)")));
+    t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
+    t.push_back(number<std::optional<int>>(
+        "retries", g,
+        "When hexes stay inverted or below --retry-below after optimisation, up to this many times give a grid "
+        "point next to them another material (never changing a material's components, tunnels or cavities) and "
+        "mesh again, keeping the better result (default 3; 0 never)",
+        "0..16", [](MeshArgs& a) -> auto& { return a.settings.retries; }, between(0, 16)));
+    t.push_back(number<std::optional<double>>(
+        "retry-below", g,
+        "Scaled Jacobian below which a hex left by the optimiser counts as stuck for --retries, as an inverted one "
+        "does (default 0.05; 0: inverted hexes only). Higher gives better worst hexes for the time of meshing again",
+        "scaled Jacobian 0..1", [](MeshArgs& a) -> auto& { return a.settings.retryBelow; }, between(0.0, 1.0)));
+}
+
+// The labels of "3,7"; throws isohex::Error naming --label.
+std::vector<std::int32_t> parseLabels(const std::string& list) {
+    std::vector<std::int32_t> labels;
+    std::stringstream ss(list);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        try {
+            std::size_t used = 0;
+            const long v = std::stol(item, &used);
+            if (used != item.size()) throw std::invalid_argument(item);
+            labels.push_back(static_cast<std::int32_t>(v));
+        } catch (const std::exception&) {
+            throw Error("--label expects integers separated by commas, e.g. --label 3,7 (got '" + list + "')");
         }
     }
-    settings.load.labels = labels;
-    if (!sliceSpacing.empty()) settings.load.sliceSpacing = {sliceSpacing[0], sliceSpacing[1], sliceSpacing[2]};
-    if (labels && settings.select.iso)
-        throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
-    if (settings.surfaceTolerance) {
-        const double t = *settings.surfaceTolerance;
-        if (!(t >= 0 && t <= 1))
-            throw Error("--surface-tolerance must be between 0 and 1 voxel (got " + std::to_string(t) + ")");
-        if (settings.fixBoundary || !settings.worstHexPass || !settings.optimize)
-            throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
-                        "(no surface node moves off its surface there); leave it out");
-    }
-    if (settings.retries) {
-        const int n = *settings.retries;
-        if (n < 0 || n > 16) throw Error("--retries must be between 0 and 16 (got " + std::to_string(n) + ")");
-    }
-    if (settings.retryBelow && !(*settings.retryBelow >= 0 && *settings.retryBelow <= 1))
-        throw Error("--retry-below must be a scaled Jacobian between 0 and 1 (got " +
-                    std::to_string(*settings.retryBelow) + ")");
-    if (settings.retries.value_or(0) > 0 || settings.retryBelow.value_or(0) > 0) {
-        const std::string opt = settings.retries.value_or(0) > 0 ? "--retries" : "--retry-below";
-        if (settings.method != "dual")
-            throw Error(opt + " edits the element grid of --method dual; --method " + settings.method +
+    return labels;
+}
+
+// --surface-tolerance, --retries and --retry-below with the options that
+// leave them nothing to do.
+void checkOptimiserOptions(const MeshSettings& s) {
+    if (s.surfaceTolerance && (s.fixBoundary || !s.worstHexPass || !s.optimize))
+        throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
+                    "(no surface node moves off its surface there); leave it out");
+    if (s.retries.value_or(0) > 0 || s.retryBelow.value_or(0) > 0) {
+        const std::string opt = s.retries.value_or(0) > 0 ? "--retries" : "--retry-below";
+        if (s.method != "dual")
+            throw Error(opt + " edits the element grid of --method dual; --method " + s.method +
                         " has no such grid (leave the option out)");
-        if (!settings.optimize)
+        if (!s.optimize)
             throw Error(opt + " has no effect with --no-optimize (the retries follow the optimiser); leave it out");
-        if (settings.retries && *settings.retries == 0 && settings.retryBelow.value_or(0) > 0)
+        if (s.retries && *s.retries == 0 && s.retryBelow.value_or(0) > 0)
             throw Error("--retry-below has no effect with --retries 0; leave one of them out");
     }
+}
+
+}  // namespace
+
+std::string MeshOption::column() const {
+    std::string c = name;
+    std::replace(c.begin(), c.end(), '-', '_');
+    return c;
+}
+
+const std::vector<MeshOption>& meshOptions() {
+    static const std::vector<MeshOption> table = [] {
+        std::vector<MeshOption> t;
+        addSelectionRows(t);
+        addInputRows(t);
+        addMeshRows(t);
+        addWorstHexRows(t);
+        return t;
+    }();
+    return table;
+}
+
+void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
+    std::map<std::string, CLI::Option*> flags;
+    for (const MeshOption& o : meshOptions()) flags[o.name] = o.addFlag(*cmd, a)->group(o.group);
+    for (const MeshOption& o : meshOptions())
+        for (const auto& other : o.excludes) flags.at(o.name)->excludes(flags.at(other));
+}
+
+const MeshOption* findColumn(const std::string& column) {
+    for (const MeshOption& o : meshOptions())
+        if (o.columnHelp && o.column() == column) return &o;
+    return nullptr;
+}
+
+void checkSettings(MeshArgs& a) {
+    MeshSettings& s = a.settings;
+    if (!a.labelList.empty()) {
+        a.labels = true;
+        s.select.labels = parseLabels(a.labelList);
+    }
+    s.load.labels = a.labels;
+    if (!a.sliceSpacing.empty()) s.load.sliceSpacing = {a.sliceSpacing[0], a.sliceSpacing[1], a.sliceSpacing[2]};
+    if (a.labels && s.select.iso)
+        throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
+    checkOptimiserOptions(s);
 }
 
 }  // namespace isohex::cli

@@ -1,9 +1,10 @@
 #include "Progress.hpp"
 
-#include "Isolate.hpp"
+#include "JobStage.hpp"
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <iostream>
 
@@ -12,7 +13,6 @@
 namespace isohex::cli {
 
 namespace {
-double seconds(std::chrono::steady_clock::duration d) { return std::chrono::duration<double>(d).count(); }
 double wallClock() {
     return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
@@ -50,7 +50,8 @@ void ProgressSink::begin(std::string_view stage) {
     std::lock_guard lock(mutex_);
     stage_ = stage;
     fraction_ = 0;
-    stageStart_ = lastDraw_ = Clock::now();
+    sinceStageBegan_.restart();
+    sinceDrawn_.restart();
     if (mode_ == Mode::Json) event("stage_begin", {{"stage", stage_}});
     else if (terminal_) drawBar(false);
 }
@@ -60,21 +61,21 @@ void ProgressSink::reading(const std::string& file) { nowReading(file); }
 void ProgressSink::progress(double fraction) {
     std::lock_guard lock(mutex_);
     fraction_ = std::clamp(fraction, 0.0, 1.0);
-    const auto now = Clock::now();
+    const double sinceDrawn = sinceDrawn_.seconds();
     if (mode_ == Mode::Json) {
-        if (seconds(now - lastDraw_) >= 1.0) {
-            lastDraw_ = now;
+        if (sinceDrawn >= 1.0) {
+            sinceDrawn_.restart();
             event("progress", {{"stage", stage_}, {"fraction", fraction_}});
         }
     } else if (terminal_) {
-        if (seconds(now - lastDraw_) >= 0.1) {
-            lastDraw_ = now;
+        if (sinceDrawn >= 0.1) {
+            sinceDrawn_.restart();
             drawBar(false);
         }
-    } else if (mode_ == Mode::Auto && seconds(now - lastDraw_) >= 5.0) {
-        lastDraw_ = now;
+    } else if (mode_ == Mode::Auto && sinceDrawn >= 5.0) {
+        sinceDrawn_.restart();
         std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s)\n", job_.c_str(), job_.empty() ? "" : ": ", stage_.c_str(),
-                     100 * fraction_, seconds(now - stageStart_));
+                     100 * fraction_, sinceStageBegan_.seconds());
     }
 }
 
@@ -103,7 +104,7 @@ void ProgressSink::note(std::string_view level, const std::string& text) {
 }
 
 void ProgressSink::drawBar(bool final) {
-    const double elapsed = seconds(Clock::now() - stageStart_);
+    const double elapsed = sinceStageBegan_.seconds();
     constexpr int width = 30;
     const int filled = static_cast<int>(fraction_ * width + 0.5);
     std::string bar(static_cast<std::size_t>(filled), '#');

@@ -2,12 +2,12 @@
 // Draws pipeline progress on stderr: a bar with elapsed time and ETA on a
 // terminal, plain periodic lines otherwise, one JSON object per event with
 // --log-json, nothing with --quiet (warnings still print).
-#include <chrono>
 #include <mutex>
 #include <string>
 #include <string_view>
 
 #include "Pipeline.hpp"
+#include "isohex/core/Stopwatch.hpp"
 
 namespace isohex::cli {
 
@@ -33,13 +33,12 @@ public:
 
 private:
     void drawBar(bool final);
-    using Clock = std::chrono::steady_clock;
     Mode mode_;
     bool terminal_ = false;
     std::string job_;
     std::string stage_;
     double fraction_ = 0;
-    Clock::time_point stageStart_, lastDraw_;
+    Stopwatch sinceStageBegan_, sinceDrawn_;
     std::mutex mutex_;
     nlohmann::json timings_ = nlohmann::json::object();
 };

@@ -5,7 +5,6 @@
 //   c  no sheet, random sheets diced in until the element count matches b
 //   d  the fundamental sheet, random other sheets extracted until the count matches a
 #include <charconv>
-#include <chrono>
 #include <filesystem>
 #include <cstdio>
 #include <memory>
@@ -18,13 +17,15 @@
 #include "MeshOptions.hpp"
 #include "Report.hpp"
 #include "Svg.hpp"
+#include "Threads.hpp"
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
-#include "isohex/core/Quality.hpp"
 #include "isohex/core/Collapse.hpp"
 #include "isohex/core/Dice.hpp"
+#include "isohex/core/Quality.hpp"
 #include "isohex/core/SheetSelection.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
 
 namespace isohex::cli {
@@ -47,10 +48,6 @@ struct Variant {
     nlohmann::json ops;
     double seconds = 0;
 };
-
-double secondsSince(std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
 
 // Dices randomly drawn sheets once each until the mesh has at least `target` hexes.
 nlohmann::json diceUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
@@ -96,6 +93,135 @@ nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t see
     return j;
 }
 
+
+// --seed: a whole number from 0 to 2^64 - 1 (CLI11 would wrap -1 and cut 1.5).
+CLI::Validator seedValidator() {
+    return CLI::Validator(
+        [](const std::string& v) {
+            std::uint64_t n = 0;
+            const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+            return !v.empty() && ec == std::errc() && end == v.data() + v.size()
+                       ? std::string()
+                       : "--seed takes a whole number from 0 to 18446744073709551615 (got '" + v + "')";
+        },
+        "", "whole number");
+}
+
+// The settings every variant is meshed with: the mesh options checked, and
+// the boundary fixed unless --move-boundary. Refuses the options that would
+// make the variants differ in more than their sheets.
+MeshSettings compareSettings(const CompareArgs& c) {
+    MeshArgs args = c.args;
+    checkSettings(args);
+    MeshSettings s = args.settings;
+    if (s.surfaceTolerance && !c.moveBoundary)
+        throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
+                    "(the seed's protocol)");
+    if (s.retries.value_or(0) > 0 || s.retryBelow.value_or(0) > 0)
+        throw Error(std::string(s.retries.value_or(0) > 0 ? "--retries" : "--retry-below") +
+                    " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
+                    "one variant would make them differ");
+    s.fixBoundary = !c.moveBoundary;
+    s.fixBoundaryByCompare = s.fixBoundary;
+    return s;
+}
+
+std::string variantMeshPath(const CompareArgs& c, const std::string& key) {
+    return (std::filesystem::path(c.meshDir) / ("variant_" + key + ".vtu")).string();
+}
+
+// Every output, checked before the four meshings (the variant meshes too);
+// the folder of the variant meshes is made.
+std::vector<std::string> compareOutputs(const CompareArgs& c) {
+    std::vector<std::string> outputs;
+    if (!c.json.empty()) outputs.push_back(c.json);
+    if (!c.plot.empty()) outputs.push_back(c.plot);
+    if (!c.meshDir.empty()) {
+        std::error_code ec;
+        std::filesystem::create_directories(c.meshDir, ec);
+        if (ec) throw Error(c.meshDir + ": cannot create the folder for the variant meshes: " + ec.message());
+        for (const char* k : {"a", "b", "c", "d"}) outputs.push_back(variantMeshPath(c, k));
+    }
+    checkOutputPaths(outputs, {c.input}, c.args.run.force);
+    return outputs;
+}
+
+// The four variants before optimisation, from one extraction: a as
+// extracted, b pillowed, c diced up to b's count, d (from b) extracted down
+// to a's. Each variant's seconds are the time of its sheet operations.
+std::vector<Variant> makeVariants(const Prepared& p, const MeshSettings& s, std::uint64_t seed, ProgressSink& sink) {
+    const HexMesh base = extract(p, s, sink);
+    std::vector<Variant> variants(4);
+    variants[0] = {"a", "no sheet", base, {}, 0};
+    variants[1] = {"b", "fundamental sheet", base, {}, 0};
+    MeshSettings pillowed = s;
+    pillowed.pillow = true;
+    {
+        const Stopwatch t;
+        variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
+        variants[1].seconds += t.seconds();
+    }
+    variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
+    {
+        sink.begin("dice");
+        const Stopwatch t;
+        variants[2].ops = diceUntil(variants[2].mesh, variants[1].mesh.hexCount(), seed);
+        variants[2].seconds += t.seconds();
+        sink.end("dice", variants[2].seconds);
+    }
+    variants[3] = {"d", "fundamental sheet, random sheets extracted", variants[1].mesh, {}, 0};
+    {
+        sink.begin("extract sheets");
+        const Stopwatch t;
+        variants[3].ops = extractUntil(variants[3].mesh, base.hexCount(), seed);
+        variants[3].seconds += t.seconds() + variants[1].seconds;
+        sink.end("extract sheets", t.seconds());
+    }
+    return variants;
+}
+
+// Optimises each variant, prints its line of the table, writes its mesh
+// (with --mesh-dir) and returns the comparison's JSON; `series` gets each
+// variant's histogram.
+nlohmann::json optimizeVariants(std::vector<Variant>& variants, const Prepared& p, const MeshSettings& s,
+                                const CompareArgs& c, ProgressSink& sink, std::vector<HistogramSeries>& series) {
+    nlohmann::json out;
+    out["input"] = p.report["input"];
+    out["grid"] = p.report["grid"];
+    out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
+                                    : "boundary nodes slide on the isosurface";
+    out["seed"] = c.seed;
+    std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
+                "seconds");
+    for (auto& v : variants) {
+        const Stopwatch t;
+        sink.setJob("variant " + v.key);  // its warnings say which variant they are about
+        const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+        sink.setJob({});
+        v.seconds += t.seconds();
+        const HexQuality q = computeQuality(v.mesh);
+        const QualitySummary qs = summarize(v.mesh, q);
+        nlohmann::json j = toJson(qs);
+        j["variant"] = v.key;
+        j["label"] = v.label;
+        j["operations"] = v.ops;
+        j["optimization"] = opt;
+        j["seconds"] = v.seconds;
+        out["variants"].push_back(j);
+        series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});
+        std::printf("%-44s %9zu %8.3f %8.3f %8zu %9zu %8.1f\n", (v.key + ") " + v.label).c_str(), qs.hexes,
+                    qs.scaledJacobian.min, qs.scaledJacobian.mean, qs.below02, qs.inverted, v.seconds);
+        if (!c.meshDir.empty()) {
+            std::filesystem::create_directories(c.meshDir);
+            io::WriteOptions w;
+            w.overwrite = c.args.run.force;
+            w.scaledJacobian = q.scaledJacobian;
+            io::write(v.mesh, variantMeshPath(c, v.key), w);
+        }
+    }
+    return out;
+}
+
 }  // namespace
 
 void addCompareCommand(CLI::App& app) {
@@ -107,122 +233,28 @@ void addCompareCommand(CLI::App& app) {
     cmd->add_option("--json", c->json, "Write the comparison as JSON here");
     cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian per variant here");
     cmd->add_option("--mesh-dir", c->meshDir, "Also write each variant's mesh (variant_a.vtu ...) into this folder");
-    cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)")
-        ->check(CLI::Validator(
-            [](const std::string& v) {
-                std::uint64_t n = 0;
-                const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
-                return !v.empty() && ec == std::errc() && end == v.data() + v.size()
-                           ? std::string()
-                           : "--seed takes a whole number from 0 to 18446744073709551615 (got '" + v + "')";
-            },
-            "", "whole number"));
+    cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)")->check(seedValidator());
     cmd->add_flag("--move-boundary", c->moveBoundary,
                   "Let surface nodes slide on the isosurface (default: fixed, the seed's protocol)");
     addMeshOptions(cmd, c->args);
-    addRunOptions(cmd, c->args);
+    addRunOptions(cmd, c->args.run);
     cmd->callback([c] {
-        applyThreads(c->args.threads);
-        MeshArgs args = c->args;
-        args.finish();
-        MeshSettings s = args.settings;
-        if (s.surfaceTolerance && !c->moveBoundary)
-            throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
-                        "(the seed's protocol)");
-        if (s.retries.value_or(0) > 0 || s.retryBelow.value_or(0) > 0)
-            throw Error(std::string(s.retries.value_or(0) > 0 ? "--retries" : "--retry-below") +
-                        " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
-                        "one variant would make them differ");
-        s.fixBoundary = !c->moveBoundary;
-        s.fixBoundaryByCompare = s.fixBoundary;
-        // every output before the four meshings (the variant meshes too)
-        std::vector<std::string> outputs;
-        {
-            if (!c->json.empty()) outputs.push_back(c->json);
-            if (!c->plot.empty()) outputs.push_back(c->plot);
-            if (!c->meshDir.empty()) {
-                std::error_code ec;
-                std::filesystem::create_directories(c->meshDir, ec);
-                if (ec) throw Error(c->meshDir + ": cannot create the folder for the variant meshes: " + ec.message());
-                for (const char* k : {"a", "b", "c", "d"})
-                    outputs.push_back((std::filesystem::path(c->meshDir) / ("variant_" + std::string(k) + ".vtu")).string());
-            }
-            checkOutputPaths(outputs, {c->input}, args.force);
-        }
+        applyThreads(c->args.run.threads);
+        const MeshSettings s = compareSettings(*c);
+        const std::vector<std::string> outputs = compareOutputs(*c);
         // In a child process, as isohex mesh: a reader crashing on a damaged
         // scan is an error naming it (cli/Isolate.hpp).
         runIsolated(c->input, outputs, [&] {
-            ProgressSink sink(args.progressMode());
-            Prepared p = prepare(c->input, s, sink);
-            HexMesh base = extract(p, s, sink);
-
-            std::vector<Variant> variants(4);
-            variants[0] = {"a", "no sheet", base, {}, 0};
-            variants[1] = {"b", "fundamental sheet", base, {}, 0};
-            MeshSettings pillowed = s;
-            pillowed.pillow = true;
-            {
-                const auto t = std::chrono::steady_clock::now();
-                variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
-                variants[1].seconds += secondsSince(t);
-            }
-            variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
-            {
-                sink.begin("dice");
-                const auto t = std::chrono::steady_clock::now();
-                variants[2].ops = diceUntil(variants[2].mesh, variants[1].mesh.hexCount(), c->seed);
-                variants[2].seconds += secondsSince(t);
-                sink.end("dice", variants[2].seconds);
-            }
-            variants[3] = {"d", "fundamental sheet, random sheets extracted", variants[1].mesh, {}, 0};
-            {
-                sink.begin("extract sheets");
-                const auto t = std::chrono::steady_clock::now();
-                variants[3].ops = extractUntil(variants[3].mesh, base.hexCount(), c->seed);
-                variants[3].seconds += secondsSince(t) + variants[1].seconds;
-                sink.end("extract sheets", secondsSince(t));
-            }
-
-            nlohmann::json out;
-            out["input"] = p.report["input"];
-            out["grid"] = p.report["grid"];
-            out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
-                                            : "boundary nodes slide on the isosurface";
-            out["seed"] = c->seed;
+            ProgressSink sink(c->args.run.progressMode());
+            const Prepared p = prepare(c->input, s, sink);
+            std::vector<Variant> variants = makeVariants(p, s, c->seed, sink);
             std::vector<HistogramSeries> series;
-            std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
-                        "seconds");
-            for (auto& v : variants) {
-                const auto t = std::chrono::steady_clock::now();
-                sink.setJob("variant " + v.key);  // its warnings say which variant they are about
-                const nlohmann::json opt = optimize(v.mesh, p, s, sink);
-                sink.setJob({});
-                v.seconds += secondsSince(t);
-                const HexQuality q = computeQuality(v.mesh);
-                const QualitySummary qs = summarize(v.mesh, q);
-                nlohmann::json j = toJson(qs);
-                j["variant"] = v.key;
-                j["label"] = v.label;
-                j["operations"] = v.ops;
-                j["optimization"] = opt;
-                j["seconds"] = v.seconds;
-                out["variants"].push_back(j);
-                series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});
-                std::printf("%-44s %9zu %8.3f %8.3f %8zu %9zu %8.1f\n", (v.key + ") " + v.label).c_str(), qs.hexes,
-                            qs.scaledJacobian.min, qs.scaledJacobian.mean, qs.below02, qs.inverted, v.seconds);
-                if (!c->meshDir.empty()) {
-                    std::filesystem::create_directories(c->meshDir);
-                    io::WriteOptions w;
-                    w.overwrite = args.force;
-                    w.scaledJacobian = q.scaledJacobian;
-                    io::write(v.mesh, (std::filesystem::path(c->meshDir) / ("variant_" + v.key + ".vtu")).string(), w);
-                }
-            }
+            nlohmann::json out = optimizeVariants(variants, p, s, *c, sink, series);
             out["versions"] = versionsJson();
             out["peak_memory_mb"] = peakMemoryMb();
-            if (!c->json.empty()) writeJsonFile(out, c->json, args.force);
+            if (!c->json.empty()) writeJsonFile(out, c->json, c->args.run.force);
             if (!c->plot.empty())
-                writeHistogramSvg(c->plot, args.force, "Scaled Jacobian per variant: " + c->input, series);
+                writeHistogramSvg(c->plot, c->args.run.force, "Scaled Jacobian per variant: " + c->input, series);
             return nlohmann::json::object();
         });
     });

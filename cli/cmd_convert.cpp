@@ -5,6 +5,7 @@
 
 #include "Commands.hpp"
 #include "Isolate.hpp"
+#include "JobStage.hpp"
 #include "Jobs.hpp"
 #include "isohex/core/MeshIO.hpp"
 

@@ -2,7 +2,6 @@
 // the seed's sheet insertion along triangle surfaces into an existing hex mesh
 // (section 5.4), several surfaces in turn (chapter 6), then smoothing with
 // surface nodes on their triangles and curve nodes on their curves.
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -10,13 +9,17 @@
 
 #include "Commands.hpp"
 #include "Isolate.hpp"
+#include "JobStage.hpp"
 #include "Jobs.hpp"
 #include "Progress.hpp"
+#include "RunOptions.hpp"
+#include "Threads.hpp"
 #include "Report.hpp"
 #include "SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/sheets/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
@@ -28,8 +31,8 @@ struct InsertSheetArgs {
     std::string mesh, output;
     std::vector<std::string> surfaces;
     std::string keep = "both", intersected = "auto";
-    bool optimize = true, force = false, quiet = false;
-    int threads = 0;
+    bool optimize = true;
+    RunArgs run;
 };
 }  // namespace
 
@@ -49,17 +52,15 @@ void addInsertSheetCommand(CLI::App& app) {
                     "or side2 (outside)")
         ->check(CLI::IsMember({"auto", "side1", "side2"}));
     cmd->add_flag("!--no-optimize", a->optimize, "Skip untangling and optimisation");
-    cmd->add_flag("--force", a->force, "Overwrite an existing output");
-    cmd->add_flag("-q,--quiet", a->quiet, "No progress output");
-    cmd->add_option("--threads", a->threads, "Worker threads (results do not depend on it)")->check(CLI::Range(1, 1024));
+    addRunOptions(cmd, a->run, {RunOption::Force, RunOption::Quiet, RunOption::Threads});
     cmd->callback([a] {
-        applyThreads(a->threads);
-        const auto t0 = std::chrono::steady_clock::now();
+        applyThreads(a->run.threads);
+        const Stopwatch total;
         io::formatFromPath(a->output);
         {
             std::vector<std::string> inputs = a->surfaces;
             inputs.push_back(a->mesh);
-            checkOutputPaths({a->output}, inputs, a->force);
+            checkOutputPaths({a->output}, inputs, a->run.force);
         }
         if (!std::filesystem::exists(a->mesh)) throw Error(a->mesh + ": no such file; check the path");
         // In a child process, as isohex mesh: a reader crashing on a damaged
@@ -90,7 +91,7 @@ void addInsertSheetCommand(CLI::App& app) {
             }
             std::size_t invertedBefore = 0, invertedAfter = 0;
             if (a->optimize) {
-                ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
+                ProgressSink sink(a->run.progressMode());
                 sink.begin("optimize");
                 const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, [&](std::string_view, double f) { sink.progress(f); });
                 sink.end("optimize", r.seconds);
@@ -101,7 +102,7 @@ void addInsertSheetCommand(CLI::App& app) {
             const QualitySummary s = summarize(mesh, q);
             const ValidityReport v = validate(mesh);
             io::WriteOptions w;
-            w.overwrite = a->force;
+            w.overwrite = a->run.force;
             w.scaledJacobian = q.scaledJacobian;
             io::write(mesh, a->output, w);
             // Without the optimiser the hexes are as inserted: there is no
@@ -111,7 +112,7 @@ void addInsertSheetCommand(CLI::App& app) {
                             : std::to_string(s.inverted) + " inverted (not smoothed: --no-optimize)";
             std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %s, %s, %.1f s\n", a->output.c_str(), s.hexes,
                         s.scaledJacobian.min, s.scaledJacobian.mean, inverted.c_str(), v.ok() ? "valid" : "validity defects",
-                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+                        total.seconds());
             (void)invertedAfter;
             std::printf("wrote %s\n", a->output.c_str());
             if (!v.ok())

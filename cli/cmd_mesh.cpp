@@ -3,11 +3,10 @@
 #include <map>
 #include <memory>
 
-#include <tbb/global_control.h>
-
 #include "Commands.hpp"
-#include "Isolate.hpp"
 #include "Jobs.hpp"
+#include "MeshOptions.hpp"
+#include "Threads.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 
@@ -25,17 +24,6 @@ struct MeshCommand {
 };
 }  // namespace
 
-std::unique_ptr<tbb::global_control>& threadLimit() {
-    static std::unique_ptr<tbb::global_control> limit;
-    return limit;
-}
-
-void applyThreads(int threads) {
-    if (threads > 0)
-        threadLimit() = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                              static_cast<std::size_t>(threads));
-}
-
 void addMeshCommand(CLI::App& app) {
     auto c = std::make_shared<MeshCommand>();
     CLI::App* cmd = app.add_subcommand("mesh", "Mesh a scan, label map or surface into all-hex elements");
@@ -49,15 +37,15 @@ void addMeshCommand(CLI::App& app) {
     cmd->add_option("--report", c->report, "Write the JSON report here (with --out-dir: <name>.report.json always)");
     cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian here");
     addMeshOptions(cmd, c->args);
-    addRunOptions(cmd, c->args);
+    addRunOptions(cmd, c->args.run);
     cmd->callback([c] {
-        applyThreads(c->args.threads);
+        applyThreads(c->args.run.threads);
         std::vector<Job> jobs;
         if (c->inputs.size() == 1 && c->outDir.empty()) {
             if (c->outputs.empty())
                 throw Error("no output given: add -o mesh.vtu (or .msh .exo .e .inp .mesh), several -o for several formats");
             jobs.push_back({c->inputs[0], c->outputs, c->report, c->plot, c->args});
-            ProgressSink sink(c->args.progressMode());
+            ProgressSink sink(c->args.run.progressMode());
             const JobResult r = runJobIsolated(jobs[0], sink);
             std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu below 0.2, %zu inverted, %.1f s\n",
                         c->inputs[0].c_str(), r.hexes, r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted,
@@ -93,7 +81,7 @@ void addMeshCommand(CLI::App& app) {
             jobs.push_back(std::move(j));
         }
         for (const auto& o : jobs.front().outputs) io::formatFromPath(o);
-        if (runJobs(jobs, c->args.force, c->args.progressMode()) > 0) pendingExitCode() = kExitError;
+        if (runJobs(jobs, c->args.run.force, c->args.run.progressMode(), SettingNames::Flags) > 0) pendingExitCode() = kExitError;
     });
 }
 

@@ -6,7 +6,10 @@
 
 #include "Commands.hpp"
 #include "Isolate.hpp"
+#include "JobStage.hpp"
 #include "Jobs.hpp"
+#include "RunOptions.hpp"
+#include "Threads.hpp"
 #include "Report.hpp"
 #include "Versions.hpp"
 #include "isohex/core/MeshIO.hpp"
@@ -23,8 +26,7 @@ struct QualityArgs {
     bool strict = false;
     std::string reportPath;
     std::string annotated;
-    bool force = false;
-    int threads = 0;
+    RunArgs run;
 };
 }  // namespace
 
@@ -40,20 +42,18 @@ void addQualityCommand(CLI::App& app) {
     cmd->add_option("-o,--annotate", args->annotated,
                     "Write the mesh again with per-hex quality fields (scaled_jacobian, inverse_mean_ratio, "
                     "condition, edge_ratio, volume), e.g. to look at it in ParaView");
-    cmd->add_flag("--force", args->force, "Overwrite existing output files");
     cmd->add_flag("--strict", args->strict,
                   "Exit with status 3 if the mesh has a validity defect or an inverted or degenerate hex");
-    cmd->add_option("--threads", args->threads, "Worker threads (default: all cores); results do not depend on it")
-        ->check(CLI::Range(1, 1024));
+    addRunOptions(cmd, args->run, {RunOption::Threads, RunOption::Force});
     cmd->callback([args] {
-        applyThreads(args->threads);
+        applyThreads(args->run.threads);
         std::vector<std::string> outputs;
         if (!args->reportPath.empty()) outputs.push_back(args->reportPath);
         if (!args->annotated.empty()) {
             io::formatFromPath(args->annotated);
             outputs.push_back(args->annotated);
         }
-        checkOutputPaths(outputs, {args->mesh}, args->force);
+        checkOutputPaths(outputs, {args->mesh}, args->run.force);
         // In a child process, as isohex mesh: a reader crashing on a damaged
         // file is an error naming it (cli/Isolate.hpp).
         const nlohmann::json done = runIsolated(args->mesh, outputs, [&] {
@@ -68,10 +68,10 @@ void addQualityCommand(CLI::App& app) {
             j["validity"] = toJson(v);
             j["peak_memory_mb"] = peakMemoryMb();
             j["versions"] = versionsJson();
-            if (!args->reportPath.empty()) writeJsonFile(j, args->reportPath, args->force);
+            if (!args->reportPath.empty()) writeJsonFile(j, args->reportPath, args->run.force);
             if (!args->annotated.empty()) {
                 io::WriteOptions w;
-                w.overwrite = args->force;
+                w.overwrite = args->run.force;
                 w.scaledJacobian = q.scaledJacobian;
                 w.cellFields = {{"inverse_mean_ratio", q.inverseMeanRatio},
                                 {"condition", q.condition},

@@ -1,16 +1,19 @@
 // isohex smooth MESH -o OUT: untangle and optimise a hex mesh from any tool,
 // boundary nodes fixed (there is no isosurface to keep them on).
-#include <chrono>
 #include <cstdio>
 #include <memory>
 
 #include "Commands.hpp"
 #include "Isolate.hpp"
+#include "JobStage.hpp"
 #include "Jobs.hpp"
 #include "Progress.hpp"
+#include "RunOptions.hpp"
+#include "Threads.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
@@ -20,8 +23,7 @@ namespace isohex::cli {
 namespace {
 struct SmoothArgs {
     std::string input, output;
-    bool force = false, quiet = false;
-    int threads = 0;
+    RunArgs run;
 };
 }  // namespace
 
@@ -31,13 +33,11 @@ void addSmoothCommand(CLI::App& app) {
         "smooth", "Untangle and optimise the interior nodes of a hex mesh (.vtu, .msh); boundary nodes stay fixed");
     cmd->add_option("mesh", a->input, "Mesh to improve")->required();
     cmd->add_option("-o,--output", a->output, "Where to write the improved mesh")->required();
-    cmd->add_flag("--force", a->force, "Overwrite an existing output");
-    cmd->add_flag("-q,--quiet", a->quiet, "No progress output");
-    cmd->add_option("--threads", a->threads, "Worker threads (results do not depend on it)")->check(CLI::Range(1, 1024));
+    addRunOptions(cmd, a->run, {RunOption::Force, RunOption::Quiet, RunOption::Threads});
     cmd->callback([a] {
-        applyThreads(a->threads);
+        applyThreads(a->run.threads);
         io::formatFromPath(a->output);
-        checkOutputPaths({a->output}, {a->input}, a->force);
+        checkOutputPaths({a->output}, {a->input}, a->run.force);
         // In a child process, as isohex mesh (cli/Isolate.hpp).
         runIsolated(a->input, {a->output}, [&] {
             nowReading(a->input);
@@ -54,15 +54,15 @@ void addSmoothCommand(CLI::App& app) {
             const std::vector<Vec3> original = mesh.nodes;
             smoothing::SmoothingOptions opt;
             opt.fixBoundary = true;
-            ProgressSink sink(a->quiet ? ProgressSink::Mode::Quiet : ProgressSink::Mode::Auto);
+            ProgressSink sink(a->run.progressMode());
             sink.begin("optimize");
-            const auto t0 = std::chrono::steady_clock::now();
+            const Stopwatch optimizing;
             const auto r = smoothing::optimizeMesh(mesh, nullptr, opt, [&](std::string_view, double f) { sink.progress(f); });
             // The mean-ratio sweeps raise the average and can lower the worst hex
             // (the JHU mesh isohex wrote: minimum 0.148 -> 0.044): the max-min
             // pass after them, as isohex mesh runs it, with the boundary fixed.
             smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{});
-            sink.end("optimize", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            sink.end("optimize", optimizing.seconds());
             HexQuality q = computeQuality(mesh);
             QualitySummary after = summarize(mesh, q);
             // Never hand back a worse mesh: fewer inverted hexes, or as many and a
@@ -85,7 +85,7 @@ void addSmoothCommand(CLI::App& app) {
                                          "boundary need the mesh remade");
             }
             io::WriteOptions w2;
-            w2.overwrite = a->force;
+            w2.overwrite = a->run.force;
             w2.scaledJacobian = q.scaledJacobian;
             io::write(mesh, a->output, w2);
             std::printf("%s: %zu hexes; scaled Jacobian min %.3f -> %.3f, mean %.3f -> %.3f; inverted %zu -> %zu; %d sweeps\n",

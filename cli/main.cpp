@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 
 #include "Commands.hpp"
+#include "ErrorText.hpp"
 #include "isohex/core/AtomicFile.hpp"
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
@@ -77,7 +78,7 @@ int main(int argc, char** argv) {
         app.exit(e);
         return kExitUsage;
     } catch (const isohex::Error& e) {
-        std::cerr << "isohex: error: " << isohex::boundedMessage(e.what(), 65536) << "\n";
+        std::cerr << "isohex: error: " << isohex::boundedMessage(userMessage(e, SettingNames::Flags), 65536) << "\n";
         return kExitError;
     } catch (const std::bad_alloc&) {
         std::cerr << "isohex: error: out of memory; try a coarser --size or a machine with more memory\n";

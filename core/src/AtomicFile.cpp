@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 
 namespace isohex::io {
 
@@ -81,7 +82,7 @@ void writeAtomically(const std::string& path, bool overwrite,
     const fs::path target(path);
     std::error_code ec;
     if (!overwrite && fs::exists(target, ec))
-        throw Error(path + ": file exists; refusing to overwrite it (use --force to replace it)");
+        throw SettingError({path + ": file exists; refusing to overwrite it (use ", Setting::Force, " to replace it)"});
     fs::path dir = target.parent_path();
     if (dir.empty()) dir = ".";
     if (!fs::is_directory(dir, ec))

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 
 namespace isohex::imaging::detail {
 
@@ -52,8 +53,8 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
         if (raw.spacing[a] < 1e-9 || raw.spacing[a] > 1e9) {
             std::ostringstream m;
             m << file << ": voxel spacing along axis " << a << " is " << raw.spacing[a]
-              << "; isohex reads spacings from 1e-9 to 1e9. Fix the header or its units (for a folder of slices, --slice-spacing) and retry.";
-            throw Error(m.str());
+              << "; isohex reads spacings from 1e-9 to 1e9. Fix the header or its units (for a folder of slices, ";
+            throw SettingError({m.str(), Setting::SliceSpacing, ") and retry."});
         }
         if (std::fabs(raw.origin[a]) > 1e12) {
             std::ostringstream m;

@@ -12,6 +12,7 @@
 #include "DenseGrid.hpp"
 #include "RawVolume.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/imaging/Selection.hpp"
 
 namespace isohex::imaging {
@@ -43,14 +44,16 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
         if (!std::isfinite(*iso) || !(*iso > vol.minValue && *iso < vol.maxValue)) {
             std::ostringstream m;
             m.precision(7);
-            if (vol.levelSet)  // a triangle surface's signed distance, not intensities
+            if (vol.levelSet) {  // a triangle surface's signed distance, not intensities
                 m << src << ": iso value " << *iso << " is outside the signed distance's range [" << vol.minValue
-                  << ", " << vol.maxValue << "] around the surface, so no level crosses it. Omit --iso to mesh "
-                  << "the surface itself (distance 0), or give an offset strictly inside that range.";
-            else
-                m << src << ": iso value " << *iso << " is outside the data range [" << vol.minValue << ", "
-                  << vol.maxValue << "], so no surface crosses it. Choose an iso value "
-                  << "strictly inside that range, or omit it to let Otsu's method choose.";
+                  << ", " << vol.maxValue << "] around the surface, so no level crosses it. Omit ";
+                throw SettingError({m.str(), Setting::Iso,
+                                    " to mesh the surface itself (distance 0), or give an offset strictly inside that "
+                                    "range."});
+            }
+            m << src << ": iso value " << *iso << " is outside the data range [" << vol.minValue << ", "
+              << vol.maxValue << "], so no surface crosses it. Choose an iso value "
+              << "strictly inside that range, or omit it to let Otsu's method choose.";
             throw Error(m.str());
         }
     } else if (vol.levelSet) {
@@ -197,9 +200,9 @@ void refuseIntensityAsLabels(const std::string& src, const LabelStats& all) {
       << " non-zero values, and " << std::lround(100.0 * double(all.differing) / double(all.pairs))
       << "% of neighbouring non-zero voxels hold different values (in a segmentation most "
          "neighbours share their label). Read as labels, every value would become a material "
-         "of scattered voxels. Mesh it as a scan (without --labels or --label; choose the "
-         "surface with --iso), or give the segmentation's label map instead.";
-    throw Error(m.str());
+         "of scattered voxels. Mesh it as a scan (without ";
+    throw SettingError({m.str(), Setting::Labels, " or ", Setting::Label, "; choose the surface with ", Setting::Iso,
+                        "), or give the segmentation's label map instead."});
 }
 
 // The non-zero labels present with their voxel counts (the first 40), for

@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
@@ -343,7 +344,7 @@ HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const Extra
     for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
     const std::size_t nodeCount = perSlab[static_cast<std::size_t>(nz) + 1];
     if (nodeCount > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
-        throw Error("the mesh would have more than 2^31 nodes; use a larger --size");
+        throw SettingError({"the mesh would have more than 2^31 nodes; use a larger ", Setting::Size});
 
     HexMesh mesh;
     // Room for the boundary sheet the pipeline pillows in next (its nodes and

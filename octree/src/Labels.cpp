@@ -20,6 +20,7 @@
 
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/octree/DualContour.hpp"
 
 namespace isohex::octree {
@@ -877,8 +878,9 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             return rep;
         }
         if (round == kMaxRounds)
-            throw Error("non-manifold repair found no fixpoint after " + std::to_string(kMaxRounds) + " rounds (" +
-                        std::to_string(bad.size()) + " bad places left); try a different --size or --iso");
+            throw SettingError({"non-manifold repair found no fixpoint after " + std::to_string(kMaxRounds) +
+                                    " rounds (" + std::to_string(bad.size()) + " bad places left); try a different ",
+                                Setting::Size, " or ", Setting::Iso});
         std::set<std::size_t> touched;  // points changed this round; their blocks wait for the next round
         std::vector<std::size_t> unionOnly;  // blocks with no flip to try where only the union is bad
         for (std::size_t b : bad) {
@@ -1072,9 +1074,10 @@ RepairReport repairNonManifold(Labels& labels, const Domain& domain, const std::
             continue;
         }
         if (touched.empty())
-            throw Error("non-manifold repair is stuck: " + std::to_string(bad.size()) +
-                        " places where regions touch along an edge or at a point cannot be fixed by flipping grid "
-                        "points; try a different --size");
+            throw SettingError({"non-manifold repair is stuck: " + std::to_string(bad.size()) +
+                                    " places where regions touch along an edge or at a point cannot be fixed by "
+                                    "flipping grid points; try a different ",
+                                Setting::Size});
     }
 }
 

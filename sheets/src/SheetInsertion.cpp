@@ -13,6 +13,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/core/QuadSurface.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
@@ -531,8 +532,9 @@ HexMesh regularGrid(const Vec3& lo, const Vec3& hi, double size, double margin) 
     }
     const long long nodes = (n[0] + 1) * (n[1] + 1) * (n[2] + 1);
     if (nodes > std::numeric_limits<Index>::max() / 4)
-        throw Error("a grid of " + std::to_string(n[0]) + " x " + std::to_string(n[1]) + " x " + std::to_string(n[2]) +
-                    " elements is too large; choose a larger --size");
+        throw SettingError({"a grid of " + std::to_string(n[0]) + " x " + std::to_string(n[1]) + " x " +
+                                std::to_string(n[2]) + " elements is too large; choose a larger ",
+                            Setting::Size});
     HexMesh m;
     m.nodes.reserve(static_cast<std::size_t>(nodes));
     for (long long k = 0; k <= n[2]; ++k)

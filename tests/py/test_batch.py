@@ -14,7 +14,7 @@ import unittest
 import vtk
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SOURCE, run, workdir  # noqa: E402
+from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
 
 
 def cells(path):
@@ -307,6 +307,25 @@ class ManifestErrors(unittest.TestCase):
         p = run(["batch", os.path.join(self.dir, "nope.csv")], check=False)
         self.assertEqual(p.returncode, 1)
         self.assertIn("nope.csv", p.stderr)
+
+
+class SettingNames(unittest.TestCase):
+    """A library's error names the settings the user can change by kind; a batch job's message names
+    them as the manifest's columns, the command line as its flags."""
+
+    @unittest.skipUnless(SHARED_DATA and os.path.exists(os.path.join(SHARED_DATA, "ch2bet.nii.gz")),
+                         "needs the shared ch2bet scan")
+    def test_a_failed_job_names_columns(self):
+        d = workdir("batch_names")
+        src = os.path.join(SHARED_DATA, "ch2bet.nii.gz")
+        manifest = os.path.join(d, "jobs.csv")
+        with open(manifest, "w") as f:
+            f.write("input,output,labels\n%s,%s,true\n" % (src, os.path.join(d, "lab.vtu")))
+        p = run(["batch", manifest, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stdout + p.stderr)
+        self.assertIn("this does not look like a label map", p.stdout)
+        self.assertIn("(without labels or label; choose the surface with iso)", p.stdout)
+        self.assertNotIn("--label", p.stdout)
 
 
 if __name__ == "__main__":

@@ -291,7 +291,7 @@ class FailurePaths(unittest.TestCase):
             p = run(["mesh", os.path.join(SHARED_DATA, "ch2bet.nii.gz"), *extra, "-o", out, "-q"], check=False)
             self.assertEqual(p.returncode, 1, (extra, p.stderr))
             self.assertIn("ch2bet.nii.gz: this does not look like a label map", p.stderr)
-            self.assertIn("without --labels", p.stderr)
+            self.assertIn("without --labels or --label; choose the surface with --iso", p.stderr)
             self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
             self.assertFalse(os.path.exists(out), extra)
         # a real segmentation passes the same check

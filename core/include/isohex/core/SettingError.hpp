@@ -1,0 +1,68 @@
+#pragma once
+// An error the user can get past by changing a setting (a larger element
+// size, another iso value, permission to overwrite). The libraries name the
+// setting by what it is, not by how a front end spells it: the command line
+// renders it as a flag (--size), a batch manifest row as its column (size).
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "isohex/core/Error.hpp"
+
+namespace isohex {
+
+// The settings library errors can name.
+enum class Setting : std::uint8_t {
+    Force,         // overwrite existing output files
+    Iso,           // the surface's intensity
+    Labels,        // read the image as a label map
+    Label,         // the labels to mesh
+    SliceSpacing,  // the voxel spacing of a folder of 2-D slices
+    Size,          // the element edge length
+};
+
+// A plain name for `s`, for a message read outside any front end.
+inline std::string_view settingName(Setting s) {
+    switch (s) {
+        case Setting::Force: return "force";
+        case Setting::Iso: return "iso";
+        case Setting::Labels: return "labels";
+        case Setting::Label: return "label";
+        case Setting::SliceSpacing: return "slice spacing";
+        case Setting::Size: return "size";
+    }
+    return "setting";
+}
+
+// A message in parts: text, and the settings it names between the texts.
+using MessagePart = std::variant<std::string, Setting>;
+
+class SettingError : public Error {
+public:
+    // e.g. SettingError({path + ": too large; choose a larger ", Setting::Size})
+    explicit SettingError(std::vector<MessagePart> parts)
+        : Error(render(parts, [](Setting s) { return std::string(settingName(s)); })), parts_(std::move(parts)) {}
+
+    const std::vector<MessagePart>& parts() const { return parts_; }
+    // The message with each setting named by `name(Setting) -> std::string`.
+    template <class Name>
+    std::string render(Name&& name) const {
+        return render(parts_, name);
+    }
+
+private:
+    template <class Name>
+    static std::string render(const std::vector<MessagePart>& parts, Name&& name) {
+        std::string out;
+        for (const MessagePart& p : parts)
+            out += std::holds_alternative<Setting>(p) ? name(std::get<Setting>(p)) : std::get<std::string>(p);
+        return out;
+    }
+
+    std::vector<MessagePart> parts_;
+};
+
+}  // namespace isohex
