@@ -26,8 +26,7 @@ bool keepsValidCornersValid(const CornerTerm* terms, std::size_t n, const Vector
 
 Smoother::Visit Smoother::interiorStep(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
-    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
-    r.length = localEdgeLength(buf.data(), n);
+    const std::size_t n = gatherTerms(v, buf, r);
     NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
     r.move = newtonDescent(objective, r.length, opt_.gradientTolerance * static_cast<double>(n) / r.length, opt_.newton);
     r.position = displaced(mesh_.nodes[static_cast<std::size_t>(v)], r.move.displacement);
@@ -36,8 +35,8 @@ Smoother::Visit Smoother::interiorStep(Index v, std::vector<CornerTerm>& buf) co
 
 Smoother::Visit Smoother::untangleStep(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
-    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
-    const double L = r.length = localEdgeLength(buf.data(), n);
+    const std::size_t n = gatherTerms(v, buf, r);
+    const double L = r.length;
     const double beta = opt_.untangleBeta * L * L * L;
     UntangleBeta metric{beta, 0.5 * beta};
     NodeObjective<UntangleBeta> objective(metric, buf.data(), n);
@@ -96,8 +95,8 @@ bool Smoother::surfaceFrame(std::size_t sv, Vector3& centroid, Vector3& normal) 
 Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
     const auto sv = static_cast<std::size_t>(v);
-    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
-    const double L = r.length = localEdgeLength(buf.data(), n);
+    const std::size_t n = gatherTerms(v, buf, r);
+    const double L = r.length;
     const double beta = opt_.untangleBeta * L * L * L;
     NodeObjective<UntangleBeta> objective(UntangleBeta{beta, 0.5 * beta}, buf.data(), n);
     if (objective.minDeterminant(Vector3::Zero()) >= beta) return r;
@@ -128,8 +127,8 @@ Smoother::Visit Smoother::untangleSurfaceStep(Index v, std::vector<CornerTerm>& 
 Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
     NodeMove& move = r.move;
-    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
-    const double L = r.length = localEdgeLength(buf.data(), n);
+    const std::size_t n = gatherTerms(v, buf, r);
+    const double L = r.length;
     NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
     const double f0 = objective.value(Vector3::Zero());
     move.before = move.after = f0;
@@ -164,12 +163,7 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     if (m.steps == 0) return r;
     const Matrix3 P = Matrix3::Identity() - normal * normal.transpose();
     const Vector3 moved = P * m.displacement;  // what `objective` is now shifted by
-    const Vec3 y = projector_->project(surface, displaced(xv, moved));
-    const Vector3 d = offset(y, xv);
-    if (!d.allFinite()) return r;
-    const double f = objective.value(d - moved);
-    if (!std::isfinite(f) || !(f < f0)) return r;
-    accept(r, d, f, y);
+    acceptProjected(r, objective, xv, moved, projector_->project(surface, displaced(xv, moved)), f0);
     return r;
 }
 
@@ -195,9 +189,9 @@ Smoother::Visit Smoother::curveStep(Index v, std::vector<CornerTerm>& buf) const
 Smoother::Visit Smoother::curveSlide(Index v, std::vector<CornerTerm>& buf) const {
     Visit r;
     const auto sv = static_cast<std::size_t>(v);
-    const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
-    const double L = r.length = localEdgeLength(buf.data(), n);
+    const std::size_t n = gatherTerms(v, buf, r);
     NodeObjective<InverseMeanRatio> objective(InverseMeanRatio{}, buf.data(), n);
+    const double L = r.length;
     const double f0 = objective.value(Vector3::Zero());
     r.move.before = r.move.after = f0;
     const std::size_t k = nodeCurveNeighbours_.size(sv);
@@ -236,12 +230,8 @@ Smoother::Visit Smoother::curveSlide(Index v, std::vector<CornerTerm>& buf) cons
     const NodeMove m = newtonDescent(line, L, opt_.gradientTolerance * static_cast<double>(n) / L, opt_.newton);
     if (m.steps == 0) return r;
     const Vector3 moved = t * t.dot(m.displacement);  // what `objective` is now shifted by
-    const Vec3 y = projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, moved));
-    const Vector3 d = offset(y, xv);
-    if (!d.allFinite()) return r;
-    const double f = objective.value(d - moved);
-    if (!std::isfinite(f) || !(f < f0)) return r;
-    accept(r, d, f, y);
+    acceptProjected(r, objective, xv, moved, projector_->projectToCurve(mesh_.nodeClass[sv].id, displaced(xv, moved)),
+                    f0);
     return r;
 }
 

@@ -5,6 +5,7 @@
 // SmootherSetUp.cpp prepares the per-node data; Untangle.cpp holds the
 // untangling phase; NodeSteps.cpp the moves of one node.
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -161,6 +162,26 @@ private:
     bool surfaceFrame(std::size_t v, Vector3& centroid, Vector3& normal) const;
     static Vec3 displaced(const Vec3& x, const Vector3& d) { return {x[0] + d[0], x[1] + d[1], x[2] + d[2]}; }
     static Vector3 offset(const Vec3& y, const Vec3& x) { return Vector3(y[0] - x[0], y[1] - x[1], y[2] - x[2]); }
+    // Gathers node v's corner terms into buf and sets r.length to its local
+    // edge length; returns the number of terms.
+    std::size_t gatherTerms(Index v, std::vector<CornerTerm>& buf, Visit& r) const {
+        const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+        r.length = localEdgeLength(buf.data(), n);
+        return n;
+    }
+    // The end of a Newton move within a tangent plane or line, by `moved`
+    // (what `objective` is shifted by after it): the node goes to y, the
+    // projector's point for where the move took it, if the objective there
+    // is finite and below f0.
+    template <class Objective>
+    static void acceptProjected(Visit& r, Objective& objective, const Vec3& x, const Vector3& moved, const Vec3& y,
+                                double f0) {
+        const Vector3 d = offset(y, x);
+        if (!d.allFinite()) return;
+        const double f = objective.value(d - moved);
+        if (!std::isfinite(f) || !(f < f0)) return;
+        accept(r, d, f, y);
+    }
     // A visit that moves the node to y, by d, with objective f.
     static void accept(Visit& r, const Vector3& d, double f, const Vec3& y) {
         r.move.displacement = d;
@@ -189,8 +210,8 @@ private:
     // Brings hexImr_ and hexInverted_ up to date: on the first call every
     // hex, after that only the hexes of nodes moved since the last call.
     void refreshHexStates();
-    // Whole-mesh figures between phases (about 40 of them on ch2bet at 1 mm,
-    // 0.08 s each when every hex was evaluated again), the same values a full
+    // Whole-mesh figures between phases (dozens of them on a large mesh,
+    // each a pass over every hex when evaluated again), the same values a full
     // pass gives: objectiveSum(mesh_), invertedCount(mesh_).
     ObjectiveSum objectiveNow() {
         refreshHexStates();
@@ -226,7 +247,7 @@ private:
     // untangling move takes a node farther than untangleMaxTravel of those
     // lengths from its start. Knupp's target (beta ~ L^3) grows with the
     // edges a node stretches, so without a bound a node could chase it across
-    // the mesh (ch2bet 2 mm: surface nodes 80 mm from where they started).
+    // the mesh (surface nodes ended dozens of elements from where they started).
     std::vector<double> refLength_;
     std::vector<Vec3> start_;
     std::vector<std::uint8_t> touched_;  // moved by untangling since the last mean-ratio phase

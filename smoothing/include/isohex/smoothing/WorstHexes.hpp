@@ -104,12 +104,12 @@ struct WorstHexOptions {
     double returnTolerance = 1e-4;
     // The scaled Jacobian does not see edge lengths (its frames are
     // normalised), so the rounds above could pull two nodes almost onto each
-    // other without lowering it (the JHU labels: VTK edge ratio up to 1402
+    // other without lowering it (on a label atlas: VTK edge ratio up to 1402
     // and condition number up to 1108 after the pass, 12 before it). No move
     // of the compass and gradient rounds leaves an edge at the node shorter
     // than this many local edge lengths, or than the node's shortest edge at
-    // the start of the visit if that is shorter (0: no bound). 0.2 against
-    // 0.1 and 0.3 in docs/DESIGN.md.
+    // the start of the visit if that is shorter (0: no bound; 0.2 was chosen
+    // against 0.1 and 0.3).
     double minEdge = 0.2;
 };
 
