@@ -15,6 +15,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Pillow.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/NodeQuality.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 #include "support/Blocks.hpp"

@@ -56,7 +56,7 @@ struct SmoothingOptions {
     // mean edge lengths from where it started (a longer move is shortened by
     // halves, a surface node's is refused). Without it a node could chase
     // Knupp's target, which grows with the edges it stretches, across the
-    // mesh: ch2bet at 2 mm had pillow hexes with 84 mm edges.
+    // mesh (pillow hexes with edges of forty elements were seen).
     double untangleMaxTravel = 2.0;
     // Untangle / mean-ratio rounds: while hexes stay inverted after a round
     // and the last round removed some, untangle again around them.
@@ -80,10 +80,9 @@ struct SmoothingOptions {
     // fraction of its local edge length in its last visit; smaller moves do
     // not wake the neighbours, so the active set stays near the poor hexes.
     // At 0.01 the small moves of the nearly cubic hexes inside kept waking a
-    // layer of nodes after another (ch2bet 1 mm: a million node moves per
-    // sweep for 15 sweeps); 0.05 makes 2.5 to 12 times fewer moves on the
-    // bench inputs, for a mean scaled Jacobian at most 0.004 lower
-    // (docs/DESIGN.md, smoothing).
+    // layer of nodes after another (a million node moves per sweep on a
+    // brain scan at 1 mm); 0.05 makes 2.5 to 12 times fewer moves on the
+    // bench inputs, for a mean scaled Jacobian at most 0.004 lower.
     double wakeTolerance = 5e-2;
     // A surface or curve node tries its centroidal move only when it is longer
     // than this fraction of its local edge length.

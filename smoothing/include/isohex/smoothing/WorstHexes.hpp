@@ -39,6 +39,7 @@
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/NodeQuality.hpp"  // the helpers the pass shares (declared here before)
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
 namespace isohex::smoothing {
@@ -103,12 +104,12 @@ struct WorstHexOptions {
     double returnTolerance = 1e-4;
     // The scaled Jacobian does not see edge lengths (its frames are
     // normalised), so the rounds above could pull two nodes almost onto each
-    // other without lowering it (the JHU labels: VTK edge ratio up to 1402
+    // other without lowering it (on a label atlas: VTK edge ratio up to 1402
     // and condition number up to 1108 after the pass, 12 before it). No move
     // of the compass and gradient rounds leaves an edge at the node shorter
     // than this many local edge lengths, or than the node's shortest edge at
-    // the start of the visit if that is shorter (0: no bound). 0.2 against
-    // 0.1 and 0.3 in docs/DESIGN.md.
+    // the start of the visit if that is shorter (0: no bound; 0.2 was chosen
+    // against 0.1 and 0.3).
     double minEdge = 0.2;
 };
 
@@ -136,27 +137,5 @@ struct WorstHexResult {
 // `topology`, if given, must be buildTopology(mesh); null builds it here.
 WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {},
                                const Topology* topology = nullptr);
-
-// Helpers the pass uses, shared with other finishing steps (sheets' volume fit).
-
-// Scaled Jacobian for maximising: Verdict's value for a collapsed hex (1e30)
-// counts as the worst (-2).
-double usableScaledJacobian(const HexCoords& x);
-
-// Smallest usable scaled Jacobian of the hexes around node v with v at p.
-double minScaledJacobianAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p);
-
-// Gradient, with respect to node v's position at p, of the summed usable
-// scaled Jacobian of v's hexes (each hex's smallest frame: its gradient when
-// v enters that frame, else nothing), as the mean rounds step along it.
-Vec3 summedScaledJacobianGradient(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p);
-
-// Mean length of the hex edges at v.
-double meanEdgeLengthAt(const HexMesh& mesh, const Topology& topo, Index v);
-
-// Unit normal per node of the mesh's surfaces (boundary quads, and quads
-// between two materials oriented from the lower material number to the
-// higher), summed area vectors; zero for nodes on no such quad.
-std::vector<Vec3> surfaceNormals(const HexMesh& mesh, const Topology& topo);
 
 }  // namespace isohex::smoothing
