@@ -14,6 +14,11 @@
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/GridEdits.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/LevelChoice.hpp"
+#include "isohex/octree/NonManifoldRepair.hpp"
+#include "isohex/octree/Regions.hpp"
 
 using namespace isohex;
 using namespace isohex::octree;
