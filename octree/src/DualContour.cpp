@@ -201,19 +201,40 @@ Eigen::Vector3d ontoSurface(const Field& field, Eigen::Vector3d x, const CellFra
 // edges of its cell. Surfaces are (material, -1) against the outside and
 // (smaller, larger) between two materials, sorted, as surfacePatches has them.
 template <class Hexed>
-void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, const std::vector<Index>& node,
-                      const CellGrid& cg) {
+class GridClassifier {
+public:
     using Tag = std::pair<std::int32_t, std::int32_t>;
-    const auto [nx, ny, nz] = labels.grid.dims;
-    // The surfaces of the (up to 12) grid edges of cell c; returns how many.
-    auto cellTags = [&](int ci, int cj, int ck, std::array<Tag, 12>& out) {
+    using Triple = std::array<std::int32_t, 3>;
+
+    GridClassifier(const Labels& labels, const Hexed& hexed, const std::vector<Index>& node, const CellGrid& cg)
+        : labels_(labels), hexed_(hexed), node_(node), cg_(cg) {}
+
+    // The mesh's surface and curve lists, then every node's class.
+    void classify(HexMesh& mesh) {
+        collectSurfaces();
+        mesh.surfaces.clear();
+        for (const auto& [in, out] : tags_) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
+        mesh.curves = curves_;
+        assignClasses(mesh);
+    }
+
+private:
+    const Labels& labels_;
+    const Hexed& hexed_;
+    const std::vector<Index>& node_;
+    const CellGrid& cg_;
+    std::vector<Tag> tags_;       // every surface, sorted
+    std::vector<Triple> curves_;  // every curve (its three materials), sorted
+
+    // The surfaces of the (up to 12) grid edges of cell (ci, cj, ck); returns how many.
+    int cellTags(int ci, int cj, int ck, std::array<Tag, 12>& out) const {
         std::array<bool, 8> h;
         std::array<std::int32_t, 8> m;
         bool uniform = true;
         for (int c = 0; c < 8; ++c) {
             const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
-            h[c] = hexed(i, j, k);
-            m[c] = labels.at(i, j, k);
+            h[c] = hexed_(i, j, k);
+            m[c] = labels_.at(i, j, k);
             uniform = uniform && h[c] == h[0] && m[c] == m[0];
         }
         if (uniform) return 0;
@@ -229,12 +250,11 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
                 }
             }
         return n;
-    };
+    }
     // The materials meeting along a curve node's cell, when exactly three meet
     // there (-1: outside) and at most one of them is not a material (the box
     // around a meshed exterior keeps its curve nodes fixed); else none.
-    using Triple = std::array<std::int32_t, 3>;
-    auto curveOf = [](const std::array<Tag, 12>& t, int n, Triple& out) {
+    static bool curveOf(const std::array<Tag, 12>& t, int n, Triple& out) {
         std::array<std::int32_t, 24> m{};
         int k = 0;
         for (int e = 0; e < n; ++e) {
@@ -246,55 +266,69 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
         if (k != 3 || m[1] <= 0) return false;
         out = {m[0], m[1], m[2]};
         return true;
-    };
-    auto onCurve = [](const std::array<Tag, 12>& t, int n) {
+    }
+    static bool onCurve(const std::array<Tag, 12>& t, int n) {
         for (int e = 1; e < n; ++e)
             if (t[e] != t[0]) return true;
         return false;
-    };
-    tbb::enumerable_thread_specific<std::pair<std::set<Tag>, std::set<Triple>>> local;
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        auto& [set, curves] = local.local();
-        std::array<Tag, 12> t;
-        Triple c;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                if (node[cg.index(ci, cj, ck)] == kNone) continue;
-                const int n = cellTags(ci, cj, ck, t);
-                for (int e = 0; e < n; ++e) set.insert(t[e]);
-                if (onCurve(t, n) && curveOf(t, n, c)) curves.insert(c);
-            }
-    });
-    std::set<Tag> all;
-    std::set<Triple> allCurves;
-    for (const auto& s : local) {
-        all.insert(s.first.begin(), s.first.end());
-        allCurves.insert(s.second.begin(), s.second.end());
     }
-    const std::vector<Tag> tags(all.begin(), all.end());
-    const std::vector<Triple> curveList(allCurves.begin(), allCurves.end());
-    mesh.surfaces.clear();
-    for (const auto& [in, out] : tags) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
-    mesh.curves = curveList;
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        std::array<Tag, 12> t;
-        Triple c;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                const Index id = node[cg.index(ci, cj, ck)];
-                if (id == kNone) continue;
-                const int n = cellTags(ci, cj, ck, t);
-                NodeClass cls{};
-                for (int e = 0; e < n; ++e) {
-                    const auto s = static_cast<std::int32_t>(std::lower_bound(tags.begin(), tags.end(), t[e]) - tags.begin());
-                    if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
-                    else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
+
+    // The surfaces and curves of all node cells (per thread, then merged and sorted).
+    void collectSurfaces() {
+        const auto [nx, ny, nz] = labels_.grid.dims;
+        tbb::enumerable_thread_specific<std::pair<std::set<Tag>, std::set<Triple>>> local;
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            auto& [set, curves] = local.local();
+            std::array<Tag, 12> t;
+            Triple c;
+            for (int cj = 0; cj <= ny; ++cj)
+                for (int ci = 0; ci <= nx; ++ci) {
+                    if (node_[cg_.index(ci, cj, ck)] == kNone) continue;
+                    const int n = cellTags(ci, cj, ck, t);
+                    for (int e = 0; e < n; ++e) set.insert(t[e]);
+                    if (onCurve(t, n) && curveOf(t, n, c)) curves.insert(c);
                 }
-                if (cls.kind == NodeKind::Curve && curveOf(t, n, c))
-                    cls.id = static_cast<std::int32_t>(std::lower_bound(curveList.begin(), curveList.end(), c) - curveList.begin());
-                mesh.nodeClass[id] = cls;
-            }
-    });
+        });
+        std::set<Tag> all;
+        std::set<Triple> allCurves;
+        for (const auto& s : local) {
+            all.insert(s.first.begin(), s.first.end());
+            allCurves.insert(s.second.begin(), s.second.end());
+        }
+        tags_.assign(all.begin(), all.end());
+        curves_.assign(allCurves.begin(), allCurves.end());
+    }
+
+    // Each node: interior, on one surface, or on a curve (named when three
+    // materials meet there).
+    void assignClasses(HexMesh& mesh) const {
+        const auto [nx, ny, nz] = labels_.grid.dims;
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            std::array<Tag, 12> t;
+            Triple c;
+            for (int cj = 0; cj <= ny; ++cj)
+                for (int ci = 0; ci <= nx; ++ci) {
+                    const Index id = node_[cg_.index(ci, cj, ck)];
+                    if (id == kNone) continue;
+                    const int n = cellTags(ci, cj, ck, t);
+                    NodeClass cls{};
+                    for (int e = 0; e < n; ++e) {
+                        const auto s = static_cast<std::int32_t>(std::lower_bound(tags_.begin(), tags_.end(), t[e]) - tags_.begin());
+                        if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
+                        else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
+                    }
+                    if (cls.kind == NodeKind::Curve && curveOf(t, n, c))
+                        cls.id = static_cast<std::int32_t>(std::lower_bound(curves_.begin(), curves_.end(), c) - curves_.begin());
+                    mesh.nodeClass[id] = cls;
+                }
+        });
+    }
+};
+
+template <class Hexed>
+void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, const std::vector<Index>& node,
+                      const CellGrid& cg) {
+    GridClassifier<Hexed>(labels, hexed, node, cg).classify(mesh);
 }
 
 // The nodes moved from their QEF point onto the surface, and how far each is

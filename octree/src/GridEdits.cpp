@@ -119,6 +119,45 @@ std::size_t fillOneCellPits(Labels& labels) {
     return filled;
 }
 
+namespace {
+
+// Whether point (i, j, k) (not on the grid's outer layer) leaving material
+// `from` for `to` keeps the components, tunnels and cavities of both (simple
+// for each: its neighbours of that material one 26-component, the rest one
+// 6-component in the 18-neighbourhood) and leaves the 8 blocks around it
+// manifold. A point joining or leaving the object must also keep the
+// topology of the union of all materials (and so of the background: its
+// pockets, the exterior). Tried on the labels and undone.
+bool editKeepsTopology(Labels& labels, int i, int j, int k, std::int32_t from, std::int32_t to) {
+    const Grid& g = labels.grid;
+    auto& mat = labels.material;
+    std::array<std::int32_t, 27> m27;
+    for (int q = 0; q < 27; ++q) m27[q] = mat[g.index(i + q % 3 - 1, j + q / 3 % 3 - 1, k + q / 9 - 1)];
+    // simple for the set of points whose label passes `inSet`
+    auto simple = [&](auto inSet) {
+        std::array<bool, 27> in{}, out{};
+        for (int q = 0; q < 27; ++q) {
+            in[q] = q != 13 && inSet(m27[q]);
+            out[q] = q != 13 && !inSet(m27[q]);
+        }
+        return topoNumber(in, 26) == 1 && topoNumber(out, 6) == 1;
+    };
+    auto material = [](std::int32_t m) { return [m](std::int32_t x) { return x == m; }; };
+    if ((from != 0 && !simple(material(from))) || (to != 0 && !simple(material(to)))) return false;
+    if ((from == 0 || to == 0) && !simple([](std::int32_t x) { return x != 0; })) return false;
+    const std::size_t p = g.index(i, j, k);
+    mat[p] = to;
+    bool manifold = true;
+    for (int c = 0; c < 8 && manifold; ++c) {
+        const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
+        manifold = blockManifold(block(labels, bi, bj, bk).mat);
+    }
+    mat[p] = from;
+    return manifold;
+}
+
+}  // namespace
+
 std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<std::array<double, 3>>& positions,
                                              const std::vector<std::size_t>& frozen, int maxSame) {
     const Grid& g = labels.grid;
@@ -128,38 +167,6 @@ std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<s
     auto& mat = labels.material;
     auto isFrozen = [&](std::size_t p) { return std::find(frozen.begin(), frozen.end(), p) != frozen.end(); };
     const int faceStep[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
-    // Whether point (i, j, k) leaving material `from` for `to` keeps the
-    // components, tunnels and cavities of both (simple for each: its
-    // neighbours of that material one 26-component, the rest one 6-component
-    // in the 18-neighbourhood) and leaves the 8 blocks around it manifold.
-    auto allowed = [&](int i, int j, int k, std::int32_t from, std::int32_t to) {
-        std::array<std::int32_t, 27> m27;
-        for (int q = 0; q < 27; ++q)
-            m27[q] = mat[g.index(i + q % 3 - 1, j + q / 3 % 3 - 1, k + q / 9 - 1)];
-        // simple for the set of points whose label passes `inSet`
-        auto simple = [&](auto inSet) {
-            std::array<bool, 27> in{}, out{};
-            for (int q = 0; q < 27; ++q) {
-                in[q] = q != 13 && inSet(m27[q]);
-                out[q] = q != 13 && !inSet(m27[q]);
-            }
-            return topoNumber(in, 26) == 1 && topoNumber(out, 6) == 1;
-        };
-        auto material = [](std::int32_t m) { return [m](std::int32_t x) { return x == m; }; };
-        if ((from != 0 && !simple(material(from))) || (to != 0 && !simple(material(to)))) return false;
-        // a point joining or leaving the object: the union of all materials
-        // (and so the background: its pockets, the exterior) keeps its topology too
-        if ((from == 0 || to == 0) && !simple([](std::int32_t x) { return x != 0; })) return false;
-        const std::size_t p = g.index(i, j, k);
-        mat[p] = to;
-        bool manifold = true;
-        for (int c = 0; c < 8 && manifold; ++c) {
-            const int bi = i - (c & 1), bj = j - (c >> 1 & 1), bk = k - (c >> 2 & 1);
-            manifold = blockManifold(block(labels, bi, bj, bk).mat);
-        }
-        mat[p] = from;
-        return manifold;
-    };
     for (const auto& x : positions) {
         bool onGrid = true;
         for (int a = 0; a < 3; ++a) onGrid = onGrid && std::isfinite(x[a]) && x[a] > -1 && x[a] < g.dims[a];
@@ -194,7 +201,7 @@ std::vector<PointEdit> editNearInvertedHexes(Labels& labels, const std::vector<s
                         const std::int32_t to = nb[d];
                         if (to == from || std::find(nb.begin(), nb.begin() + d, to) != nb.begin() + d) continue;
                         const Key key{same, -static_cast<int>(std::count(nb.begin(), nb.end(), to)), dist, p, to};
-                        if ((best && !(key < *best)) || !allowed(i, j, k, from, to)) continue;
+                        if ((best && !(key < *best)) || !editKeepsTopology(labels, i, j, k, from, to)) continue;
                         best = key;
                         bestFrom = from;
                     }
