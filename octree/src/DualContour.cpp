@@ -37,12 +37,6 @@ struct CellGrid {
     }
 };
 
-std::int32_t labelAt(const Labels& l, int i, int j, int k) {
-    const auto& d = l.grid.dims;
-    if (i < 0 || j < 0 || k < 0 || i >= d[0] || j >= d[1] || k >= d[2]) return 0;
-    return l.material[l.grid.index(i, j, k)];
-}
-
 // F = f_a - f_b (f_0 = 0): negative at a point of material a, positive at b.
 double edgeFunction(const Domain& dom, std::int32_t a, std::int32_t b, const Vec3& x, Vec3* grad) {
     Vec3 ga{0, 0, 0}, gb{0, 0, 0};
@@ -208,19 +202,40 @@ Eigen::Vector3d ontoSurface(const Field& field, Eigen::Vector3d x, const CellFra
 // edges of its cell. Surfaces are (material, -1) against the outside and
 // (smaller, larger) between two materials, sorted, as surfacePatches has them.
 template <class Hexed>
-void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, const std::vector<Index>& node,
-                      const CellGrid& cg) {
+class GridClassifier {
+public:
     using Tag = std::pair<std::int32_t, std::int32_t>;
-    const auto [nx, ny, nz] = labels.grid.dims;
-    // The surfaces of the (up to 12) grid edges of cell c; returns how many.
-    auto cellTags = [&](int ci, int cj, int ck, std::array<Tag, 12>& out) {
+    using Triple = std::array<std::int32_t, 3>;
+
+    GridClassifier(const Labels& labels, const Hexed& hexed, const std::vector<Index>& node, const CellGrid& cg)
+        : labels_(labels), hexed_(hexed), node_(node), cg_(cg) {}
+
+    // The mesh's surface and curve lists, then every node's class.
+    void classify(HexMesh& mesh) {
+        collectSurfaces();
+        mesh.surfaces.clear();
+        for (const auto& [in, out] : tags_) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
+        mesh.curves = curves_;
+        assignClasses(mesh);
+    }
+
+private:
+    const Labels& labels_;
+    const Hexed& hexed_;
+    const std::vector<Index>& node_;
+    const CellGrid& cg_;
+    std::vector<Tag> tags_;       // every surface, sorted
+    std::vector<Triple> curves_;  // every curve (its three materials), sorted
+
+    // The surfaces of the (up to 12) grid edges of cell (ci, cj, ck); returns how many.
+    int cellTags(int ci, int cj, int ck, std::array<Tag, 12>& out) const {
         std::array<bool, 8> h;
         std::array<std::int32_t, 8> m;
         bool uniform = true;
         for (int c = 0; c < 8; ++c) {
             const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
-            h[c] = hexed(i, j, k);
-            m[c] = labelAt(labels, i, j, k);
+            h[c] = hexed_(i, j, k);
+            m[c] = labels_.at(i, j, k);
             uniform = uniform && h[c] == h[0] && m[c] == m[0];
         }
         if (uniform) return 0;
@@ -236,12 +251,11 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
                 }
             }
         return n;
-    };
+    }
     // The materials meeting along a curve node's cell, when exactly three meet
     // there (-1: outside) and at most one of them is not a material (the box
     // around a meshed exterior keeps its curve nodes fixed); else none.
-    using Triple = std::array<std::int32_t, 3>;
-    auto curveOf = [](const std::array<Tag, 12>& t, int n, Triple& out) {
+    static bool curveOf(const std::array<Tag, 12>& t, int n, Triple& out) {
         std::array<std::int32_t, 24> m{};
         int k = 0;
         for (int e = 0; e < n; ++e) {
@@ -253,497 +267,459 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
         if (k != 3 || m[1] <= 0) return false;
         out = {m[0], m[1], m[2]};
         return true;
-    };
-    auto onCurve = [](const std::array<Tag, 12>& t, int n) {
+    }
+    static bool onCurve(const std::array<Tag, 12>& t, int n) {
         for (int e = 1; e < n; ++e)
             if (t[e] != t[0]) return true;
         return false;
-    };
-    tbb::enumerable_thread_specific<std::pair<std::set<Tag>, std::set<Triple>>> local;
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        auto& [set, curves] = local.local();
-        std::array<Tag, 12> t;
-        Triple c;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                if (node[cg.index(ci, cj, ck)] == kNone) continue;
-                const int n = cellTags(ci, cj, ck, t);
-                for (int e = 0; e < n; ++e) set.insert(t[e]);
-                if (onCurve(t, n) && curveOf(t, n, c)) curves.insert(c);
-            }
-    });
-    std::set<Tag> all;
-    std::set<Triple> allCurves;
-    for (const auto& s : local) {
-        all.insert(s.first.begin(), s.first.end());
-        allCurves.insert(s.second.begin(), s.second.end());
     }
-    const std::vector<Tag> tags(all.begin(), all.end());
-    const std::vector<Triple> curveList(allCurves.begin(), allCurves.end());
-    mesh.surfaces.clear();
-    for (const auto& [in, out] : tags) mesh.surfaces.push_back(SurfaceTag{in, out, {}});
-    mesh.curves = curveList;
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        std::array<Tag, 12> t;
-        Triple c;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                const Index id = node[cg.index(ci, cj, ck)];
-                if (id == kNone) continue;
-                const int n = cellTags(ci, cj, ck, t);
-                NodeClass cls{};
-                for (int e = 0; e < n; ++e) {
-                    const auto s = static_cast<std::int32_t>(std::lower_bound(tags.begin(), tags.end(), t[e]) - tags.begin());
-                    if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
-                    else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
+
+    // The surfaces and curves of all node cells (per thread, then merged and sorted).
+    void collectSurfaces() {
+        const auto [nx, ny, nz] = labels_.grid.dims;
+        tbb::enumerable_thread_specific<std::pair<std::set<Tag>, std::set<Triple>>> local;
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            auto& [set, curves] = local.local();
+            std::array<Tag, 12> t;
+            Triple c;
+            for (int cj = 0; cj <= ny; ++cj)
+                for (int ci = 0; ci <= nx; ++ci) {
+                    if (node_[cg_.index(ci, cj, ck)] == kNone) continue;
+                    const int n = cellTags(ci, cj, ck, t);
+                    for (int e = 0; e < n; ++e) set.insert(t[e]);
+                    if (onCurve(t, n) && curveOf(t, n, c)) curves.insert(c);
                 }
-                if (cls.kind == NodeKind::Curve && curveOf(t, n, c))
-                    cls.id = static_cast<std::int32_t>(std::lower_bound(curveList.begin(), curveList.end(), c) - curveList.begin());
-                mesh.nodeClass[id] = cls;
-            }
-    });
+        });
+        std::set<Tag> all;
+        std::set<Triple> allCurves;
+        for (const auto& s : local) {
+            all.insert(s.first.begin(), s.first.end());
+            allCurves.insert(s.second.begin(), s.second.end());
+        }
+        tags_.assign(all.begin(), all.end());
+        curves_.assign(allCurves.begin(), allCurves.end());
+    }
+
+    // Each node: interior, on one surface, or on a curve (named when three
+    // materials meet there).
+    void assignClasses(HexMesh& mesh) const {
+        const auto [nx, ny, nz] = labels_.grid.dims;
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            std::array<Tag, 12> t;
+            Triple c;
+            for (int cj = 0; cj <= ny; ++cj)
+                for (int ci = 0; ci <= nx; ++ci) {
+                    const Index id = node_[cg_.index(ci, cj, ck)];
+                    if (id == kNone) continue;
+                    const int n = cellTags(ci, cj, ck, t);
+                    NodeClass cls{};
+                    for (int e = 0; e < n; ++e) {
+                        const auto s = static_cast<std::int32_t>(std::lower_bound(tags_.begin(), tags_.end(), t[e]) - tags_.begin());
+                        if (cls.kind == NodeKind::Interior) cls = {NodeKind::Surface, s};
+                        else if (cls.kind == NodeKind::Surface && cls.id != s) cls = {NodeKind::Curve, -1};
+                    }
+                    if (cls.kind == NodeKind::Curve && curveOf(t, n, c))
+                        cls.id = static_cast<std::int32_t>(std::lower_bound(curves_.begin(), curves_.end(), c) - curves_.begin());
+                    mesh.nodeClass[id] = cls;
+                }
+        });
+    }
+};
+
+template <class Hexed>
+void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, const std::vector<Index>& node,
+                      const CellGrid& cg) {
+    GridClassifier<Hexed>(labels, hexed, node, cg).classify(mesh);
 }
 
-}  // namespace
+// The nodes moved from their QEF point onto the surface, and how far each is
+// pulled back towards it: level l puts node qef[i] at qef + 2^-l (surface -
+// qef), level 4 back at the QEF point; 255 marks a node that was not moved.
+struct SurfaceMoves {
+    std::vector<std::pair<Index, Vec3>> qef;  // (node, QEF point), ascending node
+    std::vector<Vec3> onSurface;              // the same nodes' surface points
+    std::vector<std::uint8_t> level;          // per mesh node
 
-HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt, ExtractStats* stats) {
-    const Grid& g = labels.grid;
-    const CellGrid cg{g.dims};
-    const auto [nx, ny, nz] = g.dims;
-    if (nx < 2 || ny < 2 || nz < 2) throw Error("the sampling grid is too small to mesh (fewer than 2 points per axis)");
-    auto hexed = [&](int i, int j, int k) {
-        const std::int32_t m = labelAt(labels, i, j, k);
+    // Position of moved node qef[i] at level l.
+    Vec3 at(std::size_t i, int l) const {
+        const double sc = l >= 4 ? 0.0 : std::ldexp(1.0, -l);
+        const Vec3& a = qef[i].second;
+        const Vec3& b = onSurface[i];
+        return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
+    }
+    // Index in qef of moved node id.
+    std::size_t slot(Index id) const {
+        return static_cast<std::size_t>(
+            std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.first < v; }) - qef.begin());
+    }
+    // The fewest extra levels (1..4) for the moved corners of an inverted hex
+    // (corner positions x0) that make it valid; -1 when even the QEF
+    // positions leave it inverted.
+    int extraLevels(const Hex& hex, const HexCoords& x0) const {
+        for (int extra = 1; extra <= 4; ++extra) {
+            HexCoords x = x0;
+            for (int c = 0; c < 8; ++c) {
+                const std::uint8_t l = level[static_cast<std::size_t>(hex[c])];
+                if (l < 4) x[c] = at(slot(hex[c]), std::min(4, l + extra));
+            }
+            if (minCornerDeterminant(x) > 0) return extra;
+        }
+        return -1;
+    }
+    // One round, decided from the positions at its start: every inverted hex
+    // with a moved corner that pulling back can mend asks its moved corners
+    // for the levels it needs; a node takes the largest level asked
+    // (`wanted`, a copy of `level` on entry). Returns whether any hex asked.
+    bool askLevels(const HexMesh& mesh, std::vector<std::uint8_t>& wanted) const {
+        std::atomic<bool> changed{false};
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.hexes.size(), 4096), [&](const auto& r) {
+            for (std::size_t h = r.begin(); h != r.end(); ++h) {
+                const Hex& hex = mesh.hexes[h];
+                bool movable = false;
+                for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < 4;
+                if (!movable) continue;
+                const HexCoords x0 = hexCoords(mesh, static_cast<Index>(h));
+                if (minCornerDeterminant(x0) > 0) continue;
+                const int found = extraLevels(hex, x0);
+                if (found < 0) continue;  // inverted with the QEF positions too: keep the surface
+                for (Index v : hex) {
+                    const std::uint8_t l = level[static_cast<std::size_t>(v)];
+                    if (l >= 4) continue;
+                    const auto want = static_cast<std::uint8_t>(std::min(4, l + found));
+                    std::atomic_ref<std::uint8_t> w(wanted[static_cast<std::size_t>(v)]);
+                    std::uint8_t cur = w.load(std::memory_order_relaxed);
+                    while (cur < want && !w.compare_exchange_weak(cur, want, std::memory_order_relaxed)) {
+                    }
+                    changed = true;
+                }
+            }
+        });
+        return changed;
+    }
+};
+
+// One extraction's state, which the phases of dualContourHexes fill in order.
+struct DualContouring {
+    const Labels& labels;
+    const Domain& domain;
+    const ExtractOptions& opt;
+    const Grid& g;
+    const CellGrid cg;
+    const int nx, ny, nz;
+    Eigen::Matrix3d axes;     // columns: the grid axes
+    Eigen::Matrix3d toCell;   // world offset -> cell coordinates
+    double surfaceTolerance;  // vertices count as on the surface within this distance (world units)
+
+    std::vector<Index> node;             // per cell: its node, kNone when no hex uses the cell
+    std::vector<std::size_t> perSlab;    // nodes in the cell slabs before slab ck + 1 (after markNodeCells)
+    std::size_t nodeCount = 0;
+    HexMesh mesh;
+    // nodes moved onto the surface with their QEF position, per cell slab in node order
+    std::vector<std::vector<std::pair<Index, Vec3>>> qefSlab;
+    std::size_t crossed = 0, clamped = 0;
+    std::vector<Index> heldBack;
+    std::vector<Vec3> heldBackAt;
+
+    DualContouring(const Labels& l, const Domain& d, const ExtractOptions& o)
+        : labels(l), domain(d), opt(o), g(l.grid), cg{l.grid.dims}, nx(g.dims[0]), ny(g.dims[1]), nz(g.dims[2]) {
+        for (int a = 0; a < 3; ++a)
+            for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
+        toCell = axes.inverse();
+        const auto spacing = g.spacing();
+        surfaceTolerance = 1e-3 * std::min({spacing[0], spacing[1], spacing[2]});
+    }
+
+    // Whether grid point (i, j, k) gets a hex.
+    bool hexed(int i, int j, int k) const {
+        const std::int32_t m = labels.at(i, j, k);
         return opt.meshExterior ? (i >= 0 && j >= 0 && k >= 0 && i < nx && j < ny && k < nz) : m != 0;
-    };
-
-    // 1. Which cells carry a node: those around a hexed point. Numbered in cell order.
-    std::vector<Index> node(cg.size(), kNone);
-    std::vector<std::size_t> perSlab(static_cast<std::size_t>(nz) + 2, 0);
-    // hexedPair(j, k)[ci]: point ci-1 or ci of grid row (j, k) is hexed
-    auto hexedPair = [&](int j, int k, std::vector<std::uint8_t>& out) {
+    }
+    // out[ci]: point ci-1 or ci of grid row (j, k) is hexed.
+    void hexedPair(int j, int k, std::vector<std::uint8_t>& out) const {
         std::fill(out.begin(), out.end(), 0);
         if (j < 0 || k < 0 || j >= ny || k >= nz) return;
         const std::int32_t* row = &labels.material[g.index(0, j, k)];
         for (int i = 0; i < nx; ++i)
             if (opt.meshExterior || row[i] != 0) out[i] = out[i + 1] = 1;
+    }
+
+    // 1. Which cells carry a node: those around a hexed point. Counted per
+    // slab so that placeNodes can number them in cell order in parallel.
+    void markNodeCells() {
+        node.assign(cg.size(), kNone);
+        perSlab.assign(static_cast<std::size_t>(nz) + 2, 0);
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            std::size_t count = 0;
+            std::array<std::vector<std::uint8_t>, 4> rows;
+            for (auto& r : rows) r.resize(static_cast<std::size_t>(nx) + 1);
+            for (int cj = 0; cj <= ny; ++cj) {
+                for (int r = 0; r < 4; ++r) hexedPair(cj - 1 + (r & 1), ck - 1 + (r >> 1), rows[r]);
+                for (int ci = 0; ci <= nx; ++ci)
+                    if (rows[0][ci] | rows[1][ci] | rows[2][ci] | rows[3][ci]) {
+                        node[cg.index(ci, cj, ck)] = 0;
+                        ++count;
+                    }
+            }
+            perSlab[static_cast<std::size_t>(ck) + 1] = count;
+        });
+        for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
+        nodeCount = perSlab[static_cast<std::size_t>(nz) + 1];
+        if (nodeCount > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
+            throw SettingError({"the mesh would have more than 2^31 nodes; use a larger ", Setting::Size});
+    }
+
+    // The mesh's node arrays, with room for the boundary sheet the pipeline
+    // pillows in next (its nodes and hexes are a small share of a solid's),
+    // so pillowing appends in place instead of copying the arrays; capacity
+    // that is never written costs address space only.
+    void allocateNodes() {
+        mesh.nodes.reserve(nodeCount + nodeCount / 4);
+        mesh.nodeClass.reserve(nodeCount + nodeCount / 4);
+        mesh.nodes.resize(nodeCount);
+        mesh.nodeClass.resize(nodeCount);
+    }
+
+    // The QEF minimiser of the Hermite data on the cell edges whose ends
+    // (materials m, points p) differ, relative to their mass point with a
+    // truncated pseudo-inverse, so flat or degenerate configurations stay
+    // near the mass point.
+    Eigen::Vector3d qefMinimiser(const Domain& cellDomain, const std::array<std::int32_t, 8>& m,
+                                 const std::array<Vec3, 8>& p) const {
+        Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();
+        std::array<std::pair<Vec3, Vec3>, 12> data;
+        int n = 0;
+        for (int c = 0; c < 8; ++c)
+            for (int d = 0; d < 3; ++d) {
+                const int e = c | (1 << d);
+                if (e == c || m[c] == m[e]) continue;
+                crossing(cellDomain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
+                mass += Eigen::Vector3d(data[n].first[0], data[n].first[1], data[n].first[2]);
+                ++n;
+            }
+        mass /= n;
+        for (int s = 0; s < n; ++s) {
+            const Eigen::Vector3d nrm(data[s].second[0], data[s].second[1], data[s].second[2]);
+            const Eigen::Vector3d pt(data[s].first[0], data[s].first[1], data[s].first[2]);
+            ata += nrm * nrm.transpose();
+            atb += nrm * nrm.dot(pt - mass);
+        }
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(ata);
+        const Eigen::Vector3d lambda = eig.eigenvalues();
+        const double cut = opt.qefTruncation * opt.qefTruncation * lambda.maxCoeff();
+        Eigen::Vector3d x = mass;
+        for (int s = 0; s < 3; ++s)
+            if (lambda(s) > cut && lambda(s) > 0) {
+                const Eigen::Vector3d v = eig.eigenvectors().col(s);
+                x += v * (v.dot(atb) / lambda(s));
+            }
+        return x;
+    }
+
+    // Keeps x inside its cell (lowest corner `lower`) shrunk by the margin;
+    // returns whether it had to move.
+    bool keepInCell(Eigen::Vector3d& x, const Eigen::Vector3d& lower) const {
+        Eigen::Vector3d u = toCell * (x - lower);
+        bool clampedHere = false;
+        for (int a = 0; a < 3; ++a) {
+            const double lo = opt.cellMargin, hi = 1.0 - opt.cellMargin;
+            if (u(a) < lo || u(a) > hi) {
+                u(a) = std::clamp(u(a), lo, hi);
+                clampedHere = true;
+            }
+        }
+        if (clampedHere) x = lower + axes * u;
+        return clampedHere;
+    }
+
+    // x moved onto the surface between the two materials of the cell, or,
+    // where the outside meets two or more materials, onto the boundary of
+    // their union (the outer surface there); x itself otherwise.
+    Eigen::Vector3d ontoCellSurface(const Domain& cellDomain, const std::array<std::int32_t, 8>& m,
+                                    const std::array<Vec3, 8>& p, const Eigen::Vector3d& x,
+                                    const Eigen::Vector3d& lower) const {
+        std::int32_t ma = m[0], mb = m[0];
+        bool two = true;
+        for (int c = 1; c < 8; ++c)
+            if (m[c] != ma) {
+                if (mb == ma) mb = m[c];
+                else if (m[c] != mb) two = false;
+            }
+        bool outerJunction = false;
+        if (!two && !opt.meshExterior) {
+            bool outside = false;
+            for (int c = 0; c < 8; ++c) outside = outside || m[c] == 0;
+            outerJunction = outside && std::isfinite(cellDomain.unionValue(Vec3{x(0), x(1), x(2)}));
+        }
+        if (!opt.projectVertices || !(two || outerJunction)) return x;
+        if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
+        const CellFrame frame{lower, axes, toCell, opt.cellMargin};
+        if (two)
+            return ontoSurface([&](const Vec3& y, Vec3* gr) { return edgeFunction(cellDomain, ma, mb, y, gr); }, x, frame,
+                               p, surfaceTolerance);
+        return ontoSurface([&](const Vec3& y, Vec3* gr) { return cellDomain.unionValue(y, gr); }, x, frame, p,
+                           surfaceTolerance);
+    }
+
+    // What placeNode adds up per slab.
+    struct SlabTally {
+        std::size_t crossed = 0, clamped = 0;
+        std::vector<std::pair<Index, Vec3>>& moved;  // nodes moved onto the surface, with their QEF point
     };
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        std::size_t count = 0;
-        std::array<std::vector<std::uint8_t>, 4> rows;
-        for (auto& r : rows) r.resize(static_cast<std::size_t>(nx) + 1);
-        for (int cj = 0; cj <= ny; ++cj) {
-            for (int r = 0; r < 4; ++r) hexedPair(cj - 1 + (r & 1), ck - 1 + (r >> 1), rows[r]);
-            for (int ci = 0; ci <= nx; ++ci)
-                if (rows[0][ci] | rows[1][ci] | rows[2][ci] | rows[3][ci]) {
-                    node[cg.index(ci, cj, ck)] = 0;
-                    ++count;
-                }
+
+    // Node `id` of cell (ci, cj, ck): its centre when no surface crosses the
+    // cell (or with cellCentres), else the QEF minimiser kept inside the
+    // cell and moved onto the surface.
+    void placeNode(int ci, int cj, int ck, Index id, SlabTally& tally) {
+        std::array<std::int32_t, 8> m;
+        std::array<Vec3, 8> p;
+        bool mixed = false;
+        for (int c = 0; c < 8; ++c) {
+            const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
+            m[c] = labels.at(i, j, k);
+            p[c] = g.point(i, j, k);
+            mixed = mixed || m[c] != m[0];
         }
-        perSlab[static_cast<std::size_t>(ck) + 1] = count;
-    });
-    for (std::size_t s = 1; s < perSlab.size(); ++s) perSlab[s] += perSlab[s - 1];
-    const std::size_t nodeCount = perSlab[static_cast<std::size_t>(nz) + 1];
-    if (nodeCount > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
-        throw SettingError({"the mesh would have more than 2^31 nodes; use a larger ", Setting::Size});
+        const Vec3 centre = g.point(ci - 0.5, cj - 0.5, ck - 0.5);
+        tally.crossed += mixed;
+        if (!mixed || opt.cellCentres) {
+            mesh.nodes[id] = centre;
+            return;
+        }
+        const Domain& cellDomain = domain.within(centre);  // every query below stays in this cell
+        Eigen::Vector3d x = qefMinimiser(cellDomain, m, p);
+        const Eigen::Vector3d lower(g.point(ci - 1, cj - 1, ck - 1)[0], g.point(ci - 1, cj - 1, ck - 1)[1],
+                                    g.point(ci - 1, cj - 1, ck - 1)[2]);
+        if (keepInCell(x, lower)) ++tally.clamped;
+        const Eigen::Vector3d qef = x;
+        x = ontoCellSurface(cellDomain, m, p, x, lower);
+        if (x != qef) tally.moved.emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
+        mesh.nodes[id] = {x(0), x(1), x(2)};
+    }
 
-    HexMesh mesh;
-    // Room for the boundary sheet the pipeline pillows in next (its nodes and
-    // hexes are a small share of a solid's), so pillowing appends in place
-    // instead of copying the arrays; capacity that is never written costs
-    // address space only.
-    mesh.nodes.reserve(nodeCount + nodeCount / 4);
-    mesh.nodeClass.reserve(nodeCount + nodeCount / 4);
-    mesh.nodes.resize(nodeCount);
-    mesh.nodeClass.resize(nodeCount);
-    std::atomic<std::size_t> crossed{0}, clamped{0};
-    Eigen::Matrix3d axes;
-    for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
-    const Eigen::Matrix3d toCell = axes.inverse();
-    // vertices count as on the surface within this distance (world units)
-    const auto spacing = g.spacing();
-    const double surfaceTolerance = 1e-3 * std::min({spacing[0], spacing[1], spacing[2]});
+    // 2. Node positions, numbered in cell order, slab by slab in parallel.
+    // Nodes moved onto the surface keep their QEF position in qefSlab in
+    // case the move inverts a hex (holdBackInvertingMoves).
+    void placeNodes() {
+        qefSlab.assign(static_cast<std::size_t>(nz) + 1, {});
+        std::atomic<std::size_t> crossedCells{0}, clampedVertices{0};
+        tbb::parallel_for(0, nz + 1, [&](int ck) {
+            Index next = static_cast<Index>(perSlab[static_cast<std::size_t>(ck)]);
+            SlabTally tally{0, 0, qefSlab[static_cast<std::size_t>(ck)]};
+            for (int cj = 0; cj <= ny; ++cj)
+                for (int ci = 0; ci <= nx; ++ci) {
+                    Index& id = node[cg.index(ci, cj, ck)];
+                    if (id == kNone) continue;
+                    id = next++;
+                    placeNode(ci, cj, ck, id, tally);
+                }
+            crossedCells += tally.crossed;
+            clampedVertices += tally.clamped;
+        });
+        crossed = crossedCells;
+        clamped = clampedVertices;
+    }
 
-    // 2. Node positions: QEF minimiser in crossed cells, centre elsewhere.
-    // Nodes moved onto the surface keep their QEF position here, per slab in
-    // node order, in case the move inverts a hex (step 4).
-    std::vector<std::vector<std::pair<Index, Vec3>>> qefSlab(static_cast<std::size_t>(nz) + 1);
-    tbb::parallel_for(0, nz + 1, [&](int ck) {
-        Index next = static_cast<Index>(perSlab[static_cast<std::size_t>(ck)]);
-        std::size_t localCrossed = 0, localClamped = 0;
-        for (int cj = 0; cj <= ny; ++cj)
-            for (int ci = 0; ci <= nx; ++ci) {
-                Index& id = node[cg.index(ci, cj, ck)];
-                if (id == kNone) continue;
-                id = next++;
-                std::array<std::int32_t, 8> m;
-                std::array<Vec3, 8> p;
-                bool mixed = false;
-                for (int c = 0; c < 8; ++c) {
-                    const int i = ci - 1 + (c & 1), j = cj - 1 + (c >> 1 & 1), k = ck - 1 + (c >> 2 & 1);
-                    m[c] = labelAt(labels, i, j, k);
-                    p[c] = g.point(i, j, k);
-                    mixed = mixed || m[c] != m[0];
-                }
-                const Vec3 centre = g.point(ci - 0.5, cj - 0.5, ck - 0.5);
-                localCrossed += mixed;
-                if (!mixed || opt.cellCentres) {
-                    mesh.nodes[id] = centre;
-                    continue;
-                }
-                // every query below stays in this cell
-                const Domain& cellDomain = domain.within(centre);
-                // Hermite data on the 12 cell edges whose ends differ.
-                Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-                Eigen::Vector3d atb = Eigen::Vector3d::Zero(), mass = Eigen::Vector3d::Zero();
-                std::array<std::pair<Vec3, Vec3>, 12> data;
-                int n = 0;
-                for (int c = 0; c < 8; ++c)
-                    for (int d = 0; d < 3; ++d) {
-                        const int e = c | (1 << d);
-                        if (e == c || m[c] == m[e]) continue;
-                        crossing(cellDomain, m[c], m[e], p[c], p[e], data[n].first, data[n].second);
-                        mass += Eigen::Vector3d(data[n].first[0], data[n].first[1], data[n].first[2]);
-                        ++n;
+    // 3. Hexes: one per hexed grid point, in point order. VTK corner c sits
+    // at offset ref[c]; a mirrored grid swaps two corner pairs so every hex
+    // keeps a positive Jacobian.
+    void buildHexes() {
+        std::vector<std::size_t> hexSlab(static_cast<std::size_t>(nz) + 1, 0);
+        tbb::parallel_for(0, nz, [&](int k) {
+            std::size_t c = 0;
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i) c += hexed(i, j, k);
+            hexSlab[static_cast<std::size_t>(k) + 1] = c;
+        });
+        for (std::size_t s = 1; s < hexSlab.size(); ++s) hexSlab[s] += hexSlab[s - 1];
+        mesh.hexes.reserve(hexSlab.back() + hexSlab.back() / 4);
+        mesh.material.reserve(hexSlab.back() + hexSlab.back() / 4);
+        mesh.hexes.resize(hexSlab.back());
+        mesh.material.resize(hexSlab.back());
+        static constexpr int ref[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                                          {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+        const bool mirrored = g.determinant() < 0;
+        tbb::parallel_for(0, nz, [&](int k) {
+            std::size_t h = hexSlab[static_cast<std::size_t>(k)];
+            for (int j = 0; j < ny; ++j)
+                for (int i = 0; i < nx; ++i) {
+                    if (!hexed(i, j, k)) continue;
+                    Hex hex;
+                    for (int c = 0; c < 8; ++c) hex[c] = node[cg.index(i + ref[c][0], j + ref[c][1], k + ref[c][2])];
+                    if (mirrored) {
+                        std::swap(hex[1], hex[3]);
+                        std::swap(hex[5], hex[7]);
                     }
-                mass /= n;
-                for (int s = 0; s < n; ++s) {
-                    const Eigen::Vector3d nrm(data[s].second[0], data[s].second[1], data[s].second[2]);
-                    const Eigen::Vector3d pt(data[s].first[0], data[s].first[1], data[s].first[2]);
-                    ata += nrm * nrm.transpose();
-                    atb += nrm * nrm.dot(pt - mass);
+                    mesh.hexes[h] = hex;
+                    mesh.material[h] = labels.material[g.index(i, j, k)];
+                    ++h;
                 }
-                // Minimise relative to the mass point with truncated pseudo-inverse
-                // so flat or degenerate configurations stay near the mass point.
-                Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(ata);
-                const Eigen::Vector3d lambda = eig.eigenvalues();
-                const double cut = opt.qefTruncation * opt.qefTruncation * lambda.maxCoeff();
-                Eigen::Vector3d x = mass;
-                for (int s = 0; s < 3; ++s)
-                    if (lambda(s) > cut && lambda(s) > 0) {
-                        const Eigen::Vector3d v = eig.eigenvectors().col(s);
-                        x += v * (v.dot(atb) / lambda(s));
-                    }
-                // Keep the vertex inside its cell.
-                const Eigen::Vector3d lower(g.point(ci - 1, cj - 1, ck - 1)[0], g.point(ci - 1, cj - 1, ck - 1)[1],
-                                            g.point(ci - 1, cj - 1, ck - 1)[2]);
-                Eigen::Vector3d u = toCell * (x - lower);
-                bool clampedHere = false;
-                for (int a = 0; a < 3; ++a) {
-                    const double lo = opt.cellMargin, hi = 1.0 - opt.cellMargin;
-                    if (u(a) < lo || u(a) > hi) {
-                        u(a) = std::clamp(u(a), lo, hi);
-                        clampedHere = true;
-                    }
-                }
-                if (clampedHere) {
-                    ++localClamped;
-                    x = lower + axes * u;
-                }
-                // Onto the surface between the two materials of the cell.
-                std::int32_t ma = m[0], mb = m[0];
-                bool two = true;
-                for (int c = 1; c < 8; ++c)
-                    if (m[c] != ma) {
-                        if (mb == ma) mb = m[c];
-                        else if (m[c] != mb) two = false;
-                    }
-                // A cell where the outside meets two or more materials: onto
-                // the boundary of their union (the outer surface there).
-                bool outerJunction = false;
-                if (!two && !opt.meshExterior) {
-                    bool outside = false;
-                    for (int c = 0; c < 8; ++c) outside = outside || m[c] == 0;
-                    outerJunction = outside && std::isfinite(cellDomain.unionValue(Vec3{x(0), x(1), x(2)}));
-                }
-                if (opt.projectVertices && (two || outerJunction)) {
-                    if (ma > mb) std::swap(ma, mb);  // sign of F does not matter for the root
-                    const Eigen::Vector3d qef = x;
-                    const CellFrame frame{lower, axes, toCell, opt.cellMargin};
-                    if (two)
-                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return edgeFunction(cellDomain, ma, mb, y, gr); }, x,
-                                        frame, p, surfaceTolerance);
-                    else
-                        x = ontoSurface([&](const Vec3& y, Vec3* gr) { return cellDomain.unionValue(y, gr); }, x, frame, p,
-                                        surfaceTolerance);
-                    if (x != qef) qefSlab[static_cast<std::size_t>(ck)].emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
-                }
-                mesh.nodes[id] = {x(0), x(1), x(2)};
-            }
-        crossed += localCrossed;
-        clamped += localClamped;
-    });
+        });
+    }
 
-    // 3. Hexes: one per hexed grid point, in point order.
-    std::vector<std::size_t> hexSlab(static_cast<std::size_t>(nz) + 1, 0);
-    tbb::parallel_for(0, nz, [&](int k) {
-        std::size_t c = 0;
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) c += hexed(i, j, k);
-        hexSlab[static_cast<std::size_t>(k) + 1] = c;
-    });
-    for (std::size_t s = 1; s < hexSlab.size(); ++s) hexSlab[s] += hexSlab[s - 1];
-    mesh.hexes.reserve(hexSlab.back() + hexSlab.back() / 4);
-    mesh.material.reserve(hexSlab.back() + hexSlab.back() / 4);
-    mesh.hexes.resize(hexSlab.back());
-    mesh.material.resize(hexSlab.back());
-    // VTK corner c sits at offset (x, y, z) below; a mirrored grid swaps two
-    // corner pairs so every hex keeps a positive Jacobian.
-    static constexpr int ref[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-    const bool mirrored = g.determinant() < 0;
-    tbb::parallel_for(0, nz, [&](int k) {
-        std::size_t h = hexSlab[static_cast<std::size_t>(k)];
-        for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) {
-                if (!hexed(i, j, k)) continue;
-                Hex hex;
-                for (int c = 0; c < 8; ++c) hex[c] = node[cg.index(i + ref[c][0], j + ref[c][1], k + ref[c][2])];
-                if (mirrored) {
-                    std::swap(hex[1], hex[3]);
-                    std::swap(hex[5], hex[7]);
-                }
-                mesh.hexes[h] = hex;
-                mesh.material[h] = labels.material[g.index(i, j, k)];
-                ++h;
-            }
-    });
-    // 4. A move onto the surface must not invert a hex. Where a hex with moved
-    // corners is inverted, its moved corners are pulled back towards their QEF
-    // positions, x = qef + s (surface point - qef), with the largest s in
-    // 1/2, 1/4, 1/8, 0 that makes it valid (none helps: the hex is inverted
-    // with the QEF positions too, and the corners stay on the surface). A node
-    // takes the smallest s any of its hexes asks for; pulling back can invert
-    // a neighbour, so repeat (s only decreases). Each round decides from the
-    // positions at its start, so the result does not depend on the thread count.
-    std::vector<Index> heldBack;
-    std::vector<Vec3> heldBackAt;
-    {
-        std::vector<std::pair<Index, Vec3>> qef;
-        for (auto& v : qefSlab) qef.insert(qef.end(), v.begin(), v.end());
+    // 4. A move onto the surface must not invert a hex. Where a hex with
+    // moved corners is inverted, its moved corners are pulled back towards
+    // their QEF positions, x = qef + s (surface point - qef), with the
+    // largest s in 1/2, 1/4, 1/8, 0 that makes it valid (none helps: the hex
+    // is inverted with the QEF positions too, and the corners stay on the
+    // surface). A node takes the smallest s any of its hexes asks for;
+    // pulling back can invert a neighbour, so repeat (s only decreases).
+    // Each round decides from the positions at its start, so the result does
+    // not depend on the thread count. The mesh keeps every vertex on the
+    // surface; the held-back (valid) positions go to the caller, who puts
+    // them where a sheet needs them.
+    void holdBackInvertingMoves() {
+        SurfaceMoves mv;
+        for (auto& v : qefSlab) mv.qef.insert(mv.qef.end(), v.begin(), v.end());
         qefSlab.clear();
-        std::vector<Vec3> onSurface(qef.size());
-        for (std::size_t i = 0; i < qef.size(); ++i) onSurface[i] = mesh.nodes[static_cast<std::size_t>(qef[i].first)];
-        // level l: s = 2^-l, 4 = back at the QEF position; 255 = not moved
-        std::vector<std::uint8_t> level(nodeCount, 255), wanted;
-        for (const auto& [id, x] : qef) level[static_cast<std::size_t>(id)] = 0;
-        auto slot = [&](Index id) {
-            return static_cast<std::size_t>(
-                std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.first < v; }) - qef.begin());
-        };
-        auto at = [&](std::size_t i, int l) {
-            const double sc = l >= 4 ? 0.0 : std::ldexp(1.0, -l);
-            const Vec3& a = qef[i].second;
-            const Vec3& b = onSurface[i];
-            return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
-        };
-        for (int round = 0; round < 16 && !qef.empty(); ++round) {
-            wanted = level;
-            std::atomic<bool> changed{false};
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.hexes.size(), 4096), [&](const auto& r) {
-                for (std::size_t h = r.begin(); h != r.end(); ++h) {
-                    const Hex& hex = mesh.hexes[h];
-                    bool movable = false;
-                    for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < 4;
-                    if (!movable) continue;
-                    const HexCoords x0 = hexCoords(mesh, static_cast<Index>(h));
-                    if (minCornerDeterminant(x0) > 0) continue;
-                    int found = -1;
-                    for (int extra = 1; extra <= 4 && found < 0; ++extra) {
-                        HexCoords x = x0;
-                        for (int c = 0; c < 8; ++c) {
-                            const std::uint8_t l = level[static_cast<std::size_t>(hex[c])];
-                            if (l < 4) x[c] = at(slot(hex[c]), std::min(4, l + extra));
-                        }
-                        if (minCornerDeterminant(x) > 0) found = extra;
-                    }
-                    if (found < 0) continue;  // inverted with the QEF positions too: keep the surface
-                    for (Index v : hex) {
-                        const std::uint8_t l = level[static_cast<std::size_t>(v)];
-                        if (l >= 4) continue;
-                        const auto want = static_cast<std::uint8_t>(std::min(4, l + found));
-                        std::atomic_ref<std::uint8_t> w(wanted[static_cast<std::size_t>(v)]);
-                        std::uint8_t cur = w.load(std::memory_order_relaxed);
-                        while (cur < want && !w.compare_exchange_weak(cur, want, std::memory_order_relaxed)) {
-                        }
-                        changed = true;
-                    }
-                }
-            });
-            if (!changed) break;
-            level.swap(wanted);
-            for (std::size_t i = 0; i < qef.size(); ++i) {
-                const auto id = static_cast<std::size_t>(qef[i].first);
-                mesh.nodes[id] = at(i, level[id]);
+        mv.onSurface.resize(mv.qef.size());
+        for (std::size_t i = 0; i < mv.qef.size(); ++i) mv.onSurface[i] = mesh.nodes[static_cast<std::size_t>(mv.qef[i].first)];
+        mv.level.assign(nodeCount, 255);
+        for (const auto& [id, x] : mv.qef) mv.level[static_cast<std::size_t>(id)] = 0;
+        std::vector<std::uint8_t> wanted;
+        for (int round = 0; round < 16 && !mv.qef.empty(); ++round) {
+            wanted = mv.level;
+            if (!mv.askLevels(mesh, wanted)) break;
+            mv.level.swap(wanted);
+            for (std::size_t i = 0; i < mv.qef.size(); ++i) {
+                const auto id = static_cast<std::size_t>(mv.qef[i].first);
+                mesh.nodes[id] = mv.at(i, mv.level[id]);
             }
         }
-        // The mesh keeps every vertex on the surface; the held-back (valid)
-        // positions go to the caller, who puts them where a sheet needs them.
-        for (std::size_t i = 0; i < qef.size(); ++i) {
-            const Index id = qef[i].first;
-            if (level[static_cast<std::size_t>(id)] == 0) continue;
+        for (std::size_t i = 0; i < mv.qef.size(); ++i) {
+            const Index id = mv.qef[i].first;
+            if (mv.level[static_cast<std::size_t>(id)] == 0) continue;
             heldBack.push_back(id);
             heldBackAt.push_back(mesh.nodes[static_cast<std::size_t>(id)]);
-            mesh.nodes[static_cast<std::size_t>(id)] = onSurface[i];
+            mesh.nodes[static_cast<std::size_t>(id)] = mv.onSurface[i];
         }
     }
-    if (stats) {
-        stats->crossedCells = crossed;
-        stats->clampedVertices = clamped;
-        stats->heldBack = std::move(heldBack);
-        stats->heldBackAt = std::move(heldBackAt);
-    }
-    classifyFromGrid(mesh, labels, hexed, node, cg);
-    return mesh;
-}
 
-std::size_t lbieFailures(const Labels& fine) {
-    const auto [nx, ny, nz] = fine.grid.dims;
-    auto at = [&](int i, int j, int k) { return labelAt(fine, i, j, k); };
-    std::atomic<std::size_t> failures{0};
-    const int cx = (nx - 1) / 2, cy = (ny - 1) / 2, cz = (nz - 1) / 2;
-    tbb::parallel_for(0, std::max(cz, 0), [&](int K) {
-        std::size_t local = 0;
-        for (int J = 0; J < cy; ++J)
-            for (int I = 0; I < cx; ++I) {
-                const int i0 = 2 * I, j0 = 2 * J, k0 = 2 * K;
-                // the 27 fine labels of the coarse cell, m[a][b][c] with a,b,c in {0,1,2}
-                std::int32_t m[3][3][3];
-                bool uniform = true;
-                for (int a = 0; a < 3; ++a)
-                    for (int b = 0; b < 3; ++b)
-                        for (int c = 0; c < 3; ++c) {
-                            m[a][b][c] = at(i0 + a, j0 + b, k0 + c);
-                            uniform = uniform && m[a][b][c] == m[0][0][0];
-                        }
-                if (uniform) continue;
-                bool bad = false;
-                // edges: ends (0 and 2 along one axis, others at 0 or 2), midpoint at 1
-                for (int d = 0; d < 3 && !bad; ++d)
-                    for (int u = 0; u <= 2 && !bad; u += 2)
-                        for (int v = 0; v <= 2 && !bad; v += 2) {
-                            int p0[3], p1[3], pm[3];
-                            const int e1 = (d + 1) % 3, e2 = (d + 2) % 3;
-                            p0[d] = 0, p1[d] = 2, pm[d] = 1;
-                            p0[e1] = p1[e1] = pm[e1] = u;
-                            p0[e2] = p1[e2] = pm[e2] = v;
-                            const auto a = m[p0[0]][p0[1]][p0[2]], b = m[p1[0]][p1[1]][p1[2]], c = m[pm[0]][pm[1]][pm[2]];
-                            if (a == b && c != a) bad = true;
-                        }
-                // faces: corners at 0/2 in two axes, fixed 0 or 2 in the third; centre at 1,1
-                for (int d = 0; d < 3 && !bad; ++d)
-                    for (int w = 0; w <= 2 && !bad; w += 2) {
-                        const int e1 = (d + 1) % 3, e2 = (d + 2) % 3;
-                        std::int32_t corner[4];
-                        int n = 0;
-                        for (int u = 0; u <= 2; u += 2)
-                            for (int v = 0; v <= 2; v += 2) {
-                                int q[3];
-                                q[d] = w, q[e1] = u, q[e2] = v;
-                                corner[n++] = m[q[0]][q[1]][q[2]];
-                            }
-                        int q[3];
-                        q[d] = w, q[e1] = 1, q[e2] = 1;
-                        const auto centre = m[q[0]][q[1]][q[2]];
-                        // corners in order (0,0) (0,2) (2,0) (2,2): diagonals are 0-3 and 1-2
-                        const bool allSame = corner[0] == corner[1] && corner[1] == corner[2] && corner[2] == corner[3];
-                        if (allSame && centre != corner[0]) bad = true;
-                        if (corner[0] == corner[3] && corner[1] == corner[2] && corner[0] != corner[1]) bad = true;
-                    }
-                // cell: all 8 corners agree but the centre differs, or a body-diagonal pattern
-                if (!bad) {
-                    std::int32_t c8[8];
-                    for (int c = 0; c < 8; ++c) c8[c] = m[2 * (c & 1)][2 * (c >> 1 & 1)][2 * (c >> 2 & 1)];
-                    bool same = true;
-                    for (int c = 1; c < 8; ++c) same = same && c8[c] == c8[0];
-                    if (same && m[1][1][1] != c8[0]) bad = true;
-                    // body diagonals: two opposite corners share a material that no
-                    // other corner has, and they are not joined along a face
-                    for (int c = 0; c < 8 && !bad; ++c) {
-                        const int o = 7 - c;
-                        if (c8[c] != c8[o]) continue;
-                        bool alone = true;
-                        for (int e = 0; e < 8; ++e)
-                            if (e != c && e != o && c8[e] == c8[c]) alone = false;
-                        if (alone) bad = true;
-                    }
-                }
-                local += bad;
-            }
-        failures += local;
-    });
-    return failures;
-}
-
-Grid coarsen(const Grid& base, int level) {
-    Grid g = base;
-    const int s = 1 << level;
-    for (int a = 0; a < 3; ++a) {
-        for (int c = 0; c < 3; ++c) g.axes[a][c] = base.axes[a][c] * s;
-        g.dims[a] = (base.dims[a] - 1 + s - 1) / s + 1;
+    // 5. The statistics, and the nodes' classes straight from the grid.
+    HexMesh finish(ExtractStats* stats) {
+        if (stats) {
+            stats->crossedCells = crossed;
+            stats->clampedVertices = clamped;
+            stats->heldBack = std::move(heldBack);
+            stats->heldBackAt = std::move(heldBackAt);
+        }
+        classifyFromGrid(mesh, labels, [&](int i, int j, int k) { return hexed(i, j, k); }, node, cg);
+        return std::move(mesh);
     }
-    return g;
-}
+};
 
-LevelChoice chooseLevel(const Domain& domain, const Grid& base, const LevelOptions& opt) {
-    LevelChoice best;
-    double refVolume = 0;
-    for (int level = 0; level <= opt.maxLevel; ++level) {
-        const Grid grid = coarsen(base, level);
-        if (grid.dims[0] < 3 || grid.dims[1] < 3 || grid.dims[2] < 3) break;
-        Labels labels = sampleLabels(domain, grid);
-        repairNonManifold(labels, domain);
-        const auto topo = regionTopology(labels);
-        const double cellVolume = std::abs(grid.determinant());
-        double volume = 0;
-        for (const auto& t : topo) volume += static_cast<double>(t.points) * cellVolume;
-        if (level == 0) {
-            if (topo.empty()) throw Error("nothing to mesh: no grid point lies inside the selected material(s)");
-            best.level = 0;
-            best.grid = grid;
-            best.topology = topo;
-            best.reference = topo;
-            refVolume = volume;
-            continue;
-        }
-        const double change = refVolume > 0 ? std::abs(volume - refVolume) / refVolume : 0;
-        bool sameTopology = topo.size() == best.reference.size();
-        for (std::size_t i = 0; sameTopology && i < topo.size(); ++i)
-            sameTopology = topo[i].material == best.reference[i].material &&
-                           topo[i].components == best.reference[i].components &&
-                           topo[i].euler == best.reference[i].euler;
-        // LBIE: every coarse cell of this level must pass the topology tests on
-        // the previous (finer) level's labels.
-        if (opt.cellTests) {
-            Labels finer = sampleLabels(domain, coarsen(base, level - 1));
-            const std::size_t failing = lbieFailures(finer);
-            if (failing > 0) {
-                best.notes.push_back("level " + std::to_string(level) + ": " + std::to_string(failing) +
-                                     " coarse cells fail LBIE's sign-change and ambiguity tests");
-                break;
-            }
-        }
-        bool enoughPoints = true;
-        for (const auto& t : topo) enoughPoints = enoughPoints && t.points >= opt.minPoints;
-        if (!sameTopology) {
-            best.notes.push_back("level " + std::to_string(level) + " changes the topology (" + describe(topo) + ")");
-            break;
-        }
-        if (change > opt.maxVolumeChange) {
-            best.notes.push_back("level " + std::to_string(level) + " changes the volume by " +
-                                 std::to_string(100 * change) + "%");
-            break;
-        }
-        if (!enoughPoints) {
-            best.notes.push_back("level " + std::to_string(level) + " leaves fewer than " +
-                                 std::to_string(opt.minPoints) + " grid points in a material");
-            break;
-        }
-        best.level = level;
-        best.grid = grid;
-        best.topology = topo;
-        best.volumeChange = change;
-    }
-    return best;
+}  // namespace
+
+HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt, ExtractStats* stats) {
+    const auto [nx, ny, nz] = labels.grid.dims;
+    if (nx < 2 || ny < 2 || nz < 2) throw Error("the sampling grid is too small to mesh (fewer than 2 points per axis)");
+    DualContouring dc(labels, domain, opt);
+    dc.markNodeCells();
+    dc.allocateNodes();
+    dc.placeNodes();
+    dc.buildHexes();
+    dc.holdBackInvertingMoves();
+    return dc.finish(stats);
 }
 
 }  // namespace isohex::octree

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "isohex/octree/Domain.hpp"
+#include "isohex/octree/Grid.hpp"
 
 namespace isohex::test {
 

@@ -9,6 +9,8 @@
 #include "AnalyticDomains.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 
 using namespace isohex;

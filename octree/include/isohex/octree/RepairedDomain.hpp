@@ -18,7 +18,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Labels.hpp"
 
 namespace isohex::octree {
 
