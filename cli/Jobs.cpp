@@ -81,7 +81,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     if (!job.report.empty()) files.push_back(job.report);
     const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
-    MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
+    pipeline::MeshOutcome out = pipeline::runMeshPipeline(job.input, args.settings, sink);
     const auto tq = std::chrono::steady_clock::now();
     const HexQuality q = computeQuality(out.mesh);
     const QualitySummary s = summarize(out.mesh, q);

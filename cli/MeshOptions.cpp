@@ -9,7 +9,7 @@
 namespace isohex::cli {
 
 void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
-    MeshSettings& s = a.settings;
+    pipeline::MeshSettings& s = a.settings;
     auto* sel = "Selection";
     cmd->add_option("--iso", s.select.iso, "Intensity of the surface (default: Otsu's threshold, reported)")->group(sel);
     cmd->add_option("--inside", a.insideMode, "Which side of --iso is solid: above (bone in CT) or below (pores, air)")

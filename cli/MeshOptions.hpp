@@ -5,13 +5,13 @@
 
 #include <CLI/CLI.hpp>
 
-#include "Pipeline.hpp"
+#include "isohex/pipeline/Pipeline.hpp"
 #include "Progress.hpp"
 
 namespace isohex::cli {
 
 struct MeshArgs {
-    MeshSettings settings;
+    pipeline::MeshSettings settings;
     std::string insideMode = "above";
     std::string labelList;          // "3,7"
     bool labels = false;            // read as label map, all labels

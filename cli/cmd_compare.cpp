@@ -123,7 +123,7 @@ void addCompareCommand(CLI::App& app) {
         applyThreads(c->args.threads);
         MeshArgs args = c->args;
         args.finish();
-        MeshSettings s = args.settings;
+        pipeline::MeshSettings s = args.settings;
         if (s.surfaceTolerance && !c->moveBoundary)
             throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
                         "(the seed's protocol)");
@@ -151,17 +151,17 @@ void addCompareCommand(CLI::App& app) {
         // scan is an error naming it (cli/Isolate.hpp).
         runIsolated(c->input, outputs, [&] {
             ProgressSink sink(args.progressMode());
-            Prepared p = prepare(c->input, s, sink);
-            HexMesh base = extract(p, s, sink);
+            pipeline::Prepared p = pipeline::prepare(c->input, s, sink);
+            HexMesh base = pipeline::extract(p, s, sink);
 
             std::vector<Variant> variants(4);
             variants[0] = {"a", "no sheet", base, {}, 0};
             variants[1] = {"b", "fundamental sheet", base, {}, 0};
-            MeshSettings pillowed = s;
+            pipeline::MeshSettings pillowed = s;
             pillowed.pillow = true;
             {
                 const auto t = std::chrono::steady_clock::now();
-                variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
+                variants[1].ops = pipeline::insertSheets(variants[1].mesh, pillowed, sink);
                 variants[1].seconds += secondsSince(t);
             }
             variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
@@ -193,7 +193,7 @@ void addCompareCommand(CLI::App& app) {
             for (auto& v : variants) {
                 const auto t = std::chrono::steady_clock::now();
                 sink.setJob("variant " + v.key);  // its warnings say which variant they are about
-                const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+                const nlohmann::json opt = pipeline::optimize(v.mesh, p, s, sink);
                 sink.setJob({});
                 v.seconds += secondsSince(t);
                 const HexQuality q = computeQuality(v.mesh);

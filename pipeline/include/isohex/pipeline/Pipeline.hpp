@@ -21,7 +21,7 @@ namespace isohex::smoothing {
 struct SurfaceProjector;
 }
 
-namespace isohex::cli {
+namespace isohex::pipeline {
 
 // The default of --surface-tolerance, in voxels: under the 0.1-voxel bound
 // the fidelity report checks (fidelity.boundary_nodes_beyond_0_1_voxel).
@@ -147,4 +147,4 @@ struct MeshOutcome {
 // prepare + extract + insertSheets + optimize, with the report of each.
 MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink);
 
-}  // namespace isohex::cli
+}  // namespace isohex::pipeline

@@ -1,5 +1,5 @@
-#include "Pipeline.hpp"
-#include "SheetMethod.hpp"
+#include "isohex/pipeline/Pipeline.hpp"
+#include "isohex/pipeline/SheetMethod.hpp"
 
 #include <algorithm>
 #include <array>
@@ -32,7 +32,7 @@
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
-namespace isohex::cli {
+namespace isohex::pipeline {
 
 namespace {
 
@@ -1487,4 +1487,4 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     return out;
 }
 
-}  // namespace isohex::cli
+}  // namespace isohex::pipeline

@@ -4,10 +4,10 @@
 #include <memory>
 #include <string>
 
-#include "Pipeline.hpp"
+#include "isohex/pipeline/Pipeline.hpp"
 #include "isohex/sheets/SheetInsertion.hpp"
 
-namespace isohex::cli {
+namespace isohex::pipeline {
 
 // Reads a closed triangle surface (loadSurface's checks) into an AABB tree
 // named after the file.
@@ -21,4 +21,4 @@ std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& 
 // which leaves them slightly off the triangles.
 MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink);
 
-}  // namespace isohex::cli
+}  // namespace isohex::pipeline

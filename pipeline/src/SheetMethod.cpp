@@ -1,4 +1,4 @@
-#include "SheetMethod.hpp"
+#include "isohex/pipeline/SheetMethod.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include "isohex/sheets/Polish.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
-namespace isohex::cli {
+namespace isohex::pipeline {
 
 namespace {
 using Clock = std::chrono::steady_clock;
@@ -131,4 +131,4 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
     return out;
 }
 
-}  // namespace isohex::cli
+}  // namespace isohex::pipeline
