@@ -17,6 +17,7 @@
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/pipeline/MeshPipeline.hpp"
 
 namespace isohex::cli {
 

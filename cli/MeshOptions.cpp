@@ -63,8 +63,9 @@ void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
                                       "that keeps the surface's topology")
         ->group(grid);
     cmd->add_option("--level", s.level, "Grid level: elements 2^level voxels wide (instead of --size)")->group(grid);
-    cmd->add_option("--method", s.method,
-                    "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets "
+    cmd->add_option_function<std::string>(
+           "--method", [&s](const std::string& name) { s.method = pipeline::parseMethod(name).value(); },
+           "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets "
                     "(surfaces only: a grid cut by two sheets along the triangles, seed 5.4)")
         ->check(CLI::IsMember({"dual", "voxel", "sheets"}))
         ->group(grid);
@@ -159,8 +160,9 @@ void MeshArgs::finish() {
                     std::to_string(*settings.retryBelow) + ")");
     if (settings.retries.value_or(0) > 0 || settings.retryBelow.value_or(0) > 0) {
         const std::string opt = settings.retries.value_or(0) > 0 ? "--retries" : "--retry-below";
-        if (settings.method != "dual")
-            throw Error(opt + " edits the element grid of --method dual; --method " + settings.method +
+        if (settings.method != pipeline::Method::Dual)
+            throw Error(opt + " edits the element grid of --method dual; --method " +
+                        std::string(pipeline::methodName(settings.method)) +
                         " has no such grid (leave the option out)");
         if (!settings.optimize)
             throw Error(opt + " has no effect with --no-optimize (the retries follow the optimiser); leave it out");

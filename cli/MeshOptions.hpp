@@ -5,7 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "isohex/pipeline/Pipeline.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
 #include "Progress.hpp"
 
 namespace isohex::cli {

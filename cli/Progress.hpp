@@ -7,7 +7,9 @@
 #include <string>
 #include <string_view>
 
-#include "isohex/pipeline/Pipeline.hpp"
+#include <nlohmann/json.hpp>
+
+#include "isohex/pipeline/StageSink.hpp"
 
 namespace isohex::cli {
 

@@ -248,7 +248,7 @@ const std::vector<Column>& columns() {
          }},
         {"method", "dual or voxel",
          [](const Field& f, MeshArgs& a, JobFields&) {
-             a.settings.method = toChoice(f.scalar(), {"dual", "voxel"});
+             a.settings.method = pipeline::parseMethod(toChoice(f.scalar(), {"dual", "voxel"})).value();
          }},
         {"no_pillow", "true/false",
          [](const Field& f, MeshArgs& a, JobFields&) { a.settings.pillow = !toBool(f.scalar()); }},

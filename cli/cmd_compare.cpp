@@ -24,6 +24,11 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+#include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/ReportJson.hpp"
 
 namespace isohex::cli {
 
@@ -152,7 +157,7 @@ void addCompareCommand(CLI::App& app) {
         runIsolated(c->input, outputs, [&] {
             ProgressSink sink(args.progressMode());
             pipeline::Prepared p = pipeline::prepare(c->input, s, sink);
-            HexMesh base = pipeline::extract(p, s, sink);
+            HexMesh base = pipeline::contour(p, s, sink);
 
             std::vector<Variant> variants(4);
             variants[0] = {"a", "no sheet", base, {}, 0};
@@ -161,7 +166,7 @@ void addCompareCommand(CLI::App& app) {
             pillowed.pillow = true;
             {
                 const auto t = std::chrono::steady_clock::now();
-                variants[1].ops = pipeline::insertSheets(variants[1].mesh, pillowed, sink);
+                variants[1].ops = pipeline::toJson(pipeline::pillowBoundary(variants[1].mesh, pillowed, sink));
                 variants[1].seconds += secondsSince(t);
             }
             variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
@@ -182,8 +187,8 @@ void addCompareCommand(CLI::App& app) {
             }
 
             nlohmann::json out;
-            out["input"] = p.report["input"];
-            out["grid"] = p.report["grid"];
+            out["input"] = pipeline::toJson(p.facts.input);
+            out["grid"] = pipeline::toJson(p.facts.grid);
             out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
                                             : "boundary nodes slide on the isosurface";
             out["seed"] = c->seed;
@@ -193,7 +198,7 @@ void addCompareCommand(CLI::App& app) {
             for (auto& v : variants) {
                 const auto t = std::chrono::steady_clock::now();
                 sink.setJob("variant " + v.key);  // its warnings say which variant they are about
-                const nlohmann::json opt = pipeline::optimize(v.mesh, p, s, sink);
+                const nlohmann::json opt = pipeline::toJson(pipeline::optimize(v.mesh, p, s, sink));
                 sink.setJob({});
                 v.seconds += secondsSince(t);
                 const HexQuality q = computeQuality(v.mesh);

@@ -1,51 +1,25 @@
 #include "isohex/pipeline/SheetMethod.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <filesystem>
 
+#include "Stage.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
-#include "isohex/sheets/Polish.hpp"
+#include "isohex/imaging/SurfaceVolume.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
 namespace isohex::pipeline {
 
 namespace {
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-bool hasSurfaceExtension(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-    return ext == ".stl" || ext == ".obj" || ext == ".ply" || ext == ".off";
-}
-
-// Times one stage through the sink.
-template <class Fn>
-auto stage(StageSink& sink, const char* name, Fn fn) {
-    const auto t = Clock::now();
-    sink.begin(name);
-    auto r = fn();
-    sink.end(name, since(t));
-    return r;
-}
-}  // namespace
-
-std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path) {
-    if (!hasSurfaceExtension(path))
-        throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
-    if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
-    imaging::TriangleSurface s = imaging::loadSurface(path);
-    return std::make_shared<sheets::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
-}
-
-MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {
-    const auto t0 = Clock::now();
-    if (!hasSurfaceExtension(input))
+// The settings that have no meaning for the sheet method are refused.
+void checkSettings(const std::string& input, const MeshSettings& settings) {
+    if (!imaging::isSurfaceFile(input))
         throw Error(input + ": --method sheets meshes a closed triangle surface (.stl .obj .ply .off); "
                             "use --method dual for scans and label maps");
     if (settings.size && !(*settings.size > 0))
@@ -57,77 +31,74 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
     if (settings.isosurfaceTopology)
         throw Error("--isosurface-topology chooses grid points of a sampled grid; --method sheets has none (use "
                     "--method dual)");
-    auto surface = stage(sink, "load", [&] { return loadTriangleTree(input); });
-    const double size = settings.size ? *settings.size : surface->meanEdgeLength();
-    const auto box = surface->bounds();
-    MeshOutcome out;
-    out.report["input"] = {{"path", input},
-                           {"triangles", surface->triangles().size()},
-                           {"vertices", surface->vertices().size()},
-                           {"volume", surface->volume()}};
-    out.report["method"] = "sheets";
-    out.report["size"] = size;
-    out.mesh = stage(sink, "grid", [&] { return sheets::regularGrid(box[0], box[1], size, 0.05); });
-    out.report["grid"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}, {"margin", 0.05}};
+}
 
+// Untangling and optimisation with surface nodes on the triangles. The
+// optimiser minimises a sum; what it leaves below the target (hexes whose
+// surface quad sits on detail smaller than an element) gets a max-min pass,
+// then the surface nodes are fitted so the boundary quads enclose the
+// triangles' volume instead of cutting chords.
+void optimizeOnTriangles(SheetMeshing& out, sheets::SheetGeometry& geometry, const sheets::TriangleTree& surface,
+                         std::int32_t surfaceId, const MeshSettings& settings, StageSink& sink) {
+    smoothing::SmoothingOptions so;
+    so.fixBoundary = settings.fixBoundary;
+    out.report.optimization = timedStage(sink, "optimize", [&] {
+        return smoothing::optimizeMesh(out.mesh, &geometry, so, [&](std::string_view, double f) { sink.progress(f); });
+    });
+    if (settings.fixBoundary) return;
+    if (settings.worstHexPass)
+        out.report.worstHexes = timedStage(sink, "worst_hexes", [&] {
+            return worstHexPass(out.mesh, &geometry, settings.worstHexTarget);
+        });
+    out.report.surfaceFit =
+        timedStage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, surface, surfaceId); });
+}
+
+// Enclosed volumes and the distance of boundary nodes to the triangles.
+SheetFidelity measureFidelity(const HexMesh& mesh, const sheets::TriangleTree& surface) {
+    const HexQuality q = computeQuality(mesh);
+    SheetFidelity f;
+    for (double v : q.volume) f.meshVolume += v;
+    const Topology topo = buildTopology(mesh);
+    for (Index v : topo.boundaryNodes)
+        f.boundaryDistanceMax = std::max(f.boundaryDistanceMax, std::sqrt(surface.squaredDistance(mesh.nodes[v])));
+    f.surfaceVolume = surface.volume();
+    return f;
+}
+
+}  // namespace
+
+std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path) {
+    if (!imaging::isSurfaceFile(path))
+        throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
+    if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
+    imaging::TriangleSurface s = imaging::loadSurface(path);
+    return std::make_shared<sheets::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+}
+
+SheetMeshing runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    const Stopwatch clock;
+    checkSettings(input, settings);
+    auto surface = timedStage(sink, "load", [&] { return loadTriangleTree(input); });
+    SheetMeshing out;
+    SheetMethodReport& r = out.report;
+    r.size = settings.size ? *settings.size : surface->meanEdgeLength();
+    const auto box = surface->bounds();
+    r.path = input;
+    r.triangles = surface->triangles().size();
+    r.vertices = surface->vertices().size();
+    r.surfaceVolume = surface->volume();
+    r.margin = 0.05;
+    out.mesh = timedStage(sink, "grid", [&] { return sheets::regularGrid(box[0], box[1], r.size, r.margin); });
+    r.gridHexes = out.mesh.hexCount();
+    r.gridNodes = out.mesh.nodeCount();
     sheets::SheetGeometry geometry;
     sheets::InsertOptions io;
     io.keep = sheets::Keep::Inside;
-    const sheets::InsertResult r =
-        stage(sink, "sheets", [&] { return sheets::insertSheets(out.mesh, geometry, surface, io); });
-    out.report["pillow"] = {{"enabled", true},
-                            {"method", "two sheets along the triangles (seed 5.4), outside discarded"},
-                            {"intersected_hexes", r.intersectedHexes},
-                            {"flood_components", r.floodComponents},
-                            {"nonmanifold_edges_fixed", r.nonManifoldEdgesFixed},
-                            {"nonmanifold_nodes_fixed", r.nonManifoldNodesFixed},
-                            {"hexes_moved", r.hexesMoved},
-                            {"sheet_hexes", r.sheetHexes},
-                            {"surface_nodes", r.surfaceNodes}};
-    if (settings.optimize) {
-        smoothing::SmoothingOptions so;
-        so.fixBoundary = settings.fixBoundary;
-        const auto t = Clock::now();
-        sink.begin("optimize");
-        const auto sr = smoothing::optimizeMesh(out.mesh, &geometry, so, [&](std::string_view, double f) { sink.progress(f); });
-        sink.end("optimize", since(t));
-        out.report["optimization"] = {{"inverted_before", sr.invertedBefore},
-                                      {"inverted_after", sr.invertedAfter},
-                                      {"sweeps", sr.sweeps},
-                                      {"untangle_sweeps", sr.untangleSweeps},
-                                      {"seconds", sr.seconds}};
-        // The optimiser minimises a sum; what it leaves below the target (hexes
-        // whose surface quad sits on detail smaller than an element) gets a
-        // max-min pass, then the surface nodes are fitted so the boundary
-        // quads enclose the triangles' volume instead of cutting chords.
-        if (!settings.fixBoundary) {
-            if (settings.worstHexPass)
-                out.report["worst_hexes"] = stage(sink, "worst_hexes", [&] { return worstHexPass(out.mesh, &geometry, settings.worstHexTarget); });
-            const auto fr =
-                stage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
-            out.report["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},
-                                         {"nodes", fr.nodes},
-                                         {"nodes_moved", fr.nodesMoved},
-                                         {"nodes_held_back", fr.nodesHeldBack},
-                                         {"max_offset", fr.maxOffset},
-                                         {"volume_before", fr.volumeBefore},
-                                         {"volume_after", fr.volumeAfter}};
-        }
-    }
-    // Fidelity: enclosed volumes and the distance of boundary nodes to the triangles.
-    const HexQuality q = computeQuality(out.mesh);
-    double volume = 0;
-    for (double v : q.volume) volume += v;
-    const Topology topo = buildTopology(out.mesh);
-    double maxDist = 0;
-    for (Index v : topo.boundaryNodes) maxDist = std::max(maxDist, std::sqrt(surface->squaredDistance(out.mesh.nodes[v])));
-    const double ref = surface->volume();
-    out.report["fidelity"] = {{"surface_volume", ref},
-                              {"mesh_volume", volume},
-                              {"volume_error", ref != 0 ? (volume - ref) / ref : 0.0},
-                              {"boundary_distance_max", maxDist}};
-    out.report["warnings"] = nlohmann::json::array();
-    out.report["pipeline_seconds"] = since(t0);
+    r.insert = timedStage(sink, "sheets", [&] { return sheets::insertSheets(out.mesh, geometry, surface, io); });
+    if (settings.optimize) optimizeOnTriangles(out, geometry, *surface, r.insert.surfaceId, settings, sink);
+    r.fidelity = measureFidelity(out.mesh, *surface);
+    r.seconds = clock.seconds();
     return out;
 }
 

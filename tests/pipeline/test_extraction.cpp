@@ -24,18 +24,24 @@
 #include <set>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include "isohex/pipeline/Pipeline.hpp"
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/core/VecMath.hpp"
+#include "isohex/octree/PolygonRegions.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Fidelity.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+#include "isohex/pipeline/Prepare.hpp"
 
 using namespace isohex;
 
@@ -70,7 +76,7 @@ Extracted extractOnly(const std::string& input, pipeline::MeshSettings s) {
     QuietSink sink;
     Extracted r;
     r.p = pipeline::prepare(input, s, sink);
-    // what pipeline::extract does without --mesh-exterior, keeping the statistics
+    // what pipeline::contour does without --mesh-exterior, keeping the statistics
     r.mesh = octree::dualContourHexes(r.p.labels, r.p.extractionDomain(), {}, &r.stats);
     return r;
 }
@@ -498,7 +504,7 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
 // the Euler characteristic of either material's surface, and the Euler
 // change it reports is the polygonisation's.
 TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
-    const octree::CellEdgeGroups& table = pipeline::volumeToMeshTables();
+    const octree::CellEdgeGroups& table = octree::volumeToMeshTables();
     std::mt19937 rng(20261123);
     std::size_t kept = 0, changed = 0;
     for (int materials : {1, 2})
@@ -615,7 +621,7 @@ TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
             octree::repairNonManifold(repaired, d);
             octree::Labels matched = repaired;
             const octree::TopologyMatchReport rep =
-                octree::matchPolygonTopology(matched, sampled, d, pipeline::volumeToMeshTables());
+                octree::matchPolygonTopology(matched, sampled, d, octree::volumeToMeshTables());
             const std::string where = std::to_string(materials) + " material(s), trial " + std::to_string(trial);
             EXPECT_EQ(octree::countNonManifoldBlocks(matched), 0u) << where;
             EXPECT_FALSE(rep.discarded) << where;
@@ -796,9 +802,9 @@ TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
         if (b.isosurfaceTopology) {
             // every accepted step keeps the surface exactly, so what is off is
             // what the places the report names as not mended change
-            const nlohmann::json& unmended = p.report.at("grid").at("repair").at("isosurface_topology").at("unmended");
+            const auto& unmended = p.facts.grid.repair.isosurfaceTopology.value().unmended;
             long long named = 0;
-            for (const auto& place : unmended) named += place.at("euler_change").get<long long>();
+            for (const auto& place : unmended) named += place.place.eulerChange;
             EXPECT_EQ(named, de) << name;
             EXPECT_EQ(unmended.empty(), dc == 0 && de == 0) << name;
         }
@@ -836,9 +842,9 @@ TEST(LabelCurves, CurveNodesMoveAlongTheCurveWhereThreeMaterialsMeet) {
     pipeline::MeshSettings s = labels();
     QuietSink sink;
     const pipeline::Prepared p = pipeline::prepare(input, s, sink);
-    HexMesh mesh = pipeline::extract(p, s, sink);
+    HexMesh mesh = pipeline::contour(p, s, sink);
     ASSERT_FALSE(mesh.curves.empty());
-    pipeline::insertSheets(mesh, s, sink);
+    pipeline::pillowBoundary(mesh, s, sink);
     const std::vector<Vec3> before = mesh.nodes;
     pipeline::optimize(mesh, p, s, sink);
     const octree::Domain& d = *p.domain;
@@ -944,10 +950,9 @@ TEST(Labels, InterfaceThroughGridPointsStaysOnIt) {
     EXPECT_GT(labelled, 10000u);
     EXPECT_EQ(disagree, 0u);
 
-    const nlohmann::json before = pipeline::fidelity(r.mesh, r.p);
+    const pipeline::FidelityResult before = pipeline::fidelity(r.mesh, r.p);
     HexMesh moved = r.mesh;
     moved.nodes[static_cast<std::size_t>(someInterfaceNode)][0] = 30.75;
-    const nlohmann::json after = pipeline::fidelity(moved, r.p);
-    EXPECT_EQ(after["boundary_nodes_not_projected"].get<std::size_t>(),
-              before["boundary_nodes_not_projected"].get<std::size_t>() + 1);
+    const pipeline::FidelityResult after = pipeline::fidelity(moved, r.p);
+    EXPECT_EQ(after.boundary.notProjected, before.boundary.notProjected + 1);
 }
