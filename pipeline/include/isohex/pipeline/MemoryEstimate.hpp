@@ -21,8 +21,8 @@ struct MeshMemoryEstimate {
 
 // The hex count is the selected volume over the element volume (the whole
 // grid when meshing the exterior), plus a sixth for the sheet; each hex costs
-// about 420 bytes at peak on top of what is already in memory (measured on a
-// sphere phantom at two sizes); the estimate takes 450 and adds the process's
+// about 420 bytes at peak on top of what is already in memory (measured at
+// two element sizes); the estimate takes 450 and adds the process's
 // peak so far. The budget is settings.load.maxMemoryMB, or 80% of the
 // machine's memory.
 MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging::Selection& sel,
