@@ -17,6 +17,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/pipeline/MeshPipeline.hpp"
 
 namespace isohex::cli {
 
@@ -81,7 +82,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     if (!job.report.empty()) files.push_back(job.report);
     const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.run.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
-    MeshOutcome out = runMeshPipeline(job.input, args.settings, sink);
+    pipeline::MeshOutcome out = pipeline::runMeshPipeline(job.input, args.settings, sink);
     const Stopwatch quality;
     const HexQuality q = computeQuality(out.mesh);
     const QualitySummary s = summarize(out.mesh, q);

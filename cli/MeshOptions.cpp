@@ -269,11 +269,12 @@ void addMeshRows(std::vector<MeshOption>& t) {
                                            "Grid level: elements 2^level voxels wide (instead of --size)",
                                            "grid level 0..10", [](MeshArgs& a) -> auto& { return a.settings.level; },
                                            between(0, 10)));
-    t.push_back(choice<std::string>(
+    t.push_back(choice<pipeline::Method>(
         "method", g,
         "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets (surfaces only: a grid "
         "cut by two sheets along the triangles, seed 5.4)",
-        "dual, voxel or sheets", {{"dual", "dual"}, {"voxel", "voxel"}, {"sheets", "sheets"}},
+        "dual, voxel or sheets",
+        {{"dual", pipeline::Method::Dual}, {"voxel", pipeline::Method::Voxel}, {"sheets", pipeline::Method::Sheets}},
         [](MeshArgs& a) -> auto& { return a.settings.method; }));
     t.push_back(onOff("no-pillow", g, "Do not insert the fundamental boundary sheet", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.pillow; }, true));
@@ -342,14 +343,15 @@ std::vector<std::int32_t> parseLabels(const std::string& list) {
 
 // --surface-tolerance, --retries and --retry-below with the options that
 // leave them nothing to do.
-void checkOptimiserOptions(const MeshSettings& s) {
+void checkOptimiserOptions(const pipeline::MeshSettings& s) {
     if (s.surfaceTolerance && (s.fixBoundary || !s.worstHexPass || !s.optimize))
         throw Error("--surface-tolerance has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize "
                     "(no surface node moves off its surface there); leave it out");
     if (s.retries.value_or(0) > 0 || s.retryBelow.value_or(0) > 0) {
         const std::string opt = s.retries.value_or(0) > 0 ? "--retries" : "--retry-below";
-        if (s.method != "dual")
-            throw Error(opt + " edits the element grid of --method dual; --method " + s.method +
+        if (s.method != pipeline::Method::Dual)
+            throw Error(opt + " edits the element grid of --method dual; --method " +
+                        std::string(pipeline::methodName(s.method)) +
                         " has no such grid (leave the option out)");
         if (!s.optimize)
             throw Error(opt + " has no effect with --no-optimize (the retries follow the optimiser); leave it out");
@@ -392,7 +394,7 @@ const MeshOption* findColumn(const std::string& column) {
 }
 
 void checkSettings(MeshArgs& a) {
-    MeshSettings& s = a.settings;
+    pipeline::MeshSettings& s = a.settings;
     if (!a.labelList.empty()) {
         a.labels = true;
         s.select.labels = parseLabels(a.labelList);

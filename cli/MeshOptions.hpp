@@ -14,15 +14,15 @@
 #include <CLI/CLI.hpp>
 
 #include "OptionText.hpp"
-#include "Pipeline.hpp"
 #include "RunOptions.hpp"
 #include "isohex/core/SettingError.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
 
 namespace isohex::cli {
 
 // What a command line (or a manifest row) says about one mesh.
 struct MeshArgs {
-    MeshSettings settings;
+    pipeline::MeshSettings settings;
     std::string labelList;  // "3,7": parsed into settings.select.labels by checkSettings
     bool labels = false;    // read as label map, all labels
     std::vector<double> sliceSpacing;

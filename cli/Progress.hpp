@@ -6,8 +6,10 @@
 #include <string>
 #include <string_view>
 
-#include "Pipeline.hpp"
+#include <nlohmann/json.hpp>
+
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/pipeline/StageSink.hpp"
 
 namespace isohex::cli {
 
@@ -17,7 +19,7 @@ namespace isohex::cli {
 // sharing stderr do not interleave.
 bool writeAll(int fd, std::string_view text);
 
-class ProgressSink : public StageSink {
+class ProgressSink : public pipeline::StageSink {
 public:
     enum class Mode { Auto, Quiet, Json };
     explicit ProgressSink(Mode mode, std::string job = {});

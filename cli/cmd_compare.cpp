@@ -27,6 +27,11 @@
 #include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+#include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/ReportJson.hpp"
 
 namespace isohex::cli {
 
@@ -110,10 +115,10 @@ CLI::Validator seedValidator() {
 // The settings every variant is meshed with: the mesh options checked, and
 // the boundary fixed unless --move-boundary. Refuses the options that would
 // make the variants differ in more than their sheets.
-MeshSettings compareSettings(const CompareArgs& c) {
+pipeline::MeshSettings compareSettings(const CompareArgs& c) {
     MeshArgs args = c.args;
     checkSettings(args);
-    MeshSettings s = args.settings;
+    pipeline::MeshSettings s = args.settings;
     if (s.surfaceTolerance && !c.moveBoundary)
         throw Error("--surface-tolerance needs --move-boundary: without it compare keeps surface nodes fixed "
                     "(the seed's protocol)");
@@ -149,16 +154,16 @@ std::vector<std::string> compareOutputs(const CompareArgs& c) {
 // The four variants before optimisation, from one extraction: a as
 // extracted, b pillowed, c diced up to b's count, d (from b) extracted down
 // to a's. Each variant's seconds are the time of its sheet operations.
-std::vector<Variant> makeVariants(const Prepared& p, const MeshSettings& s, std::uint64_t seed, ProgressSink& sink) {
-    const HexMesh base = extract(p, s, sink);
+std::vector<Variant> makeVariants(const pipeline::Prepared& p, const pipeline::MeshSettings& s, std::uint64_t seed, ProgressSink& sink) {
+    const HexMesh base = pipeline::contour(p, s, sink);
     std::vector<Variant> variants(4);
     variants[0] = {"a", "no sheet", base, {}, 0};
     variants[1] = {"b", "fundamental sheet", base, {}, 0};
-    MeshSettings pillowed = s;
+    pipeline::MeshSettings pillowed = s;
     pillowed.pillow = true;
     {
         const Stopwatch t;
-        variants[1].ops = insertSheets(variants[1].mesh, pillowed, sink);
+        variants[1].ops = pipeline::toJson(pipeline::pillowBoundary(variants[1].mesh, pillowed, sink));
         variants[1].seconds += t.seconds();
     }
     variants[2] = {"c", "no sheet, random sheets diced in", base, {}, 0};
@@ -183,11 +188,11 @@ std::vector<Variant> makeVariants(const Prepared& p, const MeshSettings& s, std:
 // Optimises each variant, prints its line of the table, writes its mesh
 // (with --mesh-dir) and returns the comparison's JSON; `series` gets each
 // variant's histogram.
-nlohmann::json optimizeVariants(std::vector<Variant>& variants, const Prepared& p, const MeshSettings& s,
+nlohmann::json optimizeVariants(std::vector<Variant>& variants, const pipeline::Prepared& p, const pipeline::MeshSettings& s,
                                 const CompareArgs& c, ProgressSink& sink, std::vector<HistogramSeries>& series) {
     nlohmann::json out;
-    out["input"] = p.report["input"];
-    out["grid"] = p.report["grid"];
+    out["input"] = pipeline::toJson(p.facts.input);
+    out["grid"] = pipeline::toJson(p.facts.grid);
     out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
                                     : "boundary nodes slide on the isosurface";
     out["seed"] = c.seed;
@@ -196,7 +201,7 @@ nlohmann::json optimizeVariants(std::vector<Variant>& variants, const Prepared& 
     for (auto& v : variants) {
         const Stopwatch t;
         sink.setJob("variant " + v.key);  // its warnings say which variant they are about
-        const nlohmann::json opt = optimize(v.mesh, p, s, sink);
+        const nlohmann::json opt = pipeline::toJson(pipeline::optimize(v.mesh, p, s, sink));
         sink.setJob({});
         v.seconds += t.seconds();
         const HexQuality q = computeQuality(v.mesh);
@@ -240,13 +245,13 @@ void addCompareCommand(CLI::App& app) {
     addRunOptions(cmd, c->args.run);
     cmd->callback([c] {
         applyThreads(c->args.run.threads);
-        const MeshSettings s = compareSettings(*c);
+        const pipeline::MeshSettings s = compareSettings(*c);
         const std::vector<std::string> outputs = compareOutputs(*c);
         // In a child process, as isohex mesh: a reader crashing on a damaged
         // scan is an error naming it (cli/Isolate.hpp).
         runIsolated(c->input, outputs, [&] {
             ProgressSink sink(c->args.run.progressMode());
-            const Prepared p = prepare(c->input, s, sink);
+            const pipeline::Prepared p = pipeline::prepare(c->input, s, sink);
             std::vector<Variant> variants = makeVariants(p, s, c->seed, sink);
             std::vector<HistogramSeries> series;
             nlohmann::json out = optimizeVariants(variants, p, s, *c, sink, series);

@@ -15,7 +15,7 @@
 #include "RunOptions.hpp"
 #include "Threads.hpp"
 #include "Report.hpp"
-#include "SheetMethod.hpp"
+#include "isohex/pipeline/SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
@@ -70,7 +70,7 @@ void addInsertSheetCommand(CLI::App& app) {
             std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;
             for (const auto& s : a->surfaces) {
                 nowReading(s);
-                trees.push_back(loadTriangleTree(s));
+                trees.push_back(pipeline::loadTriangleTree(s));
             }
             nowReading(a->mesh);
             HexMesh mesh = io::read(a->mesh);

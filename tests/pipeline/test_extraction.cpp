@@ -24,18 +24,24 @@
 #include <set>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include "Pipeline.hpp"
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/core/VecMath.hpp"
+#include "isohex/octree/PolygonRegions.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Fidelity.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+#include "isohex/pipeline/Prepare.hpp"
 
 using namespace isohex;
 
@@ -50,7 +56,7 @@ std::string phantoms() {
     return ISOHEX_PHANTOMS_DIR;
 }
 
-struct QuietSink : cli::StageSink {
+struct QuietSink : pipeline::StageSink {
     void begin(std::string_view) override {}
     void progress(double) override {}
     void end(std::string_view, double) override {}
@@ -58,19 +64,19 @@ struct QuietSink : cli::StageSink {
 };
 
 struct Extracted {
-    cli::Prepared p;
+    pipeline::Prepared p;
     HexMesh mesh;
     octree::ExtractStats stats;
 };
 
-Extracted extractOnly(const std::string& input, cli::MeshSettings s) {
+Extracted extractOnly(const std::string& input, pipeline::MeshSettings s) {
     if (!std::filesystem::exists(input)) throw std::runtime_error("missing input " + input);
     s.pillow = false;
     s.optimize = false;
     QuietSink sink;
     Extracted r;
-    r.p = cli::prepare(input, s, sink);
-    // what cli::extract does without --mesh-exterior, keeping the statistics
+    r.p = pipeline::prepare(input, s, sink);
+    // what pipeline::contour does without --mesh-exterior, keeping the statistics
     r.mesh = octree::dualContourHexes(r.p.labels, r.p.extractionDomain(), {}, &r.stats);
     return r;
 }
@@ -397,7 +403,7 @@ bool topologicallyValid(const HexMesh& m, std::size_t* inverted = nullptr) {
 struct Case {
     std::string name;
     std::string input;
-    cli::MeshSettings settings;
+    pipeline::MeshSettings settings;
     // False where the scan's field has points of the solid touching only along
     // an edge or at a corner in numbers (ch2bet, a noisy threshold of a whole
     // head): marching cubes (volumeToMesh) joins or keeps apart each such
@@ -411,19 +417,19 @@ struct Case {
     bool sameTopologyAsVolumeToMesh = true;
 };
 
-cli::MeshSettings intensity(std::optional<double> iso, std::optional<double> size, bool keepLargest = false) {
-    cli::MeshSettings s;
+pipeline::MeshSettings intensity(std::optional<double> iso, std::optional<double> size, bool keepLargest = false) {
+    pipeline::MeshSettings s;
     s.select.iso = iso;
     s.size = size;
     s.keepLargest = keepLargest;
     return s;
 }
-cli::MeshSettings isosurfaceTopology(cli::MeshSettings s) {
+pipeline::MeshSettings isosurfaceTopology(pipeline::MeshSettings s) {
     s.isosurfaceTopology = true;
     return s;
 }
-cli::MeshSettings labels() {
-    cli::MeshSettings s;
+pipeline::MeshSettings labels() {
+    pipeline::MeshSettings s;
     s.load.labels = true;
     return s;
 }
@@ -498,7 +504,7 @@ TEST_P(Extraction, MatchesVolumeToMeshAndLiesOnTheIsosurface) {
 // the Euler characteristic of either material's surface, and the Euler
 // change it reports is the polygonisation's.
 TEST(Repair, PolygonTopologyTestAgreesWithVolumeToMesh) {
-    const octree::CellEdgeGroups& table = cli::volumeToMeshTables();
+    const octree::CellEdgeGroups& table = octree::volumeToMeshTables();
     std::mt19937 rng(20261123);
     std::size_t kept = 0, changed = 0;
     for (int materials : {1, 2})
@@ -615,7 +621,7 @@ TEST(Repair, IsosurfaceTopologyMatchesVolumeToMeshWhereItMends) {
             octree::repairNonManifold(repaired, d);
             octree::Labels matched = repaired;
             const octree::TopologyMatchReport rep =
-                octree::matchPolygonTopology(matched, sampled, d, cli::volumeToMeshTables());
+                octree::matchPolygonTopology(matched, sampled, d, octree::volumeToMeshTables());
             const std::string where = std::to_string(materials) + " material(s), trial " + std::to_string(trial);
             EXPECT_EQ(octree::countNonManifoldBlocks(matched), 0u) << where;
             EXPECT_FALSE(rep.discarded) << where;
@@ -680,11 +686,11 @@ TEST(Labels, JhuVolumeAgainstTheUnionIsosurfaceAndTheVoxels) {
         box.expand(1);
         for (auto it = box.begin(); it; ++it) out.setValue(*it, selected.count(in.getValue(*it)) ? -0.5f : 0.5f);
     }
-    const double unionIso = cli::isosurfaceVolume(*unionField);
+    const double unionIso = pipeline::isosurfaceVolume(*unionField);
     const double voxel = vol.spacing[0] * vol.spacing[1] * vol.spacing[2];
     double meshTotal = 0, labelIsoTotal = 0, voxelTotal = 0, worstVoxelChange = 0;
     for (const auto& m : r.p.selection->materials) {
-        const double iso = cli::isosurfaceVolume(m.field.grid());
+        const double iso = pipeline::isosurfaceVolume(m.field.grid());
         const double vox = static_cast<double>(m.voxels) * voxel;
         meshTotal += meshVolume[m.id];
         labelIsoTotal += iso;
@@ -760,10 +766,10 @@ TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
         const std::string name = "ch2bet_" + std::string(b.keepLargest ? "keep_largest_" : "") +
                                  std::to_string(static_cast<int>(b.size)) + "mm" +
                                  (b.isosurfaceTopology ? "_isosurface_topology" : "");
-        cli::MeshSettings s = intensity(std::nullopt, b.size, b.keepLargest);
+        pipeline::MeshSettings s = intensity(std::nullopt, b.size, b.keepLargest);
         s.isosurfaceTopology = b.isosurfaceTopology;
         QuietSink sink;
-        const cli::Prepared p = cli::prepare(sharedData() + "/ch2bet.nii.gz", s, sink);
+        const pipeline::Prepared p = pipeline::prepare(sharedData() + "/ch2bet.nii.gz", s, sink);
         EXPECT_EQ(octree::countNonManifoldBlocks(p.labels), 0u) << name;
         const std::string plainKey = std::to_string(b.size) + (b.keepLargest ? "k" : "");
         if (!b.isosurfaceTopology) repairOnly[plainKey] = p.labels.material;
@@ -796,9 +802,9 @@ TEST(Ch2bet, TopologyNearVolumeToMeshOfTheScanAtTwoAndOneMillimetre) {
         if (b.isosurfaceTopology) {
             // every accepted step keeps the surface exactly, so what is off is
             // what the places the report names as not mended change
-            const nlohmann::json& unmended = p.report.at("grid").at("repair").at("isosurface_topology").at("unmended");
+            const auto& unmended = p.facts.grid.repair.isosurfaceTopology.value().unmended;
             long long named = 0;
-            for (const auto& place : unmended) named += place.at("euler_change").get<long long>();
+            for (const auto& place : unmended) named += place.place.eulerChange;
             EXPECT_EQ(named, de) << name;
             EXPECT_EQ(unmended.empty(), dc == 0 && de == 0) << name;
         }
@@ -833,14 +839,14 @@ TEST(LabelCurves, CurveNodesMoveAlongTheCurveWhereThreeMaterialsMeet) {
     using namespace isohex::vec;
     const std::string input = sharedData() + "/JHU-WhiteMatter-labels-2mm.nii.gz";
     ASSERT_TRUE(std::filesystem::exists(input)) << input;
-    cli::MeshSettings s = labels();
+    pipeline::MeshSettings s = labels();
     QuietSink sink;
-    const cli::Prepared p = cli::prepare(input, s, sink);
-    HexMesh mesh = cli::extract(p, s, sink);
+    const pipeline::Prepared p = pipeline::prepare(input, s, sink);
+    HexMesh mesh = pipeline::contour(p, s, sink);
     ASSERT_FALSE(mesh.curves.empty());
-    cli::insertSheets(mesh, s, sink);
+    pipeline::pillowBoundary(mesh, s, sink);
     const std::vector<Vec3> before = mesh.nodes;
-    cli::optimize(mesh, p, s, sink);
+    pipeline::optimize(mesh, p, s, sink);
     const octree::Domain& d = *p.domain;
     const double voxel = std::min({p.volume->spacing[0], p.volume->spacing[1], p.volume->spacing[2]});
     std::size_t curveNodes = 0, moved = 0, onCurve = 0;
@@ -884,7 +890,7 @@ TEST(LabelCurves, CurveNodesMoveAlongTheCurveWhereThreeMaterialsMeet) {
 // surface in the report (the projection cannot move it, and its own position
 // used to be taken as the answer: distance 0).
 TEST(Labels, InterfaceThroughGridPointsStaysOnIt) {
-    cli::MeshSettings s = labels();
+    pipeline::MeshSettings s = labels();
     s.size = 1.5;
     const Extracted r = extractOnly(phantoms() + "/two_materials.nii.gz", s);
     ASSERT_TRUE(topologicallyValid(r.mesh));
@@ -911,7 +917,7 @@ TEST(Labels, InterfaceThroughGridPointsStaysOnIt) {
     for (std::size_t h = 0; h < r.mesh.hexCount(); ++h)
         meshVolume[r.mesh.material[h]] += hexVolume(hexCoords(r.mesh, static_cast<Index>(h)));
     for (const auto& m : r.p.selection->materials) {
-        const double iso = cli::isosurfaceVolume(m.field.grid());
+        const double iso = pipeline::isosurfaceVolume(m.field.grid());
         std::cout << "[figures] two_materials label " << m.id << ": mesh " << meshVolume[m.id] << ", 0.5-isosurface "
                   << iso << " (" << 100 * (meshVolume[m.id] - iso) / iso << "%)\n";
         EXPECT_LT(std::abs(meshVolume[m.id] - iso) / iso, 0.02) << "label " << m.id;
@@ -944,10 +950,9 @@ TEST(Labels, InterfaceThroughGridPointsStaysOnIt) {
     EXPECT_GT(labelled, 10000u);
     EXPECT_EQ(disagree, 0u);
 
-    const nlohmann::json before = cli::fidelity(r.mesh, r.p);
+    const pipeline::FidelityResult before = pipeline::fidelity(r.mesh, r.p);
     HexMesh moved = r.mesh;
     moved.nodes[static_cast<std::size_t>(someInterfaceNode)][0] = 30.75;
-    const nlohmann::json after = cli::fidelity(moved, r.p);
-    EXPECT_EQ(after["boundary_nodes_not_projected"].get<std::size_t>(),
-              before["boundary_nodes_not_projected"].get<std::size_t>() + 1);
+    const pipeline::FidelityResult after = pipeline::fidelity(moved, r.p);
+    EXPECT_EQ(after.boundary.notProjected, before.boundary.notProjected + 1);
 }

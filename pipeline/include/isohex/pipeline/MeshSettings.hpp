@@ -1,0 +1,65 @@
+#pragma once
+// What decides a mesh: the settings every stage of the pipeline reads, and
+// their defaults. The command line fills them (cli/MeshOptions.cpp).
+#include <cstddef>
+#include <optional>
+#include <string_view>
+
+#include "isohex/imaging/Selection.hpp"
+#include "isohex/imaging/Volume.hpp"
+
+namespace isohex::pipeline {
+
+// How the hexes are made: dual contouring of the sampled grid, one hex per
+// grid cell centre (the baseline), or two sheets inserted along a triangle
+// surface into a regular grid (surfaces only).
+enum class Method { Dual, Voxel, Sheets };
+
+// "dual", "voxel", "sheets": the method's name on the command line and in the report.
+std::string_view methodName(Method method);
+// The method of that name; none for any other string.
+std::optional<Method> parseMethod(std::string_view name);
+
+// The default of the surface tolerance, in voxels: under the 0.1-voxel bound
+// the fidelity report checks (fidelity.boundary_nodes_beyond_0_1_voxel).
+inline constexpr double kDefaultSurfaceTolerance = 0.09;
+inline constexpr int kDefaultRetries = 3;
+inline constexpr double kDefaultRetryBelow = 0.05;
+
+struct MeshSettings {
+    imaging::LoadOptions load;
+    imaging::SelectOptions select;
+    std::optional<double> size;   // element edge length in world units
+    std::optional<int> level;     // grid step 2^level voxels (exclusive with size)
+    Method method = Method::Dual;
+    bool keepLargest = false;     // only the largest connected region of each material
+    bool fillPits = false;        // fill background pits one grid cell wide (octree::fillOneCellPits)
+    // after the non-manifold repair, re-choose its changes so the boundary keeps
+    // the components and Euler characteristic of volumeToMesh's surface of the
+    // sampled grid where a small search can (octree::matchPolygonTopology)
+    bool isosurfaceTopology = false;
+    bool pillow = true;
+    int boundaryLayers = 1;
+    bool meshExterior = false;
+    int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
+    bool optimize = true;
+    bool fixBoundary = false;
+    // compare fixes the boundary unless --move-boundary (its warnings say so)
+    bool fixBoundaryByCompare = false;
+    bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
+    double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
+    // How far (voxels) the max-min pass may leave a surface node off its
+    // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.
+    std::optional<double> surfaceTolerance;
+    int randomSheetSeed = 1;
+    // When hexes stay inverted (or below retryBelow) after optimisation: how
+    // many times to give a grid point next to them another material (topology
+    // kept; octree::editNearInvertedHexes) and mesh again; 0 never; unset:
+    // kDefaultRetries.
+    std::optional<int> retries;
+    // The scaled Jacobian below which a hex counts as stuck too; unset:
+    // kDefaultRetryBelow; 0: inverted hexes only.
+    std::optional<double> retryBelow;
+};
+
+}  // namespace isohex::pipeline

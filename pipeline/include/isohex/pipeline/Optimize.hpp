@@ -1,0 +1,45 @@
+#pragma once
+// The optimisation stage: untangling and mean-ratio optimisation with surface
+// nodes kept on the isosurface (smoothing::optimizeMesh through a
+// FieldProjector), then the max-min pass on the hexes it leaves poor.
+#include <optional>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/StageSink.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
+
+namespace isohex::pipeline {
+
+struct WorstHexPassResult {
+    smoothing::WorstHexOptions options;
+    smoothing::WorstHexResult result;
+    double seconds = 0;
+    // The surface tolerance in voxels the slack came from (the dual pipeline only).
+    std::optional<double> surfaceToleranceVoxels;
+};
+
+// The max-min pass on the hexes the optimiser left below `target`
+// (smoothing/WorstHexes.hpp), timed. Surface nodes move only with a
+// projector; `topo` (buildTopology(mesh)) saves building it again. `slack`:
+// how far (world units) surface nodes may end off their surface
+// (smoothing::WorstHexOptions::surfaceSlack).
+WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
+                                double slack = 0, const Topology* topo = nullptr);
+
+struct OptimizeResult {
+    bool enabled = false;  // settings.optimize; nothing else is set without it
+    bool fixBoundary = false;
+    smoothing::SmoothingResult smoothingResult;
+    std::optional<WorstHexPassResult> worstHexes;  // with settings.worstHexPass
+};
+
+// Stage "optimize". Unless `warnLeftInverted` is false, a warning names the
+// hexes still inverted after it.
+OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
+                        bool warnLeftInverted = true);
+
+}  // namespace isohex::pipeline

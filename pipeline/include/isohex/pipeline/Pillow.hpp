@@ -1,0 +1,24 @@
+#pragma once
+// The pillow stage: the fundamental boundary sheet (pillowAllMaterials), one
+// or more layers of hexes along every material's boundary, so no hex has two
+// faces on one surface.
+#include <cstddef>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/StageSink.hpp"
+
+namespace isohex::pipeline {
+
+struct PillowResult {
+    bool enabled = false;  // settings.pillow; nothing else is set without it
+    int layers = 0;
+    std::size_t sheets = 0;
+    std::size_t hexesAdded = 0;
+    std::size_t invertedAtInsertion = 0;
+};
+
+// Pillows the mesh unless settings.pillow is off (stage "pillow").
+PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
+
+}  // namespace isohex::pipeline

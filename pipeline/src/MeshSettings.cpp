@@ -1,0 +1,20 @@
+#include "isohex/pipeline/MeshSettings.hpp"
+
+namespace isohex::pipeline {
+
+std::string_view methodName(Method method) {
+    switch (method) {
+        case Method::Dual: return "dual";
+        case Method::Voxel: return "voxel";
+        case Method::Sheets: return "sheets";
+    }
+    return "dual";
+}
+
+std::optional<Method> parseMethod(std::string_view name) {
+    for (Method m : {Method::Dual, Method::Voxel, Method::Sheets})
+        if (methodName(m) == name) return m;
+    return std::nullopt;
+}
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,61 @@
+#include "isohex/pipeline/Optimize.hpp"
+
+#include "Stage.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/FieldProjector.hpp"
+#include "isohex/pipeline/StuckHexes.hpp"
+
+namespace isohex::pipeline {
+
+WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
+                                double slack, const Topology* topo) {
+    const Stopwatch clock;
+    WorstHexPassResult r;
+    r.options.target = target;
+    r.options.surfaceSlack = slack;
+    r.result = smoothing::raiseWorstHexes(mesh, projector, r.options, topo);
+    r.seconds = clock.seconds();
+    return r;
+}
+
+OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
+                        bool warnLeftInverted) {
+    OptimizeResult r;
+    r.enabled = settings.optimize;
+    if (!settings.optimize) return r;
+    Stage st(sink, "optimize");
+    smoothing::SmoothingOptions opt;
+    opt.fixBoundary = settings.fixBoundary;
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+    // Smoothing moves nodes only: one topology serves the optimiser and the
+    // worst-hex pass (building it is about a second at 1.9 M hexes).
+    const Topology topo = buildTopology(mesh);
+    r.smoothingResult = smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt,
+                                          [&](std::string_view, double f) { sink.progress(f); }, &topo);
+    // The optimiser minimises a sum over all corners; the few hexes it leaves
+    // poor (surface folds, spurs thinner than an element) get a max-min pass.
+    if (settings.worstHexPass) {
+        // The slack in world units: the tolerance is in voxels of the scan
+        // (its smallest spacing), as the fidelity report measures.
+        // (None with fixBoundary: surface nodes do not move at all.)
+        const double voxels =
+            settings.fixBoundary ? 0.0 : settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
+        const double slack = voxels * p.selection->materials.front().field.voxelSize();
+        r.worstHexes =
+            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, slack, &topo);
+        r.worstHexes->surfaceToleranceVoxels = voxels;
+    }
+    r.fixBoundary = settings.fixBoundary;
+    // The warning counts what is still inverted after the worst-hex pass too
+    // (which may fix some, and may trade one for another), at the first.
+    // (runMeshPipeline counts and warns itself, after its retries.)
+    if (warnLeftInverted && !r.smoothingResult.untangleFailures.empty())
+        warnInverted(sink, mesh, invertedHexes(mesh), r.smoothingResult.untangleFailures.size(), "", settings.fixBoundary,
+                     settings.fixBoundaryByCompare);
+    st.finish();
+    return r;
+}
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,334 @@
+#include "isohex/pipeline/ReportJson.hpp"
+
+#include "isohex/smoothing/ImrKernel.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+nlohmann::json toJson(const SurfaceFacts& s) {
+    return {{"triangles", s.triangles},   {"vertices", s.vertices},
+            {"volume", s.volume},         {"area", s.area},
+            {"flipped", s.flipped},       {"components", s.components},
+            {"euler_characteristic", s.euler}};
+}
+
+nlohmann::json gridGeometryJson(const octree::Grid& g) {
+    const auto s = g.spacing();
+    return {{"dims", g.dims}, {"spacing", s}, {"origin", g.origin}, {"points", g.size()}};
+}
+
+// Components, Euler characteristic and total genus per material.
+nlohmann::json topologyJson(const std::vector<octree::RegionTopology>& topo) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& t : topo)
+        out.push_back({{"material", t.material}, {"components", t.components}, {"euler", t.euler},
+                       {"genus_total", static_cast<long long>(t.components) - t.euler / 2}});
+    return out;
+}
+
+// What the isosurface-topology search did and aimed at, and where it fell short.
+nlohmann::json toJson(const IsosurfaceTopologyFacts& t) {
+    const octree::TopologyMatchReport& m = t.match;
+    nlohmann::json block = {{"groups", m.groups},
+                            {"groups_changing_it", m.groupsChanging},
+                            {"groups_mended", m.groupsMatched},
+                            {"points_changed", m.pointsChanged},
+                            {"deep_search_trials", m.deepTrials},
+                            {"anneal_steps", m.annealSteps},
+                            {"discarded", m.discarded},
+                            {"isosurface", nlohmann::json::array()},
+                            {"unmended", nlohmann::json::array()}};
+    for (const auto& u : t.unmended)
+        block["unmended"].push_back({{"world_min", u.worldMin},
+                                     {"world_max", u.worldMax},
+                                     {"grid_min", u.place.lo},
+                                     {"grid_max", u.place.hi},
+                                     {"points", u.place.points},
+                                     {"euler_change", u.place.eulerChange}});
+    for (const auto& want : t.isosurface)
+        block["isosurface"].push_back(
+            {{"material", want.material}, {"components", want.components}, {"euler", want.euler}});
+    return block;
+}
+
+nlohmann::json toJson(const RepairFacts& r) {
+    nlohmann::json j = {{"nonmanifold_blocks_before", r.report.nonManifoldBefore},
+                        {"points_added", r.report.pointsAdded},
+                        {"points_removed", r.report.pointsRemoved},
+                        {"rounds", r.report.rounds},
+                        {"seconds", r.seconds}};
+    if (r.isosurfaceTopology) j["isosurface_topology"] = toJson(*r.isosurfaceTopology);
+    return j;
+}
+
+nlohmann::json toJson(const StuckCounts& c) {
+    return {{"inverted", c.inverted}, {"flat", c.flat}, {"min_scaled_jacobian", c.min},
+            {"min_not_inverted", c.minValid}};
+}
+
+nlohmann::json toJson(const RetryAttempt& a) {
+    nlohmann::json j = {{"attempt", a.attempt}, {"before", toJson(a.before)}, {"edits", nlohmann::json::array()},
+                        {"kept", a.kept}};
+    for (const auto& e : a.edits)
+        j["edits"].push_back({{"grid_point", e.gridPoint}, {"at", e.at}, {"from", e.from}, {"to", e.to}});
+    if (a.notMeshedBecause) j["not_meshed_because"] = *a.notMeshedBecause;
+    if (a.after) j["after"] = toJson(*a.after);
+    return j;
+}
+
+double changePercent(double value, double reference) {
+    return reference > 0 ? 100.0 * (value - reference) / reference : 0.0;
+}
+
+// The volumes of the fidelity report.
+void volumesJson(const FidelityResult& f, nlohmann::json& j) {
+    for (const auto& m : f.materials) {
+        nlohmann::json mj = {{"material", m.material},
+                             {"volume_mesh", m.volumeMesh},
+                             {"volume_isosurface", m.volumeIsosurface},
+                             {"volume_change_percent", changePercent(m.volumeMesh, m.volumeIsosurface)}};
+        if (m.volumeVoxels) {
+            mj["volume_voxels"] = *m.volumeVoxels;
+            mj["volume_change_vs_voxels_percent"] = changePercent(m.volumeMesh, *m.volumeVoxels);
+        }
+        j["materials"].push_back(mj);
+    }
+    if (f.volumeLabelsIsosurfaces) j["volume_labels_isosurfaces"] = *f.volumeLabelsIsosurfaces;
+    j["volume_isosurface_of"] = f.volumeIsosurfaceOf;
+    j["volume_mesh"] = f.volumeMesh;
+    j["volume_isosurface"] = f.volumeIsosurface;
+    j["volume_change_percent"] = changePercent(f.volumeMesh, f.volumeIsosurface);
+    if (f.volumeVoxels > 0) {
+        j["volume_voxels"] = f.volumeVoxels;
+        j["volume_change_vs_voxels_percent"] = 100.0 * (f.volumeMesh - f.volumeVoxels) / f.volumeVoxels;
+    }
+}
+
+// The node distances of the fidelity report.
+void distancesJson(const FidelityResult& f, nlohmann::json& j) {
+    const double voxel = f.voxel;
+    j["boundary_nodes"] = f.boundary.nodes;
+    j["boundary_nodes_not_projected"] = f.boundary.notProjected;
+    // The fidelity bound: nodes farther than 0.1 voxel from their surface
+    // (the not-projected ones are farther still and counted apart above).
+    j["boundary_nodes_beyond_0_1_voxel"] = f.boundary.beyond;
+    j["boundary_distance_mean"] = f.boundary.mean;
+    j["boundary_distance_max"] = f.boundary.max;
+    j["boundary_distance_mean_voxels"] = f.boundary.mean / voxel;
+    j["boundary_distance_max_voxels"] = f.boundary.max / voxel;
+    if (f.repaired) {
+        const NodeDistances& own = f.repaired->extracted;
+        j["boundary_nodes_in_repaired_cells"] = f.repaired->nodesInRepairedCells;
+        j["boundary_nodes_beyond_0_1_voxel_or_not_projected_in_repaired_cells"] =
+            f.repaired->beyondOrNotProjectedInRepairedCells;
+        j["extracted_surface"] = {{"boundary_nodes_beyond_0_1_voxel", own.beyond},
+                                  {"boundary_nodes_not_projected", own.notProjected},
+                                  {"boundary_distance_mean_voxels", own.mean / voxel},
+                                  {"boundary_distance_max_voxels", own.max / voxel}};
+    }
+    if (f.curves) {
+        j["curve_nodes"] = f.curves->nodes;
+        j["curve_nodes_not_projected"] = f.curves->notProjected;
+        j["curve_nodes_beyond_0_1_voxel"] = f.curves->beyond;
+        j["curve_distance_max_voxels"] = f.curves->max / voxel;
+    }
+}
+
+const char* gridChoiceName(GridChoice c) {
+    switch (c) {
+        case GridChoice::Size: return "size";
+        case GridChoice::Level: return "level";
+        case GridChoice::Topology: return "topology";
+    }
+    return "topology";
+}
+
+}  // namespace
+
+nlohmann::json toJson(const InputFacts& in) {
+    nlohmann::json j;
+    j["path"] = in.path;
+    j["format"] = in.format;
+    j["pixel_type"] = in.pixelType;
+    j["kind"] = in.kind == imaging::VolumeKind::Labels ? "labels" : "intensity";
+    j["dimensions"] = in.dimensions;
+    j["spacing"] = in.spacing;
+    j["origin"] = in.origin;
+    j["direction"] = in.direction;
+    j["data_range"] = in.dataRange;
+    j["coordinates"] = "LPS (ITK physical space), world units of the scan (mm for medical images)";
+    if (!in.seriesUid.empty()) j["dicom_series"] = in.seriesUid;
+    if (in.surface) j["surface"] = toJson(*in.surface);
+    return j;
+}
+
+nlohmann::json toJson(const SelectionFacts& sel) {
+    nlohmann::json j;
+    if (sel.iso) {
+        j["iso"] = *sel.iso;
+        j["iso_from_otsu"] = sel.isoFromOtsu;
+        j["inside"] = sel.insideBelow ? "below" : "above";
+    }
+    for (const auto& m : sel.materials) j["materials"].push_back({{"id", m.id}, {"voxels", m.voxels}});
+    for (const auto& d : sel.dropped) j["dropped_labels"].push_back({{"label", d.label}, {"voxels", d.voxels}});
+    return j;
+}
+
+nlohmann::json toJson(const GridFacts& g) {
+    nlohmann::json j;
+    j["chosen_by"] = gridChoiceName(g.chosenBy);
+    if (g.chosenBy == GridChoice::Topology) j["rejected"] = g.rejected;
+    if (g.pointsInSmallerComponentsRemoved) j["points_in_smaller_components_removed"] = *g.pointsInSmallerComponentsRemoved;
+    j["pits_filled"] = g.pitsFilled;
+    j["repaired_field_points"] = g.repairedFieldPoints;
+    j["step_voxels"] = g.stepVoxels;
+    j["element_size"] = g.grid.spacing();
+    if (g.level) j["level"] = *g.level;
+    j["grid"] = gridGeometryJson(g.grid);
+    j["repair"] = toJson(g.repair);
+    if (!g.topology.empty()) j["topology"] = topologyJson(g.topology);
+    return j;
+}
+
+nlohmann::json toJson(const PillowResult& p) {
+    nlohmann::json j;
+    j["enabled"] = p.enabled;
+    if (!p.enabled) return j;
+    j["layers"] = p.layers;
+    j["sheets"] = p.sheets;
+    j["hexes_added"] = p.hexesAdded;
+    j["inverted_at_insertion"] = p.invertedAtInsertion;
+    return j;
+}
+
+nlohmann::json toJson(const WorstHexPassResult& p) {
+    const smoothing::WorstHexResult& w = p.result;
+    nlohmann::json j = {{"target", p.options.target},
+                        {"min_edge", p.options.minEdge},
+                        {"min_scaled_jacobian_before", w.minBefore},
+                        {"min_scaled_jacobian_after", w.minAfter},
+                        {"below_target_before", w.belowBefore},
+                        {"below_target_after", w.belowAfter},
+                        {"nodes_moved", w.nodesMoved},
+                        {"surface_nodes_released", w.surfaceNodesReleased},
+                        {"joint_regions_tried", w.jointRegionsTried},
+                        {"joint_regions_improved", w.jointRegionsImproved},
+                        {"joint_seconds", w.jointSeconds},
+                        {"mean_rounds", w.meanRounds},
+                        {"mean_gain", w.meanGain},
+                        {"mean_seconds", w.meanSeconds},
+                        {"surface_nodes_off_before_return", w.surfaceNodesOffBefore},
+                        {"surface_nodes_off_after_return", w.surfaceNodesOffAfter},
+                        {"surface_slack", p.options.surfaceSlack},
+                        {"surface_nodes_within_slack", w.surfaceNodesWithinSlack},
+                        {"return_seconds", w.returnSeconds},
+                        {"rounds", w.rounds},
+                        {"seconds", p.seconds}};
+    if (p.surfaceToleranceVoxels) j["surface_tolerance_voxels"] = *p.surfaceToleranceVoxels;
+    return j;
+}
+
+nlohmann::json toJson(const OptimizeResult& o) {
+    nlohmann::json j;
+    j["enabled"] = o.enabled;
+    if (!o.enabled) return j;
+    const smoothing::SmoothingResult& r = o.smoothingResult;
+    if (o.worstHexes) j["worst_hexes"] = toJson(*o.worstHexes);
+    j["fix_boundary"] = o.fixBoundary;
+    j["sweeps"] = r.sweeps;
+    j["untangle_sweeps"] = r.untangleSweeps;
+    j["nodes_moved"] = r.nodesMoved;
+    j["node_updates"] = r.nodeUpdates;
+    j["surface_nodes_off_surface"] = r.surfaceNodesReleased;
+    j["curve_nodes_demoted"] = r.curveNodesDemoted;
+    j["inverted_before"] = r.invertedBefore;
+    j["inverted_after"] = r.invertedAfter;
+    j["mean_inverse_mean_ratio_before"] = r.objectiveBefore;
+    j["mean_inverse_mean_ratio_after"] = r.objectiveAfter;
+    j["converged"] = r.converged;
+    j["seconds"] = {{"setup", r.setupSeconds}, {"untangle", r.untangleSeconds},
+                    {"mean_ratio", r.meanRatioSeconds}, {"total", r.seconds}};
+    // The mean-ratio kernels' lanes (same numbers either way; only the time differs).
+    j["instruction_set"] = smoothing::detail::imrInstructionSet();
+    for (const auto& f : r.untangleFailures) {
+        j["untangle_failures"].push_back({{"hex", f.hex}, {"at", f.centroid}, {"min_determinant", f.minDeterminant}});
+        if (j["untangle_failures"].size() >= 20) break;
+    }
+    j["inverted_after_untangling"] = r.untangleFailures.size();
+    return j;
+}
+
+nlohmann::json toJson(const RetryResult& r) {
+    nlohmann::json attempts = nlohmann::json::array();
+    for (const auto& a : r.attempts) attempts.push_back(toJson(a));
+    return {{"allowed", r.allowed}, {"floor", r.floor}, {"attempts", attempts},
+            {"points_edited", r.pointsEdited}, {"meshed_again", r.meshedAgain}, {"seconds", r.seconds}};
+}
+
+nlohmann::json toJson(const FidelityResult& f) {
+    nlohmann::json j;
+    volumesJson(f, j);
+    distancesJson(f, j);
+    j["units"] = "world units of the scan (mm for medical images)";
+    return j;
+}
+
+nlohmann::json toJson(const MeshReport& r) {
+    nlohmann::json j;
+    j["input"] = toJson(r.prepared.input);
+    j["selection"] = toJson(r.prepared.selection);
+    j["grid"] = toJson(r.prepared.grid);
+    j["method"] = methodName(r.method);
+    j["extracted"] = {{"hexes", r.contouredHexes}, {"nodes", r.contouredNodes}};
+    j["pillow"] = toJson(r.pillow);
+    j["optimization"] = toJson(r.optimization);
+    if (r.retries) j["retries"] = toJson(*r.retries);
+    j["fidelity"] = toJson(r.fidelity);
+    nlohmann::json perMaterial;
+    for (const auto& [m, n] : r.hexesPerMaterial) perMaterial.push_back({{"material", m}, {"hexes", n}});
+    j["materials"] = perMaterial;
+    j["warnings"] = r.warnings;
+    j["pipeline_seconds"] = r.seconds;
+    return j;
+}
+
+nlohmann::json toJson(const SheetMethodReport& r) {
+    nlohmann::json j;
+    j["input"] = {{"path", r.path}, {"triangles", r.triangles}, {"vertices", r.vertices}, {"volume", r.surfaceVolume}};
+    j["method"] = "sheets";
+    j["size"] = r.size;
+    j["grid"] = {{"hexes", r.gridHexes}, {"nodes", r.gridNodes}, {"margin", r.margin}};
+    const sheets::InsertResult& in = r.insert;
+    j["pillow"] = {{"enabled", true},
+                   {"method", "two sheets along the triangles (seed 5.4), outside discarded"},
+                   {"intersected_hexes", in.intersectedHexes},
+                   {"flood_components", in.floodComponents},
+                   {"nonmanifold_edges_fixed", in.nonManifoldEdgesFixed},
+                   {"nonmanifold_nodes_fixed", in.nonManifoldNodesFixed},
+                   {"hexes_moved", in.hexesMoved},
+                   {"sheet_hexes", in.sheetHexes},
+                   {"surface_nodes", in.surfaceNodes}};
+    if (const auto& o = r.optimization)
+        j["optimization"] = {{"inverted_before", o->invertedBefore}, {"inverted_after", o->invertedAfter},
+                             {"sweeps", o->sweeps}, {"untangle_sweeps", o->untangleSweeps}, {"seconds", o->seconds}};
+    if (r.worstHexes) j["worst_hexes"] = toJson(*r.worstHexes);
+    if (const auto& f = r.surfaceFit)
+        j["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},
+                            {"nodes", f->nodes},
+                            {"nodes_moved", f->nodesMoved},
+                            {"nodes_held_back", f->nodesHeldBack},
+                            {"max_offset", f->maxOffset},
+                            {"volume_before", f->volumeBefore},
+                            {"volume_after", f->volumeAfter}};
+    const SheetFidelity& f = r.fidelity;
+    j["fidelity"] = {{"surface_volume", f.surfaceVolume},
+                     {"mesh_volume", f.meshVolume},
+                     {"volume_error", f.surfaceVolume != 0 ? (f.meshVolume - f.surfaceVolume) / f.surfaceVolume : 0.0},
+                     {"boundary_distance_max", f.boundaryDistanceMax}};
+    j["warnings"] = nlohmann::json::array();
+    j["pipeline_seconds"] = r.seconds;
+    return j;
+}
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,170 @@
+#include "isohex/pipeline/Retries.hpp"
+
+#include <memory>
+#include <utility>
+
+#include <Eigen/Dense>
+
+#include "Format.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/Contour.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// What the attempts share.
+struct RetryState {
+    Meshing& best;
+    const MeshSettings& settings;
+    StageSink& sink;
+    RetryResult result;
+    octree::Grid grid;                               // the element grid (edits keep it)
+    Eigen::Matrix3d toGrid;                          // world offsets to grid coordinates
+    std::vector<std::size_t> frozen;                 // grid points edited once, never again
+    std::shared_ptr<const octree::Labels> sampled;   // the grid sampled afresh, made on first use
+};
+
+// The hexes an attempt works on: inverted ones first (while any is left the
+// edits go to them alone), else the worst kMaxStuckToRetry flat ones. Empty
+// with `why` set when there are too many inverted ones to be a few stuck places.
+std::vector<Index> hexesToWorkOn(const Stuck& stuck, std::optional<std::string>& why) {
+    std::vector<Index> work = stuck.inverted.empty() ? stuck.flat : stuck.inverted;
+    if (!stuck.inverted.empty() && work.size() > kMaxStuckToRetry) {
+        why = "more than " + std::to_string(kMaxStuckToRetry) + " inverted hexes: not a few stuck places";
+        return {};
+    }
+    if (work.size() > kMaxStuckToRetry) work.resize(kMaxStuckToRetry);
+    return work;
+}
+
+// The hexes' centres in grid coordinates.
+std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std::vector<Index>& work) {
+    const octree::Grid& g = s.grid;
+    std::vector<std::array<double, 3>> at;
+    for (Index h : work) {
+        const Vec3 c = hexCentre(s.best.mesh, h);
+        const Eigen::Vector3d x = s.toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
+        at.push_back({x[0], x[1], x[2]});
+    }
+    return at;
+}
+
+// Meshes the edited labels `q` again on the field repaired for them; returns
+// how many grid points that field changes.
+std::size_t meshEdited(RetryState& s, Prepared& q, Meshing& again) {
+    const Prepared& p = s.best.prepared;
+    if (!s.sampled) s.sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, s.grid));
+    auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *s.sampled, q.labels);
+    const std::size_t repairedPoints = repaired->changedPoints();
+    q.repairedDomain = std::move(repaired);
+    again = meshLabels(std::move(q), s.settings, s.sink);
+    return repairedPoints;
+}
+
+// One attempt: edit grid points next to the stuck hexes, mesh again, keep
+// the result if better. False when the attempt could not mesh (the loop stops).
+bool attempt(RetryState& s, int n, int maxRetries, double floor) {
+    RetryAttempt tried;
+    tried.attempt = n;
+    tried.before = s.result.stuck.counts();
+    const Stuck& stuck = s.result.stuck;
+    const std::vector<Index> work = hexesToWorkOn(stuck, tried.notMeshedBecause);
+    if (tried.notMeshedBecause) {
+        s.result.attempts.push_back(tried);
+        return false;
+    }
+    Prepared q = s.best.prepared;
+    const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, gridPositions(s, work), s.frozen);
+    for (const auto& e : edits) {
+        const auto [i, j, k] = s.grid.coords(e.point);
+        tried.edits.push_back({{i, j, k}, s.grid.point(i, j, k), e.from, e.to});
+        s.frozen.push_back(e.point);
+    }
+    if (edits.empty()) {
+        tried.notMeshedBecause = "no grid point next to these hexes can change material without changing a topology";
+        s.result.attempts.push_back(tried);
+        return false;
+    }
+    // the stages' progress starts over: say why
+    s.sink.note("info", "meshing again (retry " + std::to_string(n) + " of " + std::to_string(maxRetries) + "): " +
+                            std::to_string(edits.size()) + " grid point(s) next to " + std::to_string(work.size()) +
+                            (stuck.inverted.empty() ? " nearly flat" : " inverted") + " hex(es) change material");
+    Meshing again;
+    const std::size_t repairedPoints = meshEdited(s, q, again);
+    ++s.result.meshedAgain;
+    Stuck now = stuckHexes(again.mesh, floor);
+    const bool better = now.betterThan(stuck, floor);
+    tried.after = now.counts();
+    tried.kept = better;
+    s.result.attempts.push_back(tried);
+    if (better) {
+        // (the report's "extracted" of a mesh kept here counts the finished mesh, as it always has)
+        again.contouredHexes = again.mesh.hexCount();
+        again.contouredNodes = again.mesh.nodeCount();
+        again.prepared.facts.grid.repairedFieldPoints = repairedPoints;
+        s.best = std::move(again);
+        s.result.stuck = std::move(now);
+        s.result.pointsEdited += edits.size();
+    }
+    return true;
+}
+
+// The warnings for what is left stuck after the retries.
+void warnLeft(RetryState& s, int maxRetries, double floor, std::vector<std::string>& warnings) {
+    const RetryResult& r = s.result;
+    const std::string more =
+        r.meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(r.meshedAgain) + " time(s) with grid edits)";
+    const std::string left = warnInverted(s.sink, s.best.mesh, r.stuck.inverted,
+                                          s.best.optimization.smoothingResult.untangleFailures.size(), more,
+                                          s.settings.fixBoundary);
+    if (!left.empty()) warnings.push_back(left);
+    const std::string flat = warnFlat(s.sink, s.best.mesh, r.stuck, floor, r.meshedAgain, maxRetries);
+    if (!flat.empty()) warnings.push_back(flat);
+}
+
+}  // namespace
+
+Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& sink) {
+    Meshing m;
+    m.prepared = std::move(prepared);
+    m.mesh = contour(m.prepared, settings, sink);
+    m.contouredHexes = m.mesh.hexCount();
+    m.contouredNodes = m.mesh.nodeCount();
+    m.pillow = pillowBoundary(m.mesh, settings, sink);
+    m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
+    return m;
+}
+
+RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSink& sink,
+                            std::vector<std::string>& warnings) {
+    const Stopwatch clock;
+    const bool dual = settings.method == Method::Dual;
+    const int maxRetries = dual ? settings.retries.value_or(kDefaultRetries) : 0;
+    const double floor = dual ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
+    RetryState s{best, settings, sink, {}, best.prepared.labels.grid, {}, {}, {}};
+    s.result.allowed = maxRetries;
+    s.result.floor = floor;
+    if (floor > 0) s.result.stuck = stuckHexes(best.mesh, floor);
+    else s.result.stuck.inverted = invertedHexes(best.mesh);
+    Eigen::Matrix3d axes;
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) axes(c, a) = s.grid.axes[a][c];
+    s.toGrid = axes.inverse();
+    for (int n = 1; n <= maxRetries && !(s.result.stuck.inverted.empty() && s.result.stuck.flat.empty()); ++n)
+        if (!attempt(s, n, maxRetries, floor)) break;
+    if (s.result.pointsEdited > 0) {
+        // the topology of the labels meshed (the edits are simple, so it
+        // is the one before; counted again rather than assumed)
+        best.prepared.facts.grid.topology = octree::regionTopology(best.prepared.labels);
+        sink.note("info", "changed the material of " + std::to_string(s.result.pointsEdited) +
+                              " grid point(s) where hexes stayed inverted or below scaled Jacobian " +
+                              shortNumber(floor) + " and meshed again (topology kept; retries in the report)");
+    }
+    s.result.seconds = clock.seconds();
+    warnLeft(s, maxRetries, floor, warnings);
+    return std::move(s.result);
+}
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,105 @@
+#include "isohex/pipeline/SheetMethod.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "Stage.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/imaging/Surface.hpp"
+#include "isohex/imaging/SurfaceVolume.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// The settings that have no meaning for the sheet method are refused.
+void checkSettings(const std::string& input, const MeshSettings& settings) {
+    if (!imaging::isSurfaceFile(input))
+        throw Error(input + ": --method sheets meshes a closed triangle surface (.stl .obj .ply .off); "
+                            "use --method dual for scans and label maps");
+    if (settings.size && !(*settings.size > 0))
+        throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
+    if (settings.level) throw Error("--level is for scans; with --method sheets give the element size with --size");
+    if (settings.surfaceTolerance)
+        throw Error("--surface-tolerance is in voxels of a scan; --method sheets keeps surface nodes on the triangles "
+                    "until its volume fit, so leave it out");
+    if (settings.isosurfaceTopology)
+        throw Error("--isosurface-topology chooses grid points of a sampled grid; --method sheets has none (use "
+                    "--method dual)");
+}
+
+// Untangling and optimisation with surface nodes on the triangles. The
+// optimiser minimises a sum; what it leaves below the target (hexes whose
+// surface quad sits on detail smaller than an element) gets a max-min pass,
+// then the surface nodes are fitted so the boundary quads enclose the
+// triangles' volume instead of cutting chords.
+void optimizeOnTriangles(SheetMeshing& out, sheets::SheetGeometry& geometry, const sheets::TriangleTree& surface,
+                         std::int32_t surfaceId, const MeshSettings& settings, StageSink& sink) {
+    smoothing::SmoothingOptions so;
+    so.fixBoundary = settings.fixBoundary;
+    out.report.optimization = timedStage(sink, "optimize", [&] {
+        return smoothing::optimizeMesh(out.mesh, &geometry, so, [&](std::string_view, double f) { sink.progress(f); });
+    });
+    if (settings.fixBoundary) return;
+    if (settings.worstHexPass)
+        out.report.worstHexes = timedStage(sink, "worst_hexes", [&] {
+            return worstHexPass(out.mesh, &geometry, settings.worstHexTarget);
+        });
+    out.report.surfaceFit =
+        timedStage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, surface, surfaceId); });
+}
+
+// Enclosed volumes and the distance of boundary nodes to the triangles.
+SheetFidelity measureFidelity(const HexMesh& mesh, const sheets::TriangleTree& surface) {
+    const HexQuality q = computeQuality(mesh);
+    SheetFidelity f;
+    for (double v : q.volume) f.meshVolume += v;
+    const Topology topo = buildTopology(mesh);
+    for (Index v : topo.boundaryNodes)
+        f.boundaryDistanceMax = std::max(f.boundaryDistanceMax, std::sqrt(surface.squaredDistance(mesh.nodes[v])));
+    f.surfaceVolume = surface.volume();
+    return f;
+}
+
+}  // namespace
+
+std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path) {
+    if (!imaging::isSurfaceFile(path))
+        throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
+    if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
+    imaging::TriangleSurface s = imaging::loadSurface(path);
+    return std::make_shared<sheets::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+}
+
+SheetMeshing runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    const Stopwatch clock;
+    checkSettings(input, settings);
+    auto surface = timedStage(sink, "load", [&] { return loadTriangleTree(input); });
+    SheetMeshing out;
+    SheetMethodReport& r = out.report;
+    r.size = settings.size ? *settings.size : surface->meanEdgeLength();
+    const auto box = surface->bounds();
+    r.path = input;
+    r.triangles = surface->triangles().size();
+    r.vertices = surface->vertices().size();
+    r.surfaceVolume = surface->volume();
+    r.margin = 0.05;
+    out.mesh = timedStage(sink, "grid", [&] { return sheets::regularGrid(box[0], box[1], r.size, r.margin); });
+    r.gridHexes = out.mesh.hexCount();
+    r.gridNodes = out.mesh.nodeCount();
+    sheets::SheetGeometry geometry;
+    sheets::InsertOptions io;
+    io.keep = sheets::Keep::Inside;
+    r.insert = timedStage(sink, "sheets", [&] { return sheets::insertSheets(out.mesh, geometry, surface, io); });
+    if (settings.optimize) optimizeOnTriangles(out, geometry, *surface, r.insert.surfaceId, settings, sink);
+    r.fidelity = measureFidelity(out.mesh, *surface);
+    r.seconds = clock.seconds();
+    return out;
+}
+
+}  // namespace isohex::pipeline
