@@ -9,7 +9,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
-#include "isohex/sheets/Polish.hpp"
+#include "isohex/insertion/SurfaceFit.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
 namespace isohex::cli {
@@ -35,12 +35,12 @@ auto stage(StageSink& sink, const char* name, Fn fn) {
 }
 }  // namespace
 
-std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path) {
+std::shared_ptr<const insertion::TriangleTree> loadTriangleTree(const std::string& path) {
     if (!hasSurfaceExtension(path))
         throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
     if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
     imaging::TriangleSurface s = imaging::loadSurface(path);
-    return std::make_shared<sheets::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+    return std::make_shared<insertion::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
 }
 
 MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {
@@ -67,14 +67,14 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
                            {"volume", surface->volume()}};
     out.report["method"] = "sheets";
     out.report["size"] = size;
-    out.mesh = stage(sink, "grid", [&] { return sheets::regularGrid(box[0], box[1], size, 0.05); });
+    out.mesh = stage(sink, "grid", [&] { return insertion::regularGrid(box[0], box[1], size, 0.05); });
     out.report["grid"] = {{"hexes", out.mesh.hexCount()}, {"nodes", out.mesh.nodeCount()}, {"margin", 0.05}};
 
-    sheets::SheetGeometry geometry;
-    sheets::InsertOptions io;
-    io.keep = sheets::Keep::Inside;
-    const sheets::InsertResult r =
-        stage(sink, "sheets", [&] { return sheets::insertSheets(out.mesh, geometry, surface, io); });
+    insertion::SheetGeometry geometry;
+    insertion::InsertOptions io;
+    io.keep = insertion::Keep::Inside;
+    const insertion::InsertResult r =
+        stage(sink, "sheets", [&] { return insertion::insertSheets(out.mesh, geometry, surface, io); });
     out.report["pillow"] = {{"enabled", true},
                             {"method", "two sheets along the triangles (seed 5.4), outside discarded"},
                             {"intersected_hexes", r.intersectedHexes},
@@ -104,7 +104,7 @@ MeshOutcome runSheetMethod(const std::string& input, const MeshSettings& setting
             if (settings.worstHexPass)
                 out.report["worst_hexes"] = stage(sink, "worst_hexes", [&] { return worstHexPass(out.mesh, &geometry, settings.worstHexTarget); });
             const auto fr =
-                stage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
+                stage(sink, "surface_fit", [&] { return insertion::fitSurfaceVolume(out.mesh, *surface, r.surfaceId); });
             out.report["surface_fit"] = {{"method", "volume-balanced offset of surface nodes along their normal"},
                                          {"nodes", fr.nodes},
                                          {"nodes_moved", fr.nodesMoved},

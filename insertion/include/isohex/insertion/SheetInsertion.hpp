@@ -23,10 +23,10 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
-#include "isohex/sheets/TriangleTree.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 // Where the mesh's surfaces and curves are: the projector the smoother uses,
 // filled as surfaces are inserted. Surface s of the mesh lies on
@@ -97,4 +97,4 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
 // `margin` (a fraction of its extent) on every side; material 1.
 HexMesh regularGrid(const Vec3& lo, const Vec3& hi, double size, double margin = 0.05);
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

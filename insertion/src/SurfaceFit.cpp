@@ -1,4 +1,4 @@
-#include "isohex/sheets/Polish.hpp"
+#include "isohex/insertion/SurfaceFit.hpp"
 
 #include "isohex/smoothing/WorstHexes.hpp"
 
@@ -15,7 +15,7 @@
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/VecMath.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 using namespace vec;
 using smoothing::meanEdgeLengthAt;
@@ -138,4 +138,4 @@ VolumeFitResult fitSurfaceVolume(HexMesh& mesh, const TriangleTree& triangles, s
     return res;
 }
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

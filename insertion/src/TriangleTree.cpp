@@ -1,4 +1,4 @@
-#include "isohex/sheets/TriangleTree.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -13,7 +13,7 @@
 
 #include "isohex/core/Error.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 namespace {
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
@@ -112,4 +112,4 @@ double TriangleTree::volume() const {
     return v / 6.0;
 }
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

@@ -19,10 +19,10 @@
 #include <cstdint>
 
 #include "isohex/core/HexMesh.hpp"
-#include "isohex/sheets/TriangleTree.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 #include "isohex/smoothing/SurfaceProjector.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 struct VolumeFitOptions {
     int iterations = 4;
@@ -48,4 +48,4 @@ struct VolumeFitResult {
 VolumeFitResult fitSurfaceVolume(HexMesh& mesh, const TriangleTree& triangles, std::int32_t surfaceId,
                                  const VolumeFitOptions& options = {});
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

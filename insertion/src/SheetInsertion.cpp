@@ -1,4 +1,4 @@
-#include "isohex/sheets/SheetInsertion.hpp"
+#include "isohex/insertion/SheetInsertion.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -18,7 +18,7 @@
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/VecMath.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 namespace {
 
@@ -552,4 +552,4 @@ HexMesh regularGrid(const Vec3& lo, const Vec3& hi, double size, double margin) 
     return m;
 }
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion
