@@ -9,6 +9,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/imaging/Surface.hpp"
+#include "isohex/insertion/RegularGrid.hpp"
 #include "isohex/insertion/SurfaceFit.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 

@@ -1,350 +1,145 @@
+// Step 4 of the sheet insertion (SheetInsertion.hpp): split the interface
+// between the two sides (Sides.cpp) into two sheets of new hexes. A sequence
+// of phases over small structs: the interface, its split nodes, their
+// classes, their positions, the new mesh, the side kept, the new surface.
 #include "isohex/insertion/SheetInsertion.hpp"
 
 #include <algorithm>
-#include <chrono>
-#include <cmath>
-#include <limits>
+#include <array>
 #include <map>
-#include <numeric>
 #include <string>
-#include <unordered_map>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
-#include "isohex/core/QuadSurface.hpp"
-#include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/VecMath.hpp"
+
+#include "ElementGeometry.hpp"
+#include "Sides.hpp"
 
 namespace isohex::insertion {
 
 namespace {
 
 using namespace vec;
+using detail::kInside;
+using detail::kOutside;
+using Quad4 = std::array<Index, 4>;
 
-Vec3 centroid(const HexMesh& mesh, Index h) {
-    Vec3 c{0, 0, 0};
-    for (Index v : mesh.hexes[static_cast<std::size_t>(h)]) c = c + mesh.nodes[static_cast<std::size_t>(v)];
-    return 0.125 * c;
-}
-
-// Twice the area vector of a quad (right-hand normal).
-Vec3 quadNormal(const HexMesh& mesh, const std::array<Index, 4>& q) {
-    const auto& x = mesh.nodes;
-    return cross(x[q[2]] - x[q[0]], x[q[3]] - x[q[1]]);
-}
-
-using Clock = std::chrono::steady_clock;
-
-}  // namespace
-
-// ------------------------------------------------------------ geometry
-
-std::int32_t SheetGeometry::addTree(std::shared_ptr<const TriangleTree> tree) {
-    trees.push_back(std::move(tree));
-    return static_cast<std::int32_t>(trees.size() - 1);
-}
-
-Vec3 SheetGeometry::project(std::int32_t surfaceId, const Vec3& x) const {
-    if (surfaceId < 0 || static_cast<std::size_t>(surfaceId) >= surfaceTree.size() || surfaceTree[surfaceId] < 0)
-        return x;
-    return trees[static_cast<std::size_t>(surfaceTree[surfaceId])]->closestPoint(x);
-}
-
-Vec3 SheetGeometry::projectToIntersection(std::int32_t a, std::int32_t b, const Vec3& x) const {
-    const TriangleTree& A = *trees[static_cast<std::size_t>(a)];
-    const TriangleTree& B = *trees[static_cast<std::size_t>(b)];
-    // Alternating projections converge to a point of both surfaces where they
-    // cross at an angle (linearly, at the rate cos^2 of that angle).
-    Vec3 p = x;
-    const double tol = 1e-12 * (1.0 + norm(x));
-    for (int k = 0; k < 200; ++k) {
-        const Vec3 q = A.closestPoint(p);
-        const Vec3 r = B.closestPoint(q);
-        const double gap = norm(r - q);
-        p = r;
-        if (gap <= tol) break;
-    }
-    return p;
-}
-
-Vec3 SheetGeometry::projectToCurve(std::int32_t curveId, const Vec3& x) const {
-    if (curveId < 0 || static_cast<std::size_t>(curveId) >= curves.size()) return x;
-    return projectToIntersection(curves[curveId][0], curves[curveId][1], x);
-}
-
-std::size_t adoptBoundary(HexMesh& mesh, SheetGeometry& geometry, double featureAngleDegrees) {
-    classifyBoundaryNodes(mesh);
-    const Topology topo = buildTopology(mesh);
-    // Each surface (outer boundary or interface between materials) as the
-    // triangles of its quads, two per quad.
-    const std::vector<SurfacePatch> patches = surfacePatches(mesh, topo);
-    geometry.surfaceTree.assign(mesh.surfaces.size(), -1);
-    std::vector<Index> local(mesh.nodeCount(), kNone);
-    for (std::size_t s = 0; s < patches.size() && s < mesh.surfaces.size(); ++s) {
-        std::vector<Vec3> vertices;
-        std::vector<Index> used;
-        std::vector<std::array<std::int32_t, 3>> tris;
-        auto id = [&](Index v) {
-            if (local[v] == kNone) {
-                local[v] = static_cast<Index>(vertices.size());
-                vertices.push_back(mesh.nodes[v]);
-                used.push_back(v);
-            }
-            return local[v];
-        };
-        for (Index q : patches[s].quads) {
-            const auto& n = topo.quads[static_cast<std::size_t>(q)].nodes;
-            const Index a = id(n[0]), b = id(n[1]), c = id(n[2]), d = id(n[3]);
-            tris.push_back({a, b, c});
-            tris.push_back({a, c, d});
-        }
-        for (Index v : used) local[v] = kNone;
-        if (tris.empty()) continue;
-        geometry.surfaceTree[s] = geometry.addTree(
-            std::make_shared<TriangleTree>(std::move(vertices), std::move(tris), surfaceName(mesh.surfaces[s])));
-    }
-
-    // Sharp boundary edges: the two boundary quads meet at more than the angle.
-    const double cosLimit = std::cos(featureAngleDegrees * M_PI / 180.0);
-    std::unordered_map<std::uint64_t, Vec3> firstNormal;
-    std::vector<std::uint8_t> sharp(mesh.nodeCount(), 0);
-    for (Index q : topo.boundaryQuads) {
-        const auto& n = topo.quads[static_cast<std::size_t>(q)].nodes;
-        Vec3 nq = quadNormal(mesh, n);
-        const double len = norm(nq);
-        if (len > 0) nq = (1.0 / len) * nq;
-        for (int i = 0; i < 4; ++i) {
-            const Index a = std::min(n[i], n[(i + 1) % 4]), b = std::max(n[i], n[(i + 1) % 4]);
-            const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
-            auto [it, fresh] = firstNormal.emplace(key, nq);
-            if (!fresh && dot(it->second, nq) < cosLimit) sharp[a] = sharp[b] = 1;
-        }
-    }
-    std::size_t fixed = 0;
-    for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
-        NodeClass& c = mesh.nodeClass[v];
-        if ((sharp[v] && c.kind == NodeKind::Surface) || c.kind == NodeKind::Curve) {
-            c = NodeClass{NodeKind::Fixed, -1};
-            ++fixed;
-        }
-    }
-    return fixed;
-}
-
-// ------------------------------------------------------------ insertion
-
-InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_ptr<const TriangleTree> surface,
-                          const InsertOptions& opt) {
-    const auto t0 = Clock::now();
-    if (!surface) throw Error("insertSheets: no surface");
+// The mesh's topology, after the checks that make an insertion possible.
+Topology checkedTopology(const HexMesh& mesh) {
     mesh.checkConsistent("mesh to insert sheets into");
-    const TriangleTree& S = *surface;
-    InsertResult res;
-    const std::size_t H = mesh.hexCount(), N = mesh.nodeCount();
-    if (H == 0) throw Error("the mesh has no hexes");
-    const Topology topo = buildTopology(mesh);
+    if (mesh.hexCount() == 0) throw Error("the mesh has no hexes");
+    Topology topo = buildTopology(mesh);
     if (!topo.overfullQuads.empty())
         throw Error("cannot insert sheets: the mesh has " + std::to_string(topo.overfullQuads.size()) +
                     " quads shared by more than two hexes; repair the mesh first");
+    return topo;
+}
 
-    // 1. Hexes with an edge crossing a triangle (each unique edge tested once).
-    const std::size_t E = topo.edges.size();
-    std::vector<std::uint8_t> crossed(E, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, E, 512), [&](const auto& r) {
-        for (std::size_t e = r.begin(); e != r.end(); ++e)
-            crossed[e] = S.segmentCrosses(mesh.nodes[topo.edges[e][0]], mesh.nodes[topo.edges[e][1]]);
-    });
-    std::vector<std::uint8_t> intersected(H, 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, 1024), [&](const auto& r) {
-        for (std::size_t h = r.begin(); h != r.end(); ++h)
-            for (Index e : topo.hexEdges[h])
-                if (crossed[static_cast<std::size_t>(e)]) intersected[h] = 1;
-    });
-    res.intersectedHexes = static_cast<std::size_t>(std::count(intersected.begin(), intersected.end(), 1));
-    if (res.intersectedHexes == 0)
-        throw Error(S.name() + ": the surface crosses no edge of the mesh; it must cut through the mesh "
-                               "(check that both are in the same units and place)");
+// The quads between the two sides, seen from the inside (normals point
+// inside -> outside), with the hexes on either side, in quad order.
+struct Interface {
+    std::vector<Quad4> quads;
+    std::vector<std::array<Index, 2>> hexes;  // (inside hex, outside hex)
+};
 
-    // 2. Flood fill of the other hexes through shared faces; each group is on
-    //    one side (none of its edges crosses the surface): 0 = inside, 1 = outside.
-    std::vector<std::int8_t> side(H, -1);
-    auto neighbour = [&](std::size_t h, int f) -> Index {
-        const Quad& q = topo.quads[static_cast<std::size_t>(topo.hexQuads[h][f])];
-        if (q.hex[1] == kNone) return kNone;
-        return q.hex[0] == static_cast<Index>(h) ? q.hex[1] : q.hex[0];
-    };
-    std::vector<Index> stack;
-    for (std::size_t root = 0; root < H; ++root) {
-        if (intersected[root] || side[root] >= 0) continue;
-        ++res.floodComponents;
-        const std::int8_t s = S.inside(centroid(mesh, static_cast<Index>(root))) ? 0 : 1;
-        side[root] = s;
-        stack.push_back(static_cast<Index>(root));
-        while (!stack.empty()) {
-            const auto h = static_cast<std::size_t>(stack.back());
-            stack.pop_back();
-            for (int f = 0; f < 6; ++f) {
-                const Index g = neighbour(h, f);
-                if (g != kNone && !intersected[g] && side[g] < 0) {
-                    side[g] = s;
-                    stack.push_back(g);
-                }
-            }
-        }
-    }
-    // 3. The intersected hexes.
-    for (std::size_t h = 0; h < H; ++h) {
-        if (!intersected[h]) continue;
-        switch (opt.intersected) {
-            case Intersected::Auto: side[h] = S.inside(centroid(mesh, static_cast<Index>(h))) ? 0 : 1; break;
-            case Intersected::Side1: side[h] = 0; break;
-            case Intersected::Side2: side[h] = 1; break;
-        }
-    }
-
-    // Repair: move hexes across until each side's boundary is a closed
-    // 2-manifold. Candidates around a bad edge or node are its hexes; the one
-    // whose centroid is nearest the surface moves (each hex at most once);
-    // when all have moved, an outside hex joins the inside (the inside only
-    // grows from then on, so the loop ends).
-    std::vector<double> dist2(H, -1.0);
-    auto distanceOf = [&](Index h) {
-        double& d = dist2[static_cast<std::size_t>(h)];
-        if (d < 0) d = S.squaredDistance(centroid(mesh, h));
-        return d;
-    };
-    std::vector<std::uint8_t> moved(H, 0), touched(H, 0);
-    for (int round = 0;; ++round) {
-        std::array<std::vector<std::array<Index, 4>>, 2> bnd;
-        for (const Quad& q : topo.quads) {
-            const int s0 = side[q.hex[0]];
-            if (q.hex[1] == kNone) {
-                bnd[s0].push_back(q.nodes);
-                continue;
-            }
-            const int s1 = side[q.hex[1]];
-            if (s0 == s1) continue;
-            bnd[s0].push_back(q.nodes);
-            bnd[s1].push_back({q.nodes[0], q.nodes[3], q.nodes[2], q.nodes[1]});
-        }
-        std::vector<std::array<Index, 2>> badEdges;
-        std::vector<Index> badNodes;
-        for (int s = 0; s < 2; ++s) {
-            if (bnd[s].empty()) continue;
-            const ManifoldCheck mc = checkManifold(bnd[s], N, true);
-            badEdges.insert(badEdges.end(), mc.badEdges.begin(), mc.badEdges.end());
-            badNodes.insert(badNodes.end(), mc.badNodes.begin(), mc.badNodes.end());
-        }
-        std::sort(badEdges.begin(), badEdges.end());
-        badEdges.erase(std::unique(badEdges.begin(), badEdges.end()), badEdges.end());
-        std::sort(badNodes.begin(), badNodes.end());
-        badNodes.erase(std::unique(badNodes.begin(), badNodes.end()), badNodes.end());
-        if (badEdges.empty() && badNodes.empty()) break;
-        if (round >= opt.maxRepairRounds) {
-            const Index v = badNodes.empty() ? badEdges[0][0] : badNodes[0];
-            throw Error(S.name() + ": could not make both sides of the surface manifold after " +
-                        std::to_string(round) + " rounds (" + std::to_string(badEdges.size()) + " edges, " +
-                        std::to_string(badNodes.size()) + " nodes left, first at " +
-                        at(mesh.nodes[static_cast<std::size_t>(v)]) + "); try a smaller element size");
-        }
-        std::fill(touched.begin(), touched.end(), 0);
-        std::vector<Index> cand;
-        auto fix = [&]() -> bool {
-            for (Index h : cand)
-                if (touched[h]) return false;  // wait for the next round
-            Index best = kNone;
-            for (Index h : cand)
-                if (!moved[h] && (best == kNone || distanceOf(h) < distanceOf(best))) best = h;
-            if (best == kNone)
-                for (Index h : cand)
-                    if (side[h] == 1 && (best == kNone || distanceOf(h) < distanceOf(best))) best = h;
-            if (best == kNone) return false;
-            side[best] = static_cast<std::int8_t>(1 - side[best]);
-            moved[best] = 1;
-            ++res.hexesMoved;
-            for (Index h : cand) touched[h] = 1;
-            return true;
-        };
-        for (const auto& e : badEdges) {
-            cand.clear();
-            std::set_intersection(topo.nodeHexes.begin(e[0]), topo.nodeHexes.end(e[0]), topo.nodeHexes.begin(e[1]),
-                                  topo.nodeHexes.end(e[1]), std::back_inserter(cand));
-            if (fix()) ++res.nonManifoldEdgesFixed;
-        }
-        for (Index v : badNodes) {
-            cand.assign(topo.nodeHexes.begin(v), topo.nodeHexes.end(v));
-            if (fix()) ++res.nonManifoldNodesFixed;
-        }
-    }
-    res.side1Hexes = static_cast<std::size_t>(std::count(side.begin(), side.end(), 0));
-    res.side2Hexes = H - res.side1Hexes;
-    if (res.side1Hexes == 0 || res.side2Hexes == 0)
-        throw Error(S.name() + ": the surface does not split the mesh (every hex is " +
-                    (res.side1Hexes == 0 ? "outside" : "inside") +
-                    " it); it must cut through the mesh with elements on both sides");
-
-    // 4. The interface, seen from the inside (normals point inside -> outside).
-    std::vector<std::array<Index, 4>> iface;
-    std::vector<std::array<Index, 2>> ifaceHex;  // (inside hex, outside hex)
+Interface findInterface(const Topology& topo, const std::vector<std::int8_t>& side) {
+    Interface iface;
     for (const Quad& q : topo.quads) {
         if (q.hex[1] == kNone || side[q.hex[0]] == side[q.hex[1]]) continue;
-        if (side[q.hex[0]] == 0) {
-            iface.push_back(q.nodes);
-            ifaceHex.push_back({q.hex[0], q.hex[1]});
+        if (side[q.hex[0]] == kInside) {
+            iface.quads.push_back(q.nodes);
+            iface.hexes.push_back({q.hex[0], q.hex[1]});
         } else {
-            iface.push_back({q.nodes[0], q.nodes[3], q.nodes[2], q.nodes[1]});
-            ifaceHex.push_back({q.hex[1], q.hex[0]});
+            iface.quads.push_back({q.nodes[0], q.nodes[3], q.nodes[2], q.nodes[1]});
+            iface.hexes.push_back({q.hex[1], q.hex[0]});
         }
     }
-    res.interfaceQuads = iface.size();
-    std::vector<Index> splitIndex(N, kNone);
-    for (const auto& q : iface)
-        for (Index v : q) splitIndex[v] = 0;
-    std::vector<Index> split;
-    for (std::size_t v = 0; v < N; ++v)
-        if (splitIndex[v] == 0) {
-            splitIndex[v] = static_cast<Index>(split.size());
-            split.push_back(static_cast<Index>(v));
-        }
-    const std::size_t C = split.size();
-    res.splitNodes = C;
-    auto copyIn = [&](Index v) { return static_cast<Index>(N + 2 * static_cast<std::size_t>(splitIndex[v])); };
-    auto copyOut = [&](Index v) { return static_cast<Index>(N + 2 * static_cast<std::size_t>(splitIndex[v]) + 1); };
+    return iface;
+}
 
-    std::vector<Vec3> normal(C, Vec3{0, 0, 0}), bnormal(C, Vec3{0, 0, 0});
-    std::vector<double> edgeSum(C, 0.0);
-    std::vector<int> edgeCount(C, 0);
-    for (const auto& q : iface) {
-        const Vec3 n = quadNormal(mesh, q);
+// The interface's nodes in index order, each split in three: the node keeps
+// the middle copy; split node k's inside and outside copies are the new
+// nodes meshNodes + 2k and meshNodes + 2k + 1.
+struct SplitNodes {
+    std::size_t meshNodes = 0;
+    std::vector<Index> nodes;  // split node k -> mesh node
+    std::vector<Index> index;  // mesh node -> k, or kNone
+    std::size_t size() const { return nodes.size(); }
+    Index inside(Index v) const { return static_cast<Index>(meshNodes + 2 * static_cast<std::size_t>(index[v])); }
+    Index outside(Index v) const { return static_cast<Index>(meshNodes + 2 * static_cast<std::size_t>(index[v]) + 1); }
+};
+
+SplitNodes splitNodes(std::size_t meshNodes, const Interface& iface) {
+    SplitNodes split;
+    split.meshNodes = meshNodes;
+    split.index.assign(meshNodes, kNone);
+    for (const auto& q : iface.quads)
+        for (Index v : q) split.index[v] = 0;
+    for (std::size_t v = 0; v < meshNodes; ++v)
+        if (split.index[v] == 0) {
+            split.index[v] = static_cast<Index>(split.nodes.size());
+            split.nodes.push_back(static_cast<Index>(v));
+        }
+    return split;
+}
+
+// Per split node: the sums of the area vectors of its interface quads and of
+// its boundary quads (the normal the copies move along, kept tangent to the
+// mesh's boundary), and the sum and count of its interface edge lengths.
+struct InterfaceSums {
+    std::vector<Vec3> normal, boundaryNormal;
+    std::vector<double> edgeSum;
+    std::vector<int> edgeCount;
+};
+
+InterfaceSums sumAroundSplitNodes(const HexMesh& mesh, const Topology& topo, const Interface& iface,
+                                  const SplitNodes& split) {
+    const std::size_t C = split.size();
+    InterfaceSums sums{std::vector<Vec3>(C, Vec3{0, 0, 0}), std::vector<Vec3>(C, Vec3{0, 0, 0}),
+                       std::vector<double>(C, 0.0), std::vector<int>(C, 0)};
+    for (const auto& q : iface.quads) {
+        const Vec3 n = detail::quadAreaVector(mesh, q);
         for (int i = 0; i < 4; ++i) {
-            const auto k = static_cast<std::size_t>(splitIndex[q[i]]);
-            normal[k] = normal[k] + n;
-            edgeSum[k] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]);
-            ++edgeCount[k];
+            const auto k = static_cast<std::size_t>(split.index[q[i]]);
+            sums.normal[k] = sums.normal[k] + n;
+            sums.edgeSum[k] += norm(mesh.nodes[q[(i + 1) % 4]] - mesh.nodes[q[i]]);
+            ++sums.edgeCount[k];
         }
     }
     for (Index qi : topo.boundaryQuads) {
         const auto& q = topo.quads[static_cast<std::size_t>(qi)].nodes;
-        const Vec3 n = quadNormal(mesh, q);
+        const Vec3 n = detail::quadAreaVector(mesh, q);
         for (Index v : q)
-            if (splitIndex[v] != kNone) bnormal[splitIndex[v]] = bnormal[splitIndex[v]] + n;
+            if (split.index[v] != kNone)
+                sums.boundaryNormal[split.index[v]] = sums.boundaryNormal[split.index[v]] + n;
     }
+    return sums;
+}
 
-    // Where the interface reaches the mesh's boundary, the middle copy goes
-    // on the curve between the old boundary surface and the new one.
-    const std::int32_t newTree = geometry.addTree(surface);
-    const auto newSurface = static_cast<std::int32_t>(mesh.surfaces.size());
+// Per split node: the class of its middle copy (on the new surface, on the
+// curve where the new surface meets an old one, or fixed where three meet)
+// and of its outer copies (the node's old class, kept only where a copy ends
+// up on the boundary).
+struct SplitClasses {
+    std::vector<NodeClass> middle, copy;
+};
+
+// Classifies the split nodes; adds to `geometry` one curve per old surface
+// tree the interface reaches, in split node order.
+SplitClasses classifySplitNodes(const HexMesh& mesh, const SplitNodes& split, std::int32_t newTree,
+                                std::int32_t newSurface, SheetGeometry& geometry) {
+    const std::size_t C = split.size();
+    SplitClasses classes{std::vector<NodeClass>(C), std::vector<NodeClass>(C)};
     std::map<std::int32_t, std::int32_t> curveOf;  // old tree -> curve id
-    const auto firstCurve = static_cast<std::int32_t>(geometry.curves.size());
-    std::vector<NodeClass> midClass(C), copyClass(C);
     for (std::size_t k = 0; k < C; ++k) {
-        const Index v = split[k];
-        const NodeClass old = mesh.nodeClass[v];
-        midClass[k] = NodeClass{NodeKind::Surface, newSurface};
-        copyClass[k] = old;
+        const NodeClass old = mesh.nodeClass[split.nodes[k]];
+        classes.middle[k] = NodeClass{NodeKind::Surface, newSurface};
+        classes.copy[k] = old;
         // A node already on a surface (the mesh's boundary, or an earlier
         // sheet) is where the two surfaces cross.
         if (old.kind == NodeKind::Surface && old.id >= 0 && static_cast<std::size_t>(old.id) < geometry.surfaceTree.size() &&
@@ -355,85 +150,124 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
                 it = curveOf.emplace(t, static_cast<std::int32_t>(geometry.curves.size())).first;
                 geometry.curves.push_back({t, newTree});
             }
-            midClass[k] = NodeClass{NodeKind::Curve, it->second};
+            classes.middle[k] = NodeClass{NodeKind::Curve, it->second};
         } else if (old.kind == NodeKind::Curve || old.kind == NodeKind::Fixed) {
-            midClass[k] = NodeClass{NodeKind::Fixed, -1};  // where three surfaces meet
+            classes.middle[k] = NodeClass{NodeKind::Fixed, -1};  // where three surfaces meet
         }
     }
+    return classes;
+}
 
-    // Middle copies: on the curve where the interface reaches a surface the
-    // mesh already has, else at the closest point of the triangles.
-    std::vector<Vec3> unitNormal(C), mid(C);
-    std::vector<double> spacing(C);
+// Per split node: the unit normal the outer copies move along, the local
+// edge length, and the middle copy's position.
+struct MiddleCopies {
+    std::vector<Vec3> unitNormal, position;
+    std::vector<double> spacing;
+};
+
+// The interface normal at a split node, made tangent to the mesh's boundary
+// where the node is on it (so the copies stay on the boundary), unit length.
+Vec3 copyDirection(const InterfaceSums& sums, std::size_t k, bool onBoundary) {
+    Vec3 n = sums.normal[k];
+    if (onBoundary) {
+        const Vec3& b = sums.boundaryNormal[k];
+        const double bl = norm(b);
+        if (bl > 0) n = n - (dot(n, b) / (bl * bl)) * b;
+    }
+    const double nl = norm(n);
+    return nl > 0 ? (1.0 / nl) * n : Vec3{0, 0, 0};
+}
+
+// Middle copies: on the curve where the interface reaches a surface the mesh
+// already has, at the point of three surfaces where it crosses a curve, else
+// at the closest point of the triangles; where the mesh had them if
+// projection is off. Parallel over split nodes, each written once.
+MiddleCopies placeMiddleCopies(const HexMesh& mesh, const Topology& topo, const SheetGeometry& geometry,
+                               const TriangleTree& surface, const SplitNodes& split, const InterfaceSums& sums,
+                               const SplitClasses& classes, bool project) {
+    const std::size_t C = split.size();
+    MiddleCopies mid{std::vector<Vec3>(C), std::vector<Vec3>(C), std::vector<double>(C)};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 256), [&](const auto& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
-            const Index v = split[k];
+            const Index v = split.nodes[k];
             const Vec3& x = mesh.nodes[v];
-            Vec3 n = normal[k];
-            if (topo.nodeOnBoundary[v]) {  // keep the copies on the mesh's boundary
-                const double bl = norm(bnormal[k]);
-                if (bl > 0) n = n - (dot(n, bnormal[k]) / (bl * bl)) * bnormal[k];
-            }
-            const double nl = norm(n);
-            unitNormal[k] = nl > 0 ? (1.0 / nl) * n : Vec3{0, 0, 0};
-            spacing[k] = edgeSum[k] / std::max(1, edgeCount[k]);
-            mid[k] = x;
-            if (!opt.project) continue;
-            const NodeClass old = copyClass[k];
-            if (midClass[k].kind == NodeKind::Curve) {
-                mid[k] = geometry.projectToCurve(midClass[k].id, x);
-            } else if (midClass[k].kind == NodeKind::Fixed && old.kind == NodeKind::Curve && old.id >= 0 &&
-                       static_cast<std::size_t>(old.id) < geometry.curves.size()) {
-                // Where the new surface crosses a curve: the point on all three surfaces.
-                const auto [a, b] = geometry.curves[static_cast<std::size_t>(old.id)];
-                Vec3 p = x;
-                for (int it = 0; it < 300; ++it) {
-                    const Vec3 q = geometry.trees[static_cast<std::size_t>(b)]->closestPoint(
-                        geometry.trees[static_cast<std::size_t>(a)]->closestPoint(S.closestPoint(p)));
-                    const double step = norm(q - p);
-                    p = q;
-                    if (step <= 1e-12 * (1.0 + norm(p))) break;
-                }
-                mid[k] = p;
-            } else {
-                mid[k] = S.closestPoint(x);
-            }
+            mid.unitNormal[k] = copyDirection(sums, k, topo.nodeOnBoundary[v]);
+            mid.spacing[k] = sums.edgeSum[k] / std::max(1, sums.edgeCount[k]);
+            mid.position[k] = x;
+            if (!project) continue;
+            const NodeClass old = classes.copy[k];
+            const NodeClass middle = classes.middle[k];
+            if (middle.kind == NodeKind::Curve)
+                mid.position[k] = geometry.projectToCurve(middle.id, x);
+            else if (middle.kind == NodeKind::Fixed && old.kind == NodeKind::Curve && old.id >= 0 &&
+                     static_cast<std::size_t>(old.id) < geometry.curves.size())
+                mid.position[k] = geometry.projectToCurveCrossing(old.id, surface, x);
+            else
+                mid.position[k] = surface.closestPoint(x);
         }
     });
-    // The outer copies start `offset` elements either side of the middle one
-    // along the interface normal (the seed's shrinking of both sides).
-    std::vector<Vec3> pos(3 * C);  // middle, inside copy, outside copy
+    return mid;
+}
+
+// Positions of all three copies (middle, inside, outside for split node k at
+// 3k, 3k + 1, 3k + 2): the outer copies start `offset` elements either side
+// of the middle one along the normal (the seed's shrinking of both sides),
+// projected back onto the old surface or curve they are on.
+std::vector<Vec3> placeCopies(const Topology& topo, const SheetGeometry& geometry, const SplitNodes& split,
+                              const SplitClasses& classes, const MiddleCopies& mid, const InsertOptions& opt) {
+    const std::size_t C = split.size();
+    std::vector<Vec3> pos(3 * C);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, C, 256), [&](const auto& r) {
         for (std::size_t k = r.begin(); k != r.end(); ++k) {
-            const Index v = split[k];
-            const Vec3& n = unitNormal[k];
-            const double d = opt.offset * spacing[k];
-            Vec3 in = mid[k] - d * n, out = mid[k] + d * n;
-            if (opt.project && copyClass[k].kind == NodeKind::Surface && topo.nodeOnBoundary[v]) {
-                in = geometry.project(copyClass[k].id, in);
-                out = geometry.project(copyClass[k].id, out);
-            } else if (opt.project && copyClass[k].kind == NodeKind::Curve) {  // copies stay on the old curve
-                in = geometry.projectToCurve(copyClass[k].id, in);
-                out = geometry.projectToCurve(copyClass[k].id, out);
+            const Index v = split.nodes[k];
+            const Vec3& n = mid.unitNormal[k];
+            const double d = opt.offset * mid.spacing[k];
+            Vec3 in = mid.position[k] - d * n, out = mid.position[k] + d * n;
+            const NodeClass& c = classes.copy[k];
+            if (opt.project && c.kind == NodeKind::Surface && topo.nodeOnBoundary[v]) {
+                in = geometry.project(c.id, in);
+                out = geometry.project(c.id, out);
+            } else if (opt.project && c.kind == NodeKind::Curve) {  // copies stay on the old curve
+                in = geometry.projectToCurve(c.id, in);
+                out = geometry.projectToCurve(c.id, out);
             }
-            pos[3 * k] = mid[k];
+            pos[3 * k] = mid.position[k];
             pos[3 * k + 1] = in;
             pos[3 * k + 2] = out;
         }
     });
+    return pos;
+}
 
-    // Apply: copies, each side's hexes take theirs, two new hexes per interface quad.
-    std::int32_t maxMat = *std::max_element(mesh.material.begin(), mesh.material.end());
-    const std::int32_t insideMat = opt.keep == Keep::Both ? (opt.insideMaterial >= 0 ? opt.insideMaterial : maxMat + 1) : -1;
-    HexMesh out;
+// The material the inside hexes take (-1: they keep theirs).
+std::int32_t insideMaterial(const HexMesh& mesh, const InsertOptions& opt) {
+    const std::int32_t maxMat = *std::max_element(mesh.material.begin(), mesh.material.end());
+    return opt.keep == Keep::Both ? (opt.insideMaterial >= 0 ? opt.insideMaterial : maxMat + 1) : -1;
+}
+
+// The mesh with the interface split: the old hexes (first, in their order)
+// take the copies of their side, then one new hex per interface quad on the
+// inside, then one per quad on the outside.
+struct SplitMesh {
+    HexMesh mesh;
+    std::vector<std::int8_t> newSide;  // side of each new hex
+    std::int32_t materialIn = 0, materialOut = 0;  // of the first interface quad's new hexes
+};
+
+SplitMesh buildSplitMesh(const HexMesh& mesh, const std::vector<std::int8_t>& side, const Interface& iface,
+                         const SplitNodes& split, const SplitClasses& classes, const std::vector<Vec3>& pos,
+                         std::int32_t insideMat) {
+    const std::size_t N = mesh.nodeCount(), H = mesh.hexCount(), C = split.size();
+    SplitMesh s;
+    HexMesh& out = s.mesh;
     out.surfaces = mesh.surfaces;
     out.nodes = mesh.nodes;
     out.nodeClass = mesh.nodeClass;
     out.nodes.resize(N + 2 * C);
     out.nodeClass.resize(N + 2 * C);
     for (std::size_t k = 0; k < C; ++k) {
-        out.nodes[split[k]] = pos[3 * k];
-        out.nodeClass[split[k]] = midClass[k];
+        out.nodes[split.nodes[k]] = pos[3 * k];
+        out.nodeClass[split.nodes[k]] = classes.middle[k];
         out.nodes[N + 2 * k] = pos[3 * k + 1];
         out.nodes[N + 2 * k + 1] = pos[3 * k + 2];
     }
@@ -442,114 +276,145 @@ InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_pt
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, 1024), [&](const auto& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
             for (Index& v : out.hexes[h])
-                if (splitIndex[v] != kNone) v = side[h] == 0 ? copyIn(v) : copyOut(v);
-            if (side[h] == 0 && insideMat >= 0) out.material[h] = insideMat;
+                if (split.index[v] != kNone) v = side[h] == kInside ? split.inside(v) : split.outside(v);
+            if (side[h] == kInside && insideMat >= 0) out.material[h] = insideMat;
         }
     });
-    std::vector<std::int8_t> newSide;  // side of the new hexes
-    for (std::size_t i = 0; i < iface.size(); ++i) {
-        const auto& q = iface[i];
-        out.addHex({copyIn(q[0]), copyIn(q[1]), copyIn(q[2]), copyIn(q[3]), q[0], q[1], q[2], q[3]},
-                   out.material[ifaceHex[i][0]]);
-        newSide.push_back(0);
+    for (std::size_t i = 0; i < iface.quads.size(); ++i) {
+        const auto& q = iface.quads[i];
+        out.addHex({split.inside(q[0]), split.inside(q[1]), split.inside(q[2]), split.inside(q[3]), q[0], q[1], q[2], q[3]},
+                   out.material[iface.hexes[i][0]]);
+        s.newSide.push_back(kInside);
     }
-    for (std::size_t i = 0; i < iface.size(); ++i) {
-        const std::array<Index, 4> q{iface[i][0], iface[i][3], iface[i][2], iface[i][1]};
-        out.addHex({copyOut(q[0]), copyOut(q[1]), copyOut(q[2]), copyOut(q[3]), q[0], q[1], q[2], q[3]},
-                   out.material[ifaceHex[i][1]]);
-        newSide.push_back(1);
+    for (std::size_t i = 0; i < iface.quads.size(); ++i) {
+        const Quad4 q{iface.quads[i][0], iface.quads[i][3], iface.quads[i][2], iface.quads[i][1]};
+        out.addHex(
+            {split.outside(q[0]), split.outside(q[1]), split.outside(q[2]), split.outside(q[3]), q[0], q[1], q[2], q[3]},
+            out.material[iface.hexes[i][1]]);
+        s.newSide.push_back(kOutside);
     }
-    const std::int32_t matIn = out.material[ifaceHex[0][0]], matOut = out.material[ifaceHex[0][1]];
+    s.materialIn = out.material[iface.hexes[0][0]];
+    s.materialOut = out.material[iface.hexes[0][1]];
+    return s;
+}
 
-    // Keep one side or both.
-    std::vector<Index> copyNode(N + 2 * C, kNone);  // for copies: the split node
-    for (std::size_t k = 0; k < C; ++k) copyNode[N + 2 * k] = copyNode[N + 2 * k + 1] = split[k];
-    if (opt.keep != Keep::Both) {
-        const std::int8_t drop = opt.keep == Keep::Inside ? 1 : 0;
-        HexMesh kept;
-        kept.surfaces = out.surfaces;
-        for (std::size_t h = 0; h < out.hexCount(); ++h) {
-            const std::int8_t s = h < H ? side[h] : newSide[h - H];
-            if (s == drop) ++res.removedHexes;
-            else kept.addHex(out.hexes[h], out.material[h]);
-        }
-        std::vector<Index> newId(out.nodeCount(), kNone);
-        for (const Hex& hx : kept.hexes)
-            for (Index v : hx) newId[v] = 0;
-        std::vector<Index> keptCopyNode;
-        for (std::size_t v = 0; v < out.nodeCount(); ++v)
-            if (newId[v] == 0) {
-                newId[v] = kept.addNode(out.nodes[v], out.nodeClass[v]);
-                keptCopyNode.push_back(copyNode[v]);
-            }
-        for (Hex& hx : kept.hexes)
-            for (Index& v : hx) v = newId[v];
-        out = std::move(kept);
-        copyNode = std::move(keptCopyNode);
+// Per node of the split mesh: for an outer copy, the node it was split from; else kNone.
+std::vector<Index> copyOrigins(const SplitNodes& split) {
+    const std::size_t N = split.meshNodes, C = split.size();
+    std::vector<Index> origin(N + 2 * C, kNone);
+    for (std::size_t k = 0; k < C; ++k) origin[N + 2 * k] = origin[N + 2 * k + 1] = split.nodes[k];
+    return origin;
+}
+
+// Drops the hexes of side `drop` (old hexes by `side`, new ones by
+// s.newSide) and the nodes no kept hex uses, renumbering the rest in order;
+// `origin` follows the renumbering. Returns the number of hexes dropped.
+std::size_t dropSide(SplitMesh& s, const std::vector<std::int8_t>& side, std::int8_t drop, std::vector<Index>& origin) {
+    const HexMesh& out = s.mesh;
+    const std::size_t H = side.size();
+    std::size_t removed = 0;
+    HexMesh kept;
+    kept.surfaces = out.surfaces;
+    for (std::size_t h = 0; h < out.hexCount(); ++h) {
+        const std::int8_t hs = h < H ? side[h] : s.newSide[h - H];
+        if (hs == drop) ++removed;
+        else kept.addHex(out.hexes[h], out.material[h]);
     }
-    // Copies keep the split node's boundary class only where they are on the boundary.
+    std::vector<Index> newId(out.nodeCount(), kNone);
+    for (const Hex& hx : kept.hexes)
+        for (Index v : hx) newId[v] = 0;
+    std::vector<Index> keptOrigin;
+    for (std::size_t v = 0; v < out.nodeCount(); ++v)
+        if (newId[v] == 0) {
+            newId[v] = kept.addNode(out.nodes[v], out.nodeClass[v]);
+            keptOrigin.push_back(origin[v]);
+        }
+    for (Hex& hx : kept.hexes)
+        for (Index& v : hx) v = newId[v];
+    s.mesh = std::move(kept);
+    origin = std::move(keptOrigin);
+    return removed;
+}
+
+// Outer copies keep the split node's old class only where they are on the
+// mesh's boundary; inside the mesh they are interior.
+void classifyCopies(HexMesh& out, const std::vector<Index>& origin, const SplitNodes& split,
+                    const SplitClasses& classes) {
     const Topology after = buildTopology(out);
     for (std::size_t v = 0; v < out.nodeCount(); ++v) {
-        const Index o = copyNode[v];
+        const Index o = origin[v];
         if (o == kNone) continue;
-        const NodeClass old = copyClass[splitIndex[o]];
+        const NodeClass old = classes.copy[split.index[o]];
         out.nodeClass[v] = after.nodeOnBoundary[v] && old.kind != NodeKind::Interior ? old : NodeClass{};
     }
+}
+
+// The new surface's tag: the interface between the two materials, or the
+// boundary of the side kept.
+SurfaceTag newSurfaceTag(Keep keep, std::int32_t matIn, std::int32_t matOut, const std::string& name) {
     SurfaceTag tag;
-    if (opt.keep == Keep::Both) {
+    if (keep == Keep::Both) {
         tag.inside = std::min(matIn, matOut);
         tag.outside = std::max(matIn, matOut);
     } else {
-        tag.inside = opt.keep == Keep::Inside ? matIn : matOut;
+        tag.inside = keep == Keep::Inside ? matIn : matOut;
         tag.outside = -1;
     }
-    tag.name = S.name();
-    out.surfaces.push_back(tag);
-    geometry.surfaceTree.resize(out.surfaces.size(), -1);
-    geometry.surfaceTree[static_cast<std::size_t>(newSurface)] = newTree;
+    tag.name = name;
+    return tag;
+}
 
+// The node counts of the result: nodes on the new surface and its curves,
+// and middle copies fixed where three surfaces meet.
+void countNodes(const HexMesh& out, std::int32_t newSurface, std::int32_t firstCurve, const SplitClasses& classes,
+                InsertResult& res) {
     for (const NodeClass& c : out.nodeClass) {
         if (c.kind == NodeKind::Surface && c.id == newSurface) ++res.surfaceNodes;
         else if (c.kind == NodeKind::Curve && c.id >= firstCurve) ++res.curveNodes;
     }
-    for (const auto& c : midClass) res.fixedNodes += c.kind == NodeKind::Fixed;
-    res.sheetHexes = 2 * iface.size() - (opt.keep == Keep::Both ? 0 : iface.size());
-    res.surfaceId = newSurface;
-    mesh = std::move(out);
-    res.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-    return res;
+    for (const auto& c : classes.middle) res.fixedNodes += c.kind == NodeKind::Fixed;
 }
 
-HexMesh regularGrid(const Vec3& lo, const Vec3& hi, double size, double margin) {
-    if (!(size > 0)) throw Error("the element size must be positive");
-    std::array<long long, 3> n{};
-    Vec3 origin{};
-    for (int i = 0; i < 3; ++i) {
-        const double ext = (hi[i] - lo[i]) * (1.0 + 2.0 * margin);
-        n[i] = std::max<long long>(1, static_cast<long long>(std::ceil(ext / size)));
-        origin[i] = 0.5 * (lo[i] + hi[i]) - 0.5 * static_cast<double>(n[i]) * size;
-    }
-    const long long nodes = (n[0] + 1) * (n[1] + 1) * (n[2] + 1);
-    if (nodes > std::numeric_limits<Index>::max() / 4)
-        throw Error("a grid of " + std::to_string(n[0]) + " x " + std::to_string(n[1]) + " x " + std::to_string(n[2]) +
-                    " elements is too large; choose a larger --size");
-    HexMesh m;
-    m.nodes.reserve(static_cast<std::size_t>(nodes));
-    for (long long k = 0; k <= n[2]; ++k)
-        for (long long j = 0; j <= n[1]; ++j)
-            for (long long i = 0; i <= n[0]; ++i)
-                m.addNode({origin[0] + static_cast<double>(i) * size, origin[1] + static_cast<double>(j) * size,
-                           origin[2] + static_cast<double>(k) * size});
-    auto id = [&](long long i, long long j, long long k) {
-        return static_cast<Index>(i + (n[0] + 1) * (j + (n[1] + 1) * k));
-    };
-    for (long long k = 0; k < n[2]; ++k)
-        for (long long j = 0; j < n[1]; ++j)
-            for (long long i = 0; i < n[0]; ++i)
-                m.addHex({id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1),
-                          id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)},
-                         1);
-    return m;
+}  // namespace
+
+InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_ptr<const TriangleTree> surface,
+                          const InsertOptions& opt) {
+    const Stopwatch watch;
+    if (!surface) throw Error("insertSheets: no surface");
+    const TriangleTree& S = *surface;
+    const Topology topo = checkedTopology(mesh);
+    InsertResult res;
+    // Steps 1-3 (Sides.cpp); every error is thrown there, before anything changes.
+    const std::vector<std::int8_t> side = detail::assignSides(mesh, topo, S, opt, res);
+
+    const Interface iface = findInterface(topo, side);
+    res.interfaceQuads = iface.quads.size();
+    const SplitNodes split = splitNodes(mesh.nodeCount(), iface);
+    res.splitNodes = split.size();
+    const InterfaceSums sums = sumAroundSplitNodes(mesh, topo, iface, split);
+
+    const std::int32_t newTree = geometry.addTree(surface);
+    const auto newSurface = static_cast<std::int32_t>(mesh.surfaces.size());
+    const auto firstCurve = static_cast<std::int32_t>(geometry.curves.size());
+    const SplitClasses classes = classifySplitNodes(mesh, split, newTree, newSurface, geometry);
+    const MiddleCopies mid = placeMiddleCopies(mesh, topo, geometry, S, split, sums, classes, opt.project);
+    const std::vector<Vec3> pos = placeCopies(topo, geometry, split, classes, mid, opt);
+
+    SplitMesh out = buildSplitMesh(mesh, side, iface, split, classes, pos, insideMaterial(mesh, opt));
+    std::vector<Index> origin = copyOrigins(split);
+    if (opt.keep != Keep::Both)
+        res.removedHexes = dropSide(out, side, opt.keep == Keep::Inside ? kOutside : kInside, origin);
+    classifyCopies(out.mesh, origin, split, classes);
+    out.mesh.surfaces.push_back(newSurfaceTag(opt.keep, out.materialIn, out.materialOut, S.name()));
+    geometry.surfaceTree.resize(out.mesh.surfaces.size(), -1);
+    geometry.surfaceTree[static_cast<std::size_t>(newSurface)] = newTree;
+
+    countNodes(out.mesh, newSurface, firstCurve, classes, res);
+    res.sheetHexes = 2 * iface.quads.size() - (opt.keep == Keep::Both ? 0 : iface.quads.size());
+    res.surfaceId = newSurface;
+    mesh = std::move(out.mesh);
+    res.seconds = watch.seconds();
+    return res;
 }
 
 }  // namespace isohex::insertion

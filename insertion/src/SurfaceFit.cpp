@@ -1,120 +1,133 @@
 #include "isohex/insertion/SurfaceFit.hpp"
 
-#include "isohex/smoothing/WorstHexes.hpp"
-
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <limits>
 #include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "isohex/core/HexCell.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/VecMath.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
+
+#include "ElementGeometry.hpp"
 
 namespace isohex::insertion {
 
-using namespace vec;
-using smoothing::meanEdgeLengthAt;
-using smoothing::minScaledJacobianAround;
+namespace {
 
-VolumeFitResult fitSurfaceVolume(HexMesh& mesh, const TriangleTree& triangles, std::int32_t surfaceId,
-                                 const VolumeFitOptions& opt) {
-    VolumeFitResult res;
-    const Topology topo = buildTopology(mesh);
-    auto totalVolume = [&] {
-        double v = 0;
-        for (std::size_t h = 0; h < mesh.hexCount(); ++h) v += hexVolume(hexCoords(mesh, static_cast<Index>(h)));
-        return v;
-    };
-    res.volumeBefore = totalVolume();
+using namespace vec;
+using Quad4 = std::array<Index, 4>;
+
+// Sum of the hex volumes, in hex order.
+double totalVolume(const HexMesh& mesh) {
+    double v = 0;
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) v += hexVolume(hexCoords(mesh, static_cast<Index>(h)));
+    return v;
+}
+
+// The boundary quads that lie on surface `surfaceId` (all four corners on it).
+std::vector<Quad4> surfaceQuads(const HexMesh& mesh, const Topology& topo, std::int32_t surfaceId) {
     auto onSurface = [&](Index v) {
         const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
         return c.kind == NodeKind::Surface && c.id == surfaceId;
     };
-    // The boundary quads that lie on the surface (all four corners on it).
-    std::vector<std::array<Index, 4>> quads;
+    std::vector<Quad4> quads;
     for (Index qi : topo.boundaryQuads) {
         const auto& q = topo.quads[static_cast<std::size_t>(qi)].nodes;
         if (onSurface(q[0]) && onSurface(q[1]) && onSurface(q[2]) && onSurface(q[3])) quads.push_back(q);
     }
-    const std::size_t N = mesh.nodeCount();
-    std::vector<Index> quadsOfNode;  // CSR over nodes
-    std::vector<Index> offsets(N + 1, 0);
-    for (const auto& q : quads)
-        for (Index v : q) ++offsets[static_cast<std::size_t>(v) + 1];
-    for (std::size_t v = 0; v < N; ++v) offsets[v + 1] += offsets[v];
-    quadsOfNode.resize(static_cast<std::size_t>(offsets[N]));
-    {
-        std::vector<Index> cursor(offsets.begin(), offsets.end() - 1);
-        for (std::size_t i = 0; i < quads.size(); ++i)
-            for (Index v : quads[i]) quadsOfNode[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(i);
-    }
-    std::vector<Index> nodes;
-    for (std::size_t v = 0; v < N; ++v)
-        if (offsets[v + 1] > offsets[v]) nodes.push_back(static_cast<Index>(v));
-    res.nodes = nodes.size();
-    if (nodes.empty()) {
-        res.volumeAfter = res.volumeBefore;
-        return res;
-    }
-    const std::vector<Vec3> normal = smoothing::surfaceNormals(mesh, topo);
-    std::vector<double> length(N, 0.0);
-    for (Index v : nodes) length[static_cast<std::size_t>(v)] = meanEdgeLengthAt(mesh, topo, v);
+    return quads;
+}
 
-    // Offsets along the normals, found by Jacobi iterations on the
-    // area-weighted mean signed gap between each node's quads and the
-    // triangles (Simpson's rule on the bilinear quad, 3 x 3 points).
-    const std::vector<Vec3> start = mesh.nodes;
-    std::vector<double> offset(N, 0.0);
+// Node -> the quads at it, in quad order (a counting sort).
+Csr quadsOfNodes(const std::vector<Quad4>& quads, std::size_t nodeCount) {
+    Csr c;
+    c.offsets.assign(nodeCount + 1, 0);
+    for (const auto& q : quads)
+        for (Index v : q) ++c.offsets[static_cast<std::size_t>(v) + 1];
+    for (std::size_t v = 0; v < nodeCount; ++v) c.offsets[v + 1] += c.offsets[v];
+    c.items.resize(static_cast<std::size_t>(c.offsets[nodeCount]));
+    std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+    for (std::size_t i = 0; i < quads.size(); ++i)
+        for (Index v : quads[i])
+            c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(i);
+    return c;
+}
+
+// The area of the bilinear quad x0 x1 x2 x3 (from its diagonals) and its
+// area-weighted mean signed distance from the triangles along its normal,
+// positive where the quad is outside them (Simpson's rule, 3 x 3 points).
+struct QuadGap {
+    double area = 0, gap = 0;
+};
+
+QuadGap quadGap(const Vec3& x0, const Vec3& x1, const Vec3& x2, const Vec3& x3, const TriangleTree& triangles) {
+    static constexpr double w1[3] = {1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0};
+    static constexpr double s1[3] = {0.0, 0.5, 1.0};
+    const Vec3 an = detail::quadAreaVector(x0, x1, x2, x3);  // twice the area vector
+    QuadGap r;
+    r.area = 0.5 * norm(an);
+    if (!(r.area > 0)) return r;
+    const Vec3 n = (0.5 / r.area) * an;
+    double g = 0;
+    for (int iu = 0; iu < 3; ++iu)
+        for (int iv = 0; iv < 3; ++iv) {
+            const double u = s1[iu], t = s1[iv];
+            const Vec3 p = (1 - u) * (1 - t) * x0 + u * (1 - t) * x1 + u * t * x2 + (1 - u) * t * x3;
+            g += w1[iu] * w1[iv] * dot(p - triangles.closestPoint(p), n);
+        }
+    r.gap = g;
+    return r;
+}
+
+// Offsets along the normals, found by Jacobi iterations: each node moves by
+// minus the area-weighted mean gap of its quads at the offsets of the last
+// iteration, capped at maxOffset local edge lengths.
+std::vector<double> balancedOffsets(const HexMesh& mesh, const TriangleTree& triangles, const std::vector<Quad4>& quads,
+                                    const Csr& quadsAt, const std::vector<Index>& nodes,
+                                    const std::vector<Vec3>& normal, const std::vector<double>& length,
+                                    const VolumeFitOptions& opt) {
+    const std::vector<Vec3>& start = mesh.nodes;
+    std::vector<double> offset(mesh.nodeCount(), 0.0);
     auto placed = [&](Index v) {
         const auto sv = static_cast<std::size_t>(v);
         return start[sv] + offset[sv] * normal[sv];
     };
-    static constexpr double w1[3] = {1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0};
-    static constexpr double s1[3] = {0.0, 0.5, 1.0};
-    std::vector<double> gap(quads.size()), area(quads.size());
+    std::vector<QuadGap> gaps(quads.size());
     for (int it = 0; it < opt.iterations; ++it) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, quads.size(), 256), [&](const auto& r) {
-          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const auto& q = quads[i];
-            const Vec3 x0 = placed(q[0]), x1 = placed(q[1]), x2 = placed(q[2]), x3 = placed(q[3]);
-            const Vec3 an = cross(x2 - x0, x3 - x1);  // twice the area vector
-            const double a = 0.5 * norm(an);
-            area[i] = a;
-            gap[i] = 0;
-            if (!(a > 0)) continue;
-            const Vec3 n = (0.5 / a) * an;
-            double g = 0;
-            for (int iu = 0; iu < 3; ++iu)
-                for (int iv = 0; iv < 3; ++iv) {
-                    const double u = s1[iu], t = s1[iv];
-                    const Vec3 p = (1 - u) * (1 - t) * x0 + u * (1 - t) * x1 + u * t * x2 + (1 - u) * t * x3;
-                    // Positive where the quad is outside the triangles.
-                    g += w1[iu] * w1[iv] * dot(p - triangles.closestPoint(p), n);
-                }
-            gap[i] = g;
-          }
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                const auto& q = quads[i];
+                gaps[i] = quadGap(placed(q[0]), placed(q[1]), placed(q[2]), placed(q[3]), triangles);
+            }
         });
         for (Index v : nodes) {
             const auto sv = static_cast<std::size_t>(v);
             double num = 0, den = 0;
-            for (Index k = offsets[sv]; k < offsets[sv + 1]; ++k) {
-                const auto i = static_cast<std::size_t>(quadsOfNode[static_cast<std::size_t>(k)]);
-                num += area[i] * gap[i];
-                den += area[i];
+            for (const Index* k = quadsAt.begin(sv); k != quadsAt.end(sv); ++k) {
+                const QuadGap& g = gaps[static_cast<std::size_t>(*k)];
+                num += g.area * g.gap;
+                den += g.area;
             }
             if (den > 0) offset[sv] -= num / den;
             const double cap = opt.maxOffset * length[sv];
             offset[sv] = std::clamp(offset[sv], -cap, cap);
         }
     }
+    return offset;
+}
 
-    // Apply in node order; each node keeps the largest of its offset, 1/2,
-    // 1/4, 1/8 of it that leaves its hexes no worse than the guard allows.
+// Applies the offsets in node order; each node keeps the largest of its
+// offset, 1/2, 1/4, 1/8 of it that leaves its hexes no worse than the guard
+// allows, else stays.
+void applyGuarded(HexMesh& mesh, const Topology& topo, const std::vector<Index>& nodes,
+                  const std::vector<Vec3>& normal, const std::vector<double>& offset, const VolumeFitOptions& opt,
+                  VolumeFitResult& res) {
+    using smoothing::minScaledJacobianAround;
     for (Index v : nodes) {
         const auto sv = static_cast<std::size_t>(v);
         if (offset[sv] == 0.0 || !(norm(normal[sv]) > 0)) continue;
@@ -134,7 +147,31 @@ VolumeFitResult fitSurfaceVolume(HexMesh& mesh, const TriangleTree& triangles, s
         }
         if (!done) ++res.nodesHeldBack;
     }
-    res.volumeAfter = totalVolume();
+}
+
+}  // namespace
+
+VolumeFitResult fitSurfaceVolume(HexMesh& mesh, const TriangleTree& triangles, std::int32_t surfaceId,
+                                 const VolumeFitOptions& opt) {
+    VolumeFitResult res;
+    const Topology topo = buildTopology(mesh);
+    res.volumeBefore = totalVolume(mesh);
+    const std::vector<Quad4> quads = surfaceQuads(mesh, topo, surfaceId);
+    const Csr quadsAt = quadsOfNodes(quads, mesh.nodeCount());
+    std::vector<Index> nodes;  // the nodes with a surface quad, in index order
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+        if (quadsAt.size(v) > 0) nodes.push_back(static_cast<Index>(v));
+    res.nodes = nodes.size();
+    if (nodes.empty()) {
+        res.volumeAfter = res.volumeBefore;
+        return res;
+    }
+    const std::vector<Vec3> normal = smoothing::surfaceNormals(mesh, topo);
+    std::vector<double> length(mesh.nodeCount(), 0.0);
+    for (Index v : nodes) length[static_cast<std::size_t>(v)] = smoothing::meanEdgeLengthAt(mesh, topo, v);
+    const std::vector<double> offset = balancedOffsets(mesh, triangles, quads, quadsAt, nodes, normal, length, opt);
+    applyGuarded(mesh, topo, nodes, normal, offset, opt, res);
+    res.volumeAfter = totalVolume(mesh);
     return res;
 }
 

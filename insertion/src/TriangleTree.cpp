@@ -12,6 +12,7 @@
 #include <CGAL/Surface_mesh.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/VecMath.hpp"
 
 namespace isohex::insertion {
 
@@ -96,9 +97,8 @@ double TriangleTree::meanEdgeLength() const {
     double sum = 0;
     for (const auto& t : triangles_)
         for (int e = 0; e < 3; ++e) {
-            const Vec3& a = vertices_[t[e]];
-            const Vec3& b = vertices_[t[(e + 1) % 3]];
-            sum += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+            using vec::operator-;
+            sum += vec::norm(vertices_[t[e]] - vertices_[t[(e + 1) % 3]]);
         }
     return sum / (3.0 * static_cast<double>(triangles_.size()));
 }
@@ -106,8 +106,7 @@ double TriangleTree::meanEdgeLength() const {
 double TriangleTree::volume() const {
     double v = 0;
     for (const auto& t : triangles_) {
-        const Vec3 &a = vertices_[t[0]], &b = vertices_[t[1]], &c = vertices_[t[2]];
-        v += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        v += vec::dot(vertices_[t[0]], vec::cross(vertices_[t[1]], vertices_[t[2]]));
     }
     return v / 6.0;
 }

@@ -19,6 +19,7 @@
 #include "isohex/core/Sheets.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/insertion/SurfaceFit.hpp"
+#include "isohex/insertion/RegularGrid.hpp"
 #include "isohex/insertion/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"

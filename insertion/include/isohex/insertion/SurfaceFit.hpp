@@ -1,26 +1,26 @@
 #pragma once
-// A finishing step for a mesh whose boundary was captured by sheet insertion,
-// run after the mean-ratio optimiser and smoothing::raiseWorstHexes
-// (WorstHexes.hpp, which the scan pipeline uses too):
+// The volume-balanced fit of the surface nodes: the finishing step for a mesh
+// whose boundary was captured by sheet insertion, run after the mean-ratio
+// optimiser and smoothing::raiseWorstHexes.
 //
-//  * fitSurfaceVolume: boundary quads whose corners lie on the triangles are
-//    chords: on a convex surface they cut inside it, and the mesh loses volume
-//    in proportion to (element size / radius of curvature)^2 (-1.8 % on knot1
-//    at its mean edge length). This moves each surface node along its normal
-//    until the quads around it have, on average, as much of their area outside
-//    the triangles as inside (a volume-balanced fit instead of interpolation):
-//    the node goes off the triangles by about two thirds of the chord's depth,
-//    which also lowers the largest distance of the boundary from the triangles
-//    (the middle of a chord was off by the whole depth).
+// Boundary quads whose corners lie on the triangles are chords: on a convex
+// surface they cut inside it, and the mesh loses volume in proportion to
+// (element size / radius of curvature)^2. fitSurfaceVolume moves each surface
+// node along its normal until the quads around it have, on average, as much
+// of their area outside the triangles as inside (a volume-balanced fit
+// instead of interpolation): the node goes off the triangles by about two
+// thirds of the chord's depth, which also lowers the largest distance of the
+// boundary from the triangles (the middle of a chord was off by the whole
+// depth).
 //
-// Sequential over the surface nodes, in index order, so the result does not
-// depend on the thread count.
+// The gaps are measured in parallel over quads (each written once); offsets
+// are updated and applied sequentially over the surface nodes, in index
+// order, so the result does not depend on the thread count.
 #include <cstddef>
 #include <cstdint>
 
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/insertion/TriangleTree.hpp"
-#include "isohex/smoothing/SurfaceProjector.hpp"
 
 namespace isohex::insertion {
 
