@@ -22,42 +22,65 @@ top=$(cd "$(dirname "$0")/.." && pwd)
 data=${ISOHEX_SHARED_DATA:-$top/../shared/data}
 py=/usr/bin/python3
 
-record() {  # BIN DIR
+noise_volume() {  # PATH: smoothed noise whose isosurface the topology search
+    # mends in several places with its beam and annealing searches, and leaves one
+    $py - "$1" <<'EOF'
+import sys, numpy as np, vtk
+from vtk.util import numpy_support as ns
+n = 20
+a = np.random.default_rng(95).random((n, n, n)) - 0.5
+for _ in range(2):
+    p = np.pad(a, 1, mode="edge")
+    a = sum(p[i:i + n, j:j + n, k:k + n] for i in range(3) for j in range(3) for k in range(3)) / 27.0
+a[:2] = a[-2:] = a[:, :2] = a[:, -2:] = a[:, :, :2] = a[:, :, -2:] = -0.2
+a = (a * 1000).astype(np.float32)
+img = vtk.vtkImageData()
+img.SetDimensions(*a.shape)
+img.GetPointData().SetScalars(ns.numpy_to_vtk(a.ravel(order="F"), deep=True))
+w = vtk.vtkNIFTIImageWriter()
+w.SetFileName(sys.argv[1])
+w.SetInputData(img)
+w.Write()
+EOF
+}
+
+record() {  # BIN DIR: runs in DIR with relative paths, so the outputs name no folder
     local bin=$1 out=$2
     rm -rf "$out" && mkdir -p "$out/in"
     $py "$top/samples/make_phantoms.py" "$out/in" --size 48 > /dev/null
+    noise_volume "$out/in/noise95.nii.gz"
+    cp "$top/samples/skull_ct.nii.gz" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" "$top/samples/twisted_bar.vtu" \
+        "$top/samples/spherical_cuts_block.vtu" "$top/samples/spherical_cut_1.off" "$top/samples/spherical_cut_2.off" \
+        "$data/femur.off" "$data/sphere966.off" "$out/in/"
     local m=("$bin" mesh -q --force --threads 2)
     (
+        cd "$out"
         set -x
         for p in sphere torus thin_plate two_spheres; do
-            "${m[@]}" "$out/in/$p.nii.gz" --iso 50 -o "$out/$p.vtu" --report "$out/$p.json"
+            "${m[@]}" "in/$p.nii.gz" --iso 50 -o "$p.vtu" --report "$p.json"
         done
-        "${m[@]}" "$out/in/two_materials.nii.gz" --labels -o "$out/two_materials.vtu" -o "$out/two_materials.exo" \
-            -o "$out/two_materials.msh" -o "$out/two_materials.inp" -o "$out/two_materials.mesh" \
-            --report "$out/two_materials.json"
-        "${m[@]}" "$out/in/torus.nii.gz" --iso 50 --size 3 --boundary-layers 2 --mesh-exterior \
-            -o "$out/torus_exterior.vtu" --report "$out/torus_exterior.json"
-        "${m[@]}" "$out/in/sphere.nii.gz" --iso 50 --method voxel --level 1 -o "$out/sphere_voxel.vtu"
-        "${m[@]}" "$top/samples/skull_ct.nii.gz" --iso 2.9 -o "$out/skull.vtu" -o "$out/skull.exo" \
-            -o "$out/skull.msh" -o "$out/skull.inp" --report "$out/skull.json"
-        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --size 4 \
-            -o "$out/jhu.vtu" -o "$out/jhu.exo" --report "$out/jhu.json"
-        "${m[@]}" "$top/samples/JHU-WhiteMatter-labels-2mm.nii.gz" --labels --label 3,7 --size 2 \
-            --isosurface-topology -o "$out/jhu_topology.vtu" --report "$out/jhu_topology.json"
-        "${m[@]}" "$data/femur.off" -o "$out/femur.vtu" --report "$out/femur.json"
-        "${m[@]}" "$data/sphere966.off" --method sheets -o "$out/sphere_sheets.vtu" --report "$out/sphere_sheets.json"
-        "$bin" compare -q --threads 2 "$out/in/torus.nii.gz" --iso 50 --size 3 --json "$out/compare.json" \
-            --mesh-dir "$out/compare"
+        "${m[@]}" in/two_materials.nii.gz --labels -o two_materials.vtu -o two_materials.exo \
+            -o two_materials.msh -o two_materials.inp -o two_materials.mesh --report two_materials.json
+        "${m[@]}" in/torus.nii.gz --iso 50 --size 3 --boundary-layers 2 --mesh-exterior \
+            -o torus_exterior.vtu --report torus_exterior.json
+        "${m[@]}" in/sphere.nii.gz --iso 50 --method voxel --level 1 -o sphere_voxel.vtu
+        "${m[@]}" in/skull_ct.nii.gz --iso 2.9 -o skull.vtu -o skull.exo -o skull.msh -o skull.inp --report skull.json
+        "${m[@]}" in/JHU-WhiteMatter-labels-2mm.nii.gz --labels --size 4 -o jhu.vtu -o jhu.exo --report jhu.json
+        "${m[@]}" in/JHU-WhiteMatter-labels-2mm.nii.gz --labels --label 3,7 --size 2 --isosurface-topology \
+            -o jhu_topology.vtu --report jhu_topology.json
+        "${m[@]}" in/noise95.nii.gz --iso 0 --size 1 --isosurface-topology -o noise95.vtu --report noise95.json
+        "${m[@]}" in/femur.off -o femur.vtu --report femur.json
+        "${m[@]}" in/sphere966.off --method sheets -o sphere_sheets.vtu --report sphere_sheets.json
+        "$bin" compare -q --threads 2 in/torus.nii.gz --iso 50 --size 3 --json compare.json --mesh-dir compare
         printf 'input,output,report,size,no_pillow,labels\n%s\n%s\n' \
             "in/sphere.nii.gz,batch/sphere.vtu;batch/sphere.inp,batch/sphere.json,,," \
-            "in/two_materials.nii.gz,batch/labels.vtu,batch/labels.json,3,true,yes" > "$out/jobs.csv"
-        "$bin" batch "$out/jobs.csv" --iso 50 --size 4 -q --threads 2
-        "$bin" insert-sheet -q --force --threads 2 --mesh "$top/samples/spherical_cuts_block.vtu" \
-            --surface "$top/samples/spherical_cut_1.off" --surface "$top/samples/spherical_cut_2.off" \
-            --keep outside -o "$out/cut.vtu"
-        "$bin" smooth -q --force --threads 2 "$top/samples/twisted_bar.vtu" -o "$out/twisted_bar.vtu"
-        "$bin" convert --force "$out/skull.vtu" "$out/skull_converted.msh"
-        "$bin" quality --json "$out/skull.vtu" > "$out/skull_quality.json"
+            "in/two_materials.nii.gz,batch/labels.vtu,batch/labels.json,3,true,yes" > jobs.csv
+        "$bin" batch jobs.csv --iso 50 --size 4 -q --threads 2
+        "$bin" insert-sheet -q --force --threads 2 --mesh in/spherical_cuts_block.vtu \
+            --surface in/spherical_cut_1.off --surface in/spherical_cut_2.off --keep outside -o cut.vtu
+        "$bin" smooth -q --force --threads 2 in/twisted_bar.vtu -o twisted_bar.vtu
+        "$bin" convert --force skull.vtu skull_converted.msh
+        "$bin" quality --json skull.vtu > skull_quality.json
     ) 2> "$out/commands.log"
     rm -rf "$out/in"
 }
@@ -68,11 +91,14 @@ import json, os, re, sys
 a, b = sys.argv[1:3]
 # figures that differ from run to run, not outputs of the method
 volatile = re.compile(r"(seconds|_s$|^time|elapsed|version|memory|rss|peak|threads|^date|^host|git|command_line|eta)", re.I)
-def strip(x):
+def strip(x, base):
+    """x without volatile figures, with the recorded folder's path as <out>."""
     if isinstance(x, dict):
-        return {k: strip(v) for k, v in x.items() if not volatile.search(k)}
+        return {k: strip(v, base) for k, v in x.items() if not volatile.search(k)}
     if isinstance(x, list):
-        return [strip(v) for v in x]
+        return [strip(v, base) for v in x]
+    if isinstance(x, str):
+        return x.replace(base, "<out>")
     return x
 def missing(x, y, path=""):
     """What x has that y lacks or holds differently (y may add keys)."""
@@ -94,7 +120,8 @@ for rel in files:
     if not os.path.exists(pb):
         print(f"MISSING  {rel}"); bad += 1; continue
     if rel.endswith(".json"):
-        diffs = list(missing(strip(json.load(open(pa))), strip(json.load(open(pb)))))
+        diffs = list(missing(strip(json.load(open(pa)), os.path.abspath(a)),
+                             strip(json.load(open(pb)), os.path.abspath(b))))
         if diffs:
             bad += 1
             print(f"DIFFERS  {rel}"); [print("         " + d) for d in diffs[:10]]

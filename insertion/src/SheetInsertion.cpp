@@ -70,8 +70,10 @@ struct SplitNodes {
     std::vector<Index> nodes;  // split node k -> mesh node
     std::vector<Index> index;  // mesh node -> k, or kNone
     std::size_t size() const { return nodes.size(); }
-    Index inside(Index v) const { return static_cast<Index>(meshNodes + 2 * static_cast<std::size_t>(index[v])); }
-    Index outside(Index v) const { return static_cast<Index>(meshNodes + 2 * static_cast<std::size_t>(index[v]) + 1); }
+    // The copy of split node v that the hexes of side `side` use.
+    Index copy(std::int8_t side, Index v) const {
+        return static_cast<Index>(meshNodes + 2 * static_cast<std::size_t>(index[v]) + (side == kInside ? 0 : 1));
+    }
 };
 
 SplitNodes splitNodes(std::size_t meshNodes, const Interface& iface) {
@@ -142,8 +144,10 @@ SplitClasses classifySplitNodes(const HexMesh& mesh, const SplitNodes& split, st
         classes.copy[k] = old;
         // A node already on a surface (the mesh's boundary, or an earlier
         // sheet) is where the two surfaces cross.
-        if (old.kind == NodeKind::Surface && old.id >= 0 && static_cast<std::size_t>(old.id) < geometry.surfaceTree.size() &&
-            geometry.surfaceTree[old.id] >= 0) {
+        const bool onKnownSurface = old.kind == NodeKind::Surface && old.id >= 0 &&
+                                    static_cast<std::size_t>(old.id) < geometry.surfaceTree.size() &&
+                                    geometry.surfaceTree[old.id] >= 0;
+        if (onKnownSurface) {
             const std::int32_t t = geometry.surfaceTree[old.id];
             auto it = curveOf.find(t);
             if (it == curveOf.end()) {
@@ -276,23 +280,22 @@ SplitMesh buildSplitMesh(const HexMesh& mesh, const std::vector<std::int8_t>& si
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H, 1024), [&](const auto& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
             for (Index& v : out.hexes[h])
-                if (split.index[v] != kNone) v = side[h] == kInside ? split.inside(v) : split.outside(v);
+                if (split.index[v] != kNone) v = split.copy(side[h], v);
             if (side[h] == kInside && insideMat >= 0) out.material[h] = insideMat;
         }
     });
-    for (std::size_t i = 0; i < iface.quads.size(); ++i) {
-        const auto& q = iface.quads[i];
-        out.addHex({split.inside(q[0]), split.inside(q[1]), split.inside(q[2]), split.inside(q[3]), q[0], q[1], q[2], q[3]},
-                   out.material[iface.hexes[i][0]]);
-        s.newSide.push_back(kInside);
-    }
-    for (std::size_t i = 0; i < iface.quads.size(); ++i) {
-        const Quad4 q{iface.quads[i][0], iface.quads[i][3], iface.quads[i][2], iface.quads[i][1]};
-        out.addHex(
-            {split.outside(q[0]), split.outside(q[1]), split.outside(q[2]), split.outside(q[3]), q[0], q[1], q[2], q[3]},
-            out.material[iface.hexes[i][1]]);
-        s.newSide.push_back(kOutside);
-    }
+    // The sheet hex of side s on an interface quad: its base is the quad as
+    // side s sees it (reversed for the outside), on the side's copies; its
+    // top is the quad's middle copies. It takes the material of its side's hex.
+    for (const std::int8_t sd : {kInside, kOutside})
+        for (std::size_t i = 0; i < iface.quads.size(); ++i) {
+            const Quad4& f = iface.quads[i];
+            const Quad4 q = sd == kInside ? f : Quad4{f[0], f[3], f[2], f[1]};
+            out.addHex({split.copy(sd, q[0]), split.copy(sd, q[1]), split.copy(sd, q[2]), split.copy(sd, q[3]), q[0],
+                        q[1], q[2], q[3]},
+                       out.material[iface.hexes[i][sd]]);
+            s.newSide.push_back(sd);
+        }
     s.materialIn = out.material[iface.hexes[0][0]];
     s.materialOut = out.material[iface.hexes[0][1]];
     return s;
