@@ -21,7 +21,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
-#include "isohex/sheets/SheetInsertion.hpp"
+#include "isohex/insertion/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 
 namespace isohex::cli {
@@ -67,7 +67,7 @@ void addInsertSheetCommand(CLI::App& app) {
         // file is an error naming it (cli/Isolate.hpp).
         runIsolated(a->mesh, {a->output}, [&] {
             // Every surface is read and checked before any work.
-            std::vector<std::shared_ptr<const sheets::TriangleTree>> trees;
+            std::vector<std::shared_ptr<const insertion::TriangleTree>> trees;
             for (const auto& s : a->surfaces) {
                 nowReading(s);
                 trees.push_back(pipeline::loadTriangleTree(s));
@@ -75,15 +75,15 @@ void addInsertSheetCommand(CLI::App& app) {
             nowReading(a->mesh);
             HexMesh mesh = io::read(a->mesh);
             stageBegins("insert");
-            sheets::SheetGeometry geometry;
-            sheets::adoptBoundary(mesh, geometry);
-            sheets::InsertOptions o;
-            o.keep = a->keep == "inside" ? sheets::Keep::Inside : a->keep == "outside" ? sheets::Keep::Outside : sheets::Keep::Both;
-            o.intersected = a->intersected == "side1"   ? sheets::Intersected::Side1
-                            : a->intersected == "side2" ? sheets::Intersected::Side2
-                                                        : sheets::Intersected::Auto;
+            insertion::SheetGeometry geometry;
+            insertion::adoptBoundary(mesh, geometry);
+            insertion::InsertOptions o;
+            o.keep = a->keep == "inside" ? insertion::Keep::Inside : a->keep == "outside" ? insertion::Keep::Outside : insertion::Keep::Both;
+            o.intersected = a->intersected == "side1"   ? insertion::Intersected::Side1
+                            : a->intersected == "side2" ? insertion::Intersected::Side2
+                                                        : insertion::Intersected::Auto;
             for (const auto& t : trees) {
-                const sheets::InsertResult r = sheets::insertSheets(mesh, geometry, t, o);
+                const insertion::InsertResult r = insertion::insertSheets(mesh, geometry, t, o);
                 std::printf("%s: %zu hexes cut, %zu moved for manifold sides (%zu edges, %zu nodes), %zu sheet hexes, "
                             "%zu surface and %zu curve nodes, %.2f s\n",
                             t->name().c_str(), r.intersectedHexes, r.hexesMoved, r.nonManifoldEdgesFixed,

@@ -299,7 +299,7 @@ nlohmann::json toJson(const SheetMethodReport& r) {
     j["method"] = "sheets";
     j["size"] = r.size;
     j["grid"] = {{"hexes", r.gridHexes}, {"nodes", r.gridNodes}, {"margin", r.margin}};
-    const sheets::InsertResult& in = r.insert;
+    const insertion::InsertResult& in = r.insert;
     j["pillow"] = {{"enabled", true},
                    {"method", "two sheets along the triangles (seed 5.4), outside discarded"},
                    {"intersected_hexes", in.intersectedHexes},

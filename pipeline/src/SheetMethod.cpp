@@ -9,6 +9,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/insertion/RegularGrid.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/imaging/SurfaceVolume.hpp"
 #include "isohex/smoothing/Optimize.hpp"
@@ -38,7 +39,7 @@ void checkSettings(const std::string& input, const MeshSettings& settings) {
 // surface quad sits on detail smaller than an element) gets a max-min pass,
 // then the surface nodes are fitted so the boundary quads enclose the
 // triangles' volume instead of cutting chords.
-void optimizeOnTriangles(SheetMeshing& out, sheets::SheetGeometry& geometry, const sheets::TriangleTree& surface,
+void optimizeOnTriangles(SheetMeshing& out, insertion::SheetGeometry& geometry, const insertion::TriangleTree& surface,
                          std::int32_t surfaceId, const MeshSettings& settings, StageSink& sink) {
     smoothing::SmoothingOptions so;
     so.fixBoundary = settings.fixBoundary;
@@ -51,11 +52,11 @@ void optimizeOnTriangles(SheetMeshing& out, sheets::SheetGeometry& geometry, con
             return worstHexPass(out.mesh, &geometry, settings.worstHexTarget);
         });
     out.report.surfaceFit =
-        timedStage(sink, "surface_fit", [&] { return sheets::fitSurfaceVolume(out.mesh, surface, surfaceId); });
+        timedStage(sink, "surface_fit", [&] { return insertion::fitSurfaceVolume(out.mesh, surface, surfaceId); });
 }
 
 // Enclosed volumes and the distance of boundary nodes to the triangles.
-SheetFidelity measureFidelity(const HexMesh& mesh, const sheets::TriangleTree& surface) {
+SheetFidelity measureFidelity(const HexMesh& mesh, const insertion::TriangleTree& surface) {
     const HexQuality q = computeQuality(mesh);
     SheetFidelity f;
     for (double v : q.volume) f.meshVolume += v;
@@ -68,12 +69,12 @@ SheetFidelity measureFidelity(const HexMesh& mesh, const sheets::TriangleTree& s
 
 }  // namespace
 
-std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path) {
+std::shared_ptr<const insertion::TriangleTree> loadTriangleTree(const std::string& path) {
     if (!imaging::isSurfaceFile(path))
         throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
     if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
     imaging::TriangleSurface s = imaging::loadSurface(path);
-    return std::make_shared<sheets::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+    return std::make_shared<insertion::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
 }
 
 SheetMeshing runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {
@@ -89,13 +90,13 @@ SheetMeshing runSheetMethod(const std::string& input, const MeshSettings& settin
     r.vertices = surface->vertices().size();
     r.surfaceVolume = surface->volume();
     r.margin = 0.05;
-    out.mesh = timedStage(sink, "grid", [&] { return sheets::regularGrid(box[0], box[1], r.size, r.margin); });
+    out.mesh = timedStage(sink, "grid", [&] { return insertion::regularGrid(box[0], box[1], r.size, r.margin); });
     r.gridHexes = out.mesh.hexCount();
     r.gridNodes = out.mesh.nodeCount();
-    sheets::SheetGeometry geometry;
-    sheets::InsertOptions io;
-    io.keep = sheets::Keep::Inside;
-    r.insert = timedStage(sink, "sheets", [&] { return sheets::insertSheets(out.mesh, geometry, surface, io); });
+    insertion::SheetGeometry geometry;
+    insertion::InsertOptions io;
+    io.keep = insertion::Keep::Inside;
+    r.insert = timedStage(sink, "sheets", [&] { return insertion::insertSheets(out.mesh, geometry, surface, io); });
     if (settings.optimize) optimizeOnTriangles(out, geometry, *surface, r.insert.surfaceId, settings, sink);
     r.fidelity = measureFidelity(out.mesh, *surface);
     r.seconds = clock.seconds();

@@ -16,14 +16,16 @@
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/StageSink.hpp"
-#include "isohex/sheets/Polish.hpp"
-#include "isohex/sheets/SheetInsertion.hpp"
+#include "isohex/insertion/SurfaceFit.hpp"
+#include "isohex/insertion/SheetGeometry.hpp"
+#include "isohex/insertion/SheetInsertion.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 
 namespace isohex::pipeline {
 
 // Reads a closed triangle surface (loadSurface's checks) into an AABB tree
 // named after the file.
-std::shared_ptr<const sheets::TriangleTree> loadTriangleTree(const std::string& path);
+std::shared_ptr<const insertion::TriangleTree> loadTriangleTree(const std::string& path);
 
 // Enclosed volumes and the distance of boundary nodes to the triangles.
 struct SheetFidelity {
@@ -38,10 +40,10 @@ struct SheetMethodReport {
     double size = 0;                          // element edge length
     std::size_t gridHexes = 0, gridNodes = 0;  // the regular grid before insertion
     double margin = 0;                        // of the grid around the bounding box, relative
-    sheets::InsertResult insert;
+    insertion::InsertResult insert;
     std::optional<smoothing::SmoothingResult> optimization;  // with settings.optimize
     std::optional<WorstHexPassResult> worstHexes;
-    std::optional<sheets::VolumeFitResult> surfaceFit;
+    std::optional<insertion::VolumeFitResult> surfaceFit;
     SheetFidelity fidelity;
     double seconds = 0;
 };

@@ -16,45 +16,19 @@
 //      interface reaches the mesh's boundary, to the curve where the surface
 //      meets that boundary), each side takes one of the outer copies, and one
 //      new hex per interface quad on each side makes the two sheets.
-#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <string>
-#include <vector>
 
 #include "isohex/core/HexMesh.hpp"
-#include "isohex/sheets/TriangleTree.hpp"
-#include "isohex/smoothing/SurfaceProjector.hpp"
+#include "isohex/insertion/SheetGeometry.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
-// Where the mesh's surfaces and curves are: the projector the smoother uses,
-// filled as surfaces are inserted. Surface s of the mesh lies on
-// trees[surfaceTree[s]]; curve c is where trees[curves[c][0]] and
-// trees[curves[c][1]] meet (found by alternating closest-point projections).
-struct SheetGeometry final : smoothing::SurfaceProjector {
-    std::vector<std::shared_ptr<const TriangleTree>> trees;
-    std::vector<std::int32_t> surfaceTree;          // per HexMesh::surfaces entry, -1 = unknown
-    std::vector<std::array<std::int32_t, 2>> curves;
-
-    Vec3 project(std::int32_t surfaceId, const Vec3& x) const override;
-    bool hasCurves() const override { return true; }
-    Vec3 projectToCurve(std::int32_t curveId, const Vec3& x) const override;
-    // The point on both trees a and b nearest x (alternating projections).
-    Vec3 projectToIntersection(std::int32_t a, std::int32_t b, const Vec3& x) const;
-    std::int32_t addTree(std::shared_ptr<const TriangleTree> tree);
-};
-
-// Makes the surfaces of a mesh read from a file surfaces the smoother can
-// keep nodes on: classifies boundary nodes (classifyBoundaryNodes), puts the
-// quads of each surface (outer boundary per material, interfaces between
-// materials; two triangles a quad) in a tree of its own, and fixes nodes on
-// sharp boundary edges (dihedral angle above `featureAngleDegrees`) and on
-// curves between existing surfaces, whose geometry is not known. Returns the
-// number of nodes fixed.
-std::size_t adoptBoundary(HexMesh& mesh, SheetGeometry& geometry, double featureAngleDegrees = 30.0);
-
-enum class Intersected { Auto, Side1, Side2 };  // Side1 = inside the surface
+// Which side the hexes cut by the surface join (Side1 = inside the surface).
+enum class Intersected { Auto, Side1, Side2 };
+// Which side of the surface the mesh keeps, with its sheet.
 enum class Keep { Inside, Outside, Both };
 
 struct InsertOptions {
@@ -88,13 +62,10 @@ struct InsertResult {
 
 // Inserts the two sheets along `surface` (a closed triangle surface) into
 // `mesh` and records the new surface and curves in `geometry`. Throws
-// isohex::Error (mesh untouched) if the surface crosses no hex edge of the
-// mesh or one side ends up empty. Deterministic for any thread count.
+// isohex::Error (mesh and geometry untouched) if the surface crosses no hex
+// edge of the mesh, one side ends up empty, or the sides are not manifold
+// after `maxRepairRounds` rounds. Deterministic for any thread count.
 InsertResult insertSheets(HexMesh& mesh, SheetGeometry& geometry, std::shared_ptr<const TriangleTree> surface,
                           const InsertOptions& options = {});
 
-// A regular grid of cubes of edge `size` covering the box [lo, hi] grown by
-// `margin` (a fraction of its extent) on every side; material 1.
-HexMesh regularGrid(const Vec3& lo, const Vec3& hi, double size, double margin = 0.05);
-
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

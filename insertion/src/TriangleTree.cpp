@@ -1,4 +1,4 @@
-#include "isohex/sheets/TriangleTree.hpp"
+#include "isohex/insertion/TriangleTree.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,8 +12,9 @@
 #include <CGAL/Surface_mesh.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/core/VecMath.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 namespace {
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
@@ -96,9 +97,8 @@ double TriangleTree::meanEdgeLength() const {
     double sum = 0;
     for (const auto& t : triangles_)
         for (int e = 0; e < 3; ++e) {
-            const Vec3& a = vertices_[t[e]];
-            const Vec3& b = vertices_[t[(e + 1) % 3]];
-            sum += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+            using vec::operator-;
+            sum += vec::norm(vertices_[t[e]] - vertices_[t[(e + 1) % 3]]);
         }
     return sum / (3.0 * static_cast<double>(triangles_.size()));
 }
@@ -106,10 +106,9 @@ double TriangleTree::meanEdgeLength() const {
 double TriangleTree::volume() const {
     double v = 0;
     for (const auto& t : triangles_) {
-        const Vec3 &a = vertices_[t[0]], &b = vertices_[t[1]], &c = vertices_[t[2]];
-        v += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        v += vec::dot(vertices_[t[0]], vec::cross(vertices_[t[1]], vertices_[t[2]]));
     }
     return v / 6.0;
 }
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

@@ -10,7 +10,7 @@
 
 #include "isohex/core/HexMesh.hpp"
 
-namespace isohex::sheets {
+namespace isohex::insertion {
 
 class TriangleTree {
 public:
@@ -47,4 +47,4 @@ private:
     std::string name_;
 };
 
-}  // namespace isohex::sheets
+}  // namespace isohex::insertion

@@ -19,13 +19,14 @@
 #include "isohex/core/Collapse.hpp"
 #include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Validate.hpp"
-#include "isohex/sheets/Polish.hpp"
-#include "isohex/sheets/SheetInsertion.hpp"
+#include "isohex/insertion/SurfaceFit.hpp"
+#include "isohex/insertion/RegularGrid.hpp"
+#include "isohex/insertion/SheetInsertion.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
 using namespace isohex;
-using namespace isohex::sheets;
+using namespace isohex::insertion;
 using isohex::smoothing::raiseWorstHexes;
 using isohex::smoothing::WorstHexOptions;
 using isohex::smoothing::WorstHexResult;
