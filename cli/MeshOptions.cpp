@@ -55,11 +55,20 @@ Check notNegative() { return {Check::Kind::NotNegative, 0, 0, "must not be negat
 Check positive(const std::string& says) { return {Check::Kind::Positive, 0, 0, says}; }
 
 // The flag's validator for `check` on values of type V. A range keeps
-// CLI11's own (its help shows the range); the other checks say what the
-// column says, with the flag and the value.
+// CLI11's own (its help shows the range) plus a refusal of NaN, which
+// CLI11's range lets through; the other checks say what the column says,
+// with the flag and the value.
 template <class V>
 CLI::Validator validator(const Check& check, const std::string& flag) {
-    if (check.kind == Check::Kind::Between) return CLI::Range(static_cast<V>(check.lo), static_cast<V>(check.hi));
+    if (check.kind == Check::Kind::Between) {
+        const CLI::Validator notNaN(
+            [check, flag](const std::string& v) {
+                return std::isnan(std::strtod(v.c_str(), nullptr)) ? flag + " " + check.says + " (got '" + v + "')"
+                                                                  : std::string();
+            },
+            "");
+        return CLI::Range(static_cast<V>(check.lo), static_cast<V>(check.hi)) & notNaN;
+    }
     return CLI::Validator(
         [check, flag](const std::string& v) {
             char* end = nullptr;

@@ -25,7 +25,7 @@ int& pendingExitCode() {
 namespace {
 
 // The mesh arrays run to hundreds of megabytes, and on 4 KiB pages a large part
-// of the run is spent in page faults (about 295,000 of them for ch2bet at 1 mm).
+// of the run is spent in page faults (hundreds of thousands for a 2 M-hex mesh).
 // glibc's malloc asks the kernel for transparent huge pages when its tunable
 // glibc.malloc.hugetlb is 1, but it reads tunables only at start-up, so isohex
 // re-executes itself once with the tunable added to GLIBC_TUNABLES. Skipped when

@@ -12,10 +12,12 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
-#include "isohex/core/SettingError.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 
 namespace isohex::octree {
 

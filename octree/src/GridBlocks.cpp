@@ -8,6 +8,8 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/DisjointSets.hpp"
+#include "isohex/core/Parallel.hpp"
+#include "isohex/octree/Labels.hpp"
 
 namespace isohex::octree {
 
@@ -71,30 +73,25 @@ int badPairs(const std::array<std::int32_t, 8>& mat) {
 
 std::vector<std::size_t> badBlocks(const Labels& l) {
     const auto [nx, ny, nz] = l.grid.dims;
-    tbb::enumerable_thread_specific<std::vector<std::size_t>> local;
     if (nx < 2 || ny < 2 || nz < 2) return {};
-    tbb::parallel_for(tbb::blocked_range<int>(0, nz - 1), [&](const auto& r) {
-        auto& out = local.local();
-        for (int k = r.begin(); k != r.end(); ++k)
-            for (int j = 0; j < ny - 1; ++j) {
-                // rows of the two z-layers of the blocks, x fastest
-                const std::int32_t* row[4] = {&l.material[l.grid.index(0, j, k)], &l.material[l.grid.index(0, j + 1, k)],
-                                              &l.material[l.grid.index(0, j, k + 1)],
-                                              &l.material[l.grid.index(0, j + 1, k + 1)]};
-                for (int i = 0; i < nx - 1; ++i) {
-                    const std::int32_t m0 = row[0][i];
-                    if (row[0][i + 1] == m0 && row[1][i] == m0 && row[1][i + 1] == m0 && row[2][i] == m0 &&
-                        row[2][i + 1] == m0 && row[3][i] == m0 && row[3][i + 1] == m0)
-                        continue;  // uniform: manifold
-                    const BlockView b = block(l, i, j, k);
-                    if (!blockManifold(b.mat)) out.push_back(l.grid.index(i, j, k));
+    return parallel::collectSorted<std::size_t>(
+        static_cast<std::size_t>(nz - 1), 1, [&](const auto& r, std::vector<std::size_t>& out) {
+            for (int k = static_cast<int>(r.begin()); k != static_cast<int>(r.end()); ++k)
+                for (int j = 0; j < ny - 1; ++j) {
+                    // rows of the two z-layers of the blocks, x fastest
+                    const std::int32_t* row[4] = {
+                        &l.material[l.grid.index(0, j, k)], &l.material[l.grid.index(0, j + 1, k)],
+                        &l.material[l.grid.index(0, j, k + 1)], &l.material[l.grid.index(0, j + 1, k + 1)]};
+                    for (int i = 0; i < nx - 1; ++i) {
+                        const std::int32_t m0 = row[0][i];
+                        if (row[0][i + 1] == m0 && row[1][i] == m0 && row[1][i + 1] == m0 && row[2][i] == m0 &&
+                            row[2][i + 1] == m0 && row[3][i] == m0 && row[3][i + 1] == m0)
+                            continue;  // uniform: manifold
+                        const BlockView b = block(l, i, j, k);
+                        if (!blockManifold(b.mat)) out.push_back(l.grid.index(i, j, k));
+                    }
                 }
-            }
-    });
-    std::vector<std::size_t> all;
-    for (auto& v : local) all.insert(all.end(), v.begin(), v.end());
-    std::sort(all.begin(), all.end());
-    return all;
+        });
 }
 
 std::vector<std::size_t> badBlocksAmong(const Labels& l, std::vector<std::size_t> candidates) {

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Labels.hpp"
 
 namespace isohex::octree {
 

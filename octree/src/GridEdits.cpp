@@ -11,7 +11,9 @@
 
 #include "DigitalTopology.hpp"
 #include "GridBlocks.hpp"
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/GridEdits.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/Regions.hpp"
 
 namespace isohex::octree {

@@ -2,6 +2,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/Labels.hpp"
 
 namespace isohex::octree {

@@ -8,8 +8,11 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/LevelChoice.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"
+#include "isohex/octree/Regions.hpp"
 
 namespace isohex::octree {
 

@@ -14,6 +14,8 @@
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/SettingError.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/TopologyMatch.hpp"

@@ -1,4 +1,8 @@
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/PolygonRegions.hpp"
+#include "isohex/octree/Regions.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -19,26 +23,15 @@ struct Polygons {
     std::vector<openvdb::Vec4I> quads;
 };
 
-// Unites 6-adjacent grid points of one material in `parts` and returns the
-// index box of each material's points.
-std::map<std::int32_t, openvdb::CoordBBox> uniteAdjacent(const Labels& l, DisjointSets<std::int32_t>& parts) {
-    const Grid& g = l.grid;
-    const auto [nx, ny, nz] = g.dims;
-    auto unite = [&](std::size_t a, std::size_t b) {
-        parts.unite(static_cast<std::int32_t>(a), static_cast<std::int32_t>(b));
-    };
+// The index box of each material's grid points.
+std::map<std::int32_t, openvdb::CoordBBox> materialBoxes(const Labels& l) {
+    const auto [nx, ny, nz] = l.grid.dims;
     std::map<std::int32_t, openvdb::CoordBBox> boxes;
     for (int k = 0; k < nz; ++k)
         for (int j = 0; j < ny; ++j)
-            for (int i = 0; i < nx; ++i) {
-                const std::size_t p = g.index(i, j, k);
-                const std::int32_t m = l.material[p];
-                if (m == 0) continue;
-                boxes[m].expand(openvdb::Coord(i, j, k));
-                if (i + 1 < nx && l.material[g.index(i + 1, j, k)] == m) unite(p, g.index(i + 1, j, k));
-                if (j + 1 < ny && l.material[g.index(i, j + 1, k)] == m) unite(p, g.index(i, j + 1, k));
-                if (k + 1 < nz && l.material[g.index(i, j, k + 1)] == m) unite(p, g.index(i, j, k + 1));
-            }
+            for (int i = 0; i < nx; ++i)
+                if (const std::int32_t m = l.material[l.grid.index(i, j, k)]; m != 0)
+                    boxes[m].expand(openvdb::Coord(i, j, k));
     return boxes;
 }
 
@@ -102,7 +95,7 @@ RegionTopology polygonTopology(std::int32_t m, const Polygons& s, DisjointSets<s
 // crossed edge: equal cell coordinate along the edge, the edge's start the
 // largest of the others.
 void uniteInnerSides(const Labels& l, std::int32_t m, const Polygons& s, DisjointSets<std::uint32_t>& surface,
-                     DisjointSets<std::int32_t>& parts) {
+                     DisjointSets<std::uint32_t>& parts) {
     const Grid& g = l.grid;
     const auto [nx, ny, nz] = g.dims;
     std::vector<std::int64_t> inner(s.points.size(), -1);  // per surface component: a point on its inner side
@@ -124,7 +117,7 @@ void uniteInnerSides(const Labels& l, std::int32_t m, const Polygons& s, Disjoin
         const std::size_t in = l.material[a] == m ? a : b;
         const std::uint32_t comp = surface.find(q[0]);
         if (inner[comp] < 0) inner[comp] = static_cast<std::int64_t>(in);
-        else parts.unite(static_cast<std::int32_t>(in), static_cast<std::int32_t>(inner[comp]));
+        else parts.unite(static_cast<std::uint32_t>(in), static_cast<std::uint32_t>(inner[comp]));
     }
 }
 
@@ -144,8 +137,10 @@ const CellEdgeGroups& volumeToMeshTables() {
 
 std::vector<std::int32_t> marchingCubesRegions(const Labels& l, std::vector<RegionTopology>* surfaces) {
     const std::size_t n = l.material.size();
-    DisjointSets<std::int32_t> parts(n);
-    std::map<std::int32_t, openvdb::CoordBBox> boxes = uniteAdjacent(l, parts);
+    // Roots are the smallest member whatever the order of the unions, so the
+    // ids do not depend on uniting the 6-adjacent points first.
+    DisjointSets<std::uint32_t> parts = materialRegions(l, Adjacency::Face);
+    std::map<std::int32_t, openvdb::CoordBBox> boxes = materialBoxes(l);
     for (auto& [m, box] : boxes) {
         box.expand(1);
         const Polygons s = polygonise(l, m, box);
@@ -155,7 +150,7 @@ std::vector<std::int32_t> marchingCubesRegions(const Labels& l, std::vector<Regi
     }
     std::vector<std::int32_t> id(n, -1);
     for (std::size_t p = 0; p < n; ++p)
-        if (l.material[p] != 0) id[p] = parts.find(static_cast<std::int32_t>(p));
+        if (l.material[p] != 0) id[p] = static_cast<std::int32_t>(parts.find(static_cast<std::uint32_t>(p)));
     return id;
 }
 

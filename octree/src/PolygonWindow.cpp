@@ -5,6 +5,8 @@
 #include <cstdlib>
 
 #include "isohex/core/DisjointSets.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 
 namespace isohex::octree {
 

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/TopologyMatch.hpp"
 
 namespace isohex::octree {

@@ -9,6 +9,8 @@
 #include <tbb/parallel_for.h>
 
 #include "GridBlocks.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/Regions.hpp"
 
 namespace isohex::octree {

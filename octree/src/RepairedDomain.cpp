@@ -1,5 +1,7 @@
 // The scan's field with a trilinear hat at each grid point whose label the
 // repair changed (see RepairedDomain.hpp).
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 
 #include <algorithm>

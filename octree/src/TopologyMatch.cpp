@@ -17,7 +17,9 @@
 #include "TopologyMatchState.hpp"
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 
 namespace isohex::octree {
 

@@ -17,7 +17,8 @@
 
 #include "PolygonWindow.hpp"
 #include "isohex/core/DisjointSets.hpp"
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/TopologyMatch.hpp"
 
 namespace isohex::octree {

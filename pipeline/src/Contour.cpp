@@ -4,6 +4,7 @@
 
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/octree/DualContour.hpp"
 
 namespace isohex::pipeline {
 

@@ -10,6 +10,7 @@
 
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/FieldProjector.hpp"
 

@@ -8,6 +8,7 @@
 
 #include "Format.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/octree/Grid.hpp"
 
 namespace isohex::pipeline {
 

@@ -1,5 +1,9 @@
 #include "isohex/pipeline/ReportJson.hpp"
 
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/Regions.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 #include "isohex/smoothing/ImrKernel.hpp"
 
 namespace isohex::pipeline {

@@ -7,6 +7,10 @@
 
 #include "Format.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/GridEdits.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/Contour.hpp"
 

@@ -3,29 +3,17 @@
 #include <algorithm>
 #include <utility>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
-
 #include "Format.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/Quality.hpp"
 
 namespace isohex::pipeline {
 
 std::vector<Index> invertedHexes(const HexMesh& mesh) {
-    const std::size_t H = mesh.hexCount();
-    return tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(0, H, 1 << 14), std::vector<Index>{},
-        [&](const tbb::blocked_range<std::size_t>& range, std::vector<Index> l) {
-            for (std::size_t h = range.begin(); h != range.end(); ++h)
-                if (!(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0))
-                    l.push_back(static_cast<Index>(h));
-            return l;
-        },
-        [](std::vector<Index> a, const std::vector<Index>& b) {
-            a.insert(a.end(), b.begin(), b.end());
-            std::sort(a.begin(), a.end());
-            return a;
-        });
+    return parallel::collectSorted<Index>(mesh.hexCount(), 1 << 14, [&](const auto& range, std::vector<Index>& out) {
+        for (std::size_t h = range.begin(); h != range.end(); ++h)
+            if (!(minJacobianDeterminant(hexCoords(mesh, static_cast<Index>(h))) > 0)) out.push_back(static_cast<Index>(h));
+    });
 }
 
 Vec3 hexCentre(const HexMesh& mesh, Index h) {

@@ -17,6 +17,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Parallel.hpp"
 #include "isohex/core/Progress.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/Colouring.hpp"
@@ -41,30 +42,23 @@ struct ObjectiveSum {
     std::size_t finite = 0;   // hexes with all corner determinants > 0
 };
 
-// The sum over hexes 0..H-1 of q(h) where it is finite, in fixed blocks.
+// The sum over hexes 0..H-1 of q(h) where it is finite, in fixed blocks
+// (core's blockReduce: the same floating-point result for any thread count).
 template <class Q>
 inline ObjectiveSum blockSum(std::size_t H, Q q) {
-    const std::size_t blocks = (H + kBlock - 1) / kBlock;
-    std::vector<ObjectiveSum> part(blocks);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks), [&](const auto& r) {
-        for (std::size_t b = r.begin(); b != r.end(); ++b) {
-            ObjectiveSum s;
-            for (std::size_t h = b * kBlock, e = std::min(H, h + kBlock); h < e; ++h) {
-                const double v = q(h);
-                if (std::isfinite(v)) {
-                    s.sum += v;
-                    ++s.finite;
-                }
+    return parallel::blockReduce<ObjectiveSum>(
+        H, kBlock,
+        [&](ObjectiveSum& s, std::size_t h) {
+            const double v = q(h);
+            if (std::isfinite(v)) {
+                s.sum += v;
+                ++s.finite;
             }
-            part[b] = s;
-        }
-    });
-    ObjectiveSum total;
-    for (const ObjectiveSum& s : part) {
-        total.sum += s.sum;
-        total.finite += s.finite;
-    }
-    return total;
+        },
+        [](ObjectiveSum& total, const ObjectiveSum& s) {
+            total.sum += s.sum;
+            total.finite += s.finite;
+        });
 }
 
 inline double meanOf(const ObjectiveSum& s) { return s.finite ? s.sum / static_cast<double>(s.finite) : 0.0; }

@@ -13,6 +13,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/Regions.hpp"

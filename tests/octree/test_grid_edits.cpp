@@ -10,6 +10,7 @@
 #include "LabelGrids.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/GridEdits.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"

@@ -6,6 +6,7 @@
 
 #include "AnalyticDomains.hpp"
 #include "LabelGrids.hpp"
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/Regions.hpp"
 

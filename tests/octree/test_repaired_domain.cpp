@@ -9,6 +9,7 @@
 #include "AnalyticDomains.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Grid.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/RepairedDomain.hpp"

@@ -12,16 +12,6 @@
 #include "isohex/octree/Domain.hpp"
 #include "isohex/octree/Labels.hpp"
 
-// Transitional: modules outside octree/ include this header for the whole
-// octree API. They should include the header of each concept they use
-// instead; these includes then go.
-#include "isohex/octree/Grid.hpp"
-#include "isohex/octree/GridEdits.hpp"
-#include "isohex/octree/LevelChoice.hpp"
-#include "isohex/octree/NonManifoldRepair.hpp"
-#include "isohex/octree/Regions.hpp"
-#include "isohex/octree/TopologyMatch.hpp"
-
 namespace isohex::octree {
 
 struct ExtractOptions {

@@ -6,7 +6,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/Regions.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 
 namespace isohex::octree {
 

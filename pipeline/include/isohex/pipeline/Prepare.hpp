@@ -14,7 +14,12 @@
 
 #include "isohex/imaging/Selection.hpp"
 #include "isohex/imaging/Volume.hpp"
-#include "isohex/octree/DualContour.hpp"
+#include "isohex/octree/Domain.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/NonManifoldRepair.hpp"
+#include "isohex/octree/Regions.hpp"
+#include "isohex/octree/TopologyMatch.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/StageSink.hpp"
 
