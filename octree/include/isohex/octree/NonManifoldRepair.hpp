@@ -41,7 +41,7 @@ std::size_t countNonManifoldBlocks(const Labels& labels);
 // 26/6 digital model above is only close to marching cubes: many of its
 // "simple" flips change the polygoniser's surface, with changes that happen
 // to cancel). Not used by the pipeline: with it, the contacts that no single
-// flip or pocket move can mend exactly no longer cancel (see docs/DESIGN.md).
+// flip or pocket move can mend exactly no longer cancel.
 // --isosurface-topology instead re-chooses the repair's changes afterwards
 // (matchPolygonTopology).
 RepairReport repairNonManifold(Labels& labels, const Domain& domain,

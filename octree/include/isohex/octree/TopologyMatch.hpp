@@ -65,9 +65,10 @@ bool flipKeepsPolygonTopology(const Labels& labels, int i, int j, int k, std::in
 // (several points), scored by how far
 // the polygon surface in the window is from before and by the blocks left
 // bad, the first manifold set that keeps the surface (checked exactly)
-// winning (docs/DESIGN.md, "The deep search"). When the beam finds none,
+// winning. When the beam finds none,
 // seeded annealing chains toggle the same options at random, and a set they
-// reach is shrunk while it stays exact (docs/DESIGN.md, "Annealing"). A
+// reach is shrunk while it stays exact (docs/DESIGN.md, "`--isosurface-topology`
+// is a global step after the repair, and an option"). A
 // group or part no search can mend keeps the repair's change and is listed
 // in `unmended`.
 // So no window is wider than 12 + 4 + 8 points. `repaired` stays manifold

@@ -17,7 +17,7 @@ struct NewtonOptions {
     // Newton steps per visit (a Gauss-Seidel sweep revisits anyway). Most
     // visits end sooner on minStep, so a third step adds little per visit
     // and saves sweeps: 5-22% fewer node moves than with 2 on the bench
-    // inputs (docs/DESIGN.md, smoothing).
+    // inputs (bench/RESULTS.md).
     int maxIterations = 3;
     double armijo = 1e-4;       // sufficient decrease: f(x + a p) <= f(x) + armijo a g.p
     int maxHalvings = 30;       // backtracking steps before giving up on a direction
