@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 
 #include "Commands.hpp"
@@ -30,7 +31,8 @@ namespace {
 struct InsertSheetArgs {
     std::string mesh, output;
     std::vector<std::string> surfaces;
-    std::string keep = "both", intersected = "auto";
+    insertion::Keep keep = insertion::Keep::Both;
+    insertion::Intersected intersected = insertion::Intersected::Auto;
     bool optimize = true;
     RunArgs run;
 };
@@ -45,11 +47,19 @@ void addInsertSheetCommand(CLI::App& app) {
                     "Closed triangle surface (.stl .obj .ply .off); repeat to insert several in turn")
         ->required();
     cmd->add_option("-o,--output", a->output, "Where to write the result; the format follows the extension")->required();
-    cmd->add_option("--keep", a->keep, "Which side of each surface to keep: inside, outside or both (default)")
+    const std::map<std::string, insertion::Keep> keeps{
+        {"inside", insertion::Keep::Inside}, {"outside", insertion::Keep::Outside}, {"both", insertion::Keep::Both}};
+    cmd->add_option_function<std::string>(
+           "--keep", [a, keeps](const std::string& v) { a->keep = keeps.at(v); },
+           "Which side of each surface to keep: inside, outside or both (default)")
         ->check(CLI::IsMember({"inside", "outside", "both"}));
-    cmd->add_option("--intersected", a->intersected,
-                    "Hexes cut by the surface join: auto (the side of their centroid, default), side1 (inside) "
-                    "or side2 (outside)")
+    const std::map<std::string, insertion::Intersected> sides{{"auto", insertion::Intersected::Auto},
+                                                              {"side1", insertion::Intersected::Side1},
+                                                              {"side2", insertion::Intersected::Side2}};
+    cmd->add_option_function<std::string>(
+           "--intersected", [a, sides](const std::string& v) { a->intersected = sides.at(v); },
+           "Hexes cut by the surface join: auto (the side of their centroid, default), side1 (inside) "
+           "or side2 (outside)")
         ->check(CLI::IsMember({"auto", "side1", "side2"}));
     cmd->add_flag("!--no-optimize", a->optimize, "Skip untangling and optimisation");
     addRunOptions(cmd, a->run, {RunOption::Force, RunOption::Quiet, RunOption::Threads});
@@ -78,10 +88,8 @@ void addInsertSheetCommand(CLI::App& app) {
             insertion::SheetGeometry geometry;
             insertion::adoptBoundary(mesh, geometry);
             insertion::InsertOptions o;
-            o.keep = a->keep == "inside" ? insertion::Keep::Inside : a->keep == "outside" ? insertion::Keep::Outside : insertion::Keep::Both;
-            o.intersected = a->intersected == "side1"   ? insertion::Intersected::Side1
-                            : a->intersected == "side2" ? insertion::Intersected::Side2
-                                                        : insertion::Intersected::Auto;
+            o.keep = a->keep;
+            o.intersected = a->intersected;
             for (const auto& t : trees) {
                 const insertion::InsertResult r = insertion::insertSheets(mesh, geometry, t, o);
                 std::printf("%s: %zu hexes cut, %zu moved for manifold sides (%zu edges, %zu nodes), %zu sheet hexes, "
