@@ -229,6 +229,7 @@ void addSelectionRows(std::vector<MeshOption>& t) {
                       "volumeToMesh), sub-element specks, pockets and tunnels included, where a local search can "
                       "(slower; the hexes at such places are poorer)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.isosurfaceTopology; }));
+    t.back().setting = Setting::IsosurfaceTopology;
     t.push_back(number<std::int64_t>("min-label-voxels", g, "Drop (and report) labels with fewer voxels",
                                      "whole number",
                                      [](MeshArgs& a) -> auto& { return a.settings.select.minLabelVoxels; },
@@ -260,6 +261,7 @@ void addInputRows(std::vector<MeshOption>& t) {
         "more (default: 80% of the machine's memory)",
         "MB", [](MeshArgs& a) -> auto& { return a.settings.load.maxMemoryMB; },
         positive("must be a number of megabytes above 0")));
+    t.back().setting = Setting::MaxMemory;
     t.push_back(sliceSpacing());
     t.back().setting = Setting::SliceSpacing;
 }
@@ -278,6 +280,7 @@ void addMeshRows(std::vector<MeshOption>& t) {
                                            "Grid level: elements 2^level voxels wide (instead of --size)",
                                            "grid level 0..10", [](MeshArgs& a) -> auto& { return a.settings.level; },
                                            between(0, 10)));
+    t.back().setting = Setting::Level;
     t.push_back(choice<pipeline::Method>(
         "method", g,
         "dual (dual contouring, default), voxel (one cube per voxel, a baseline) or sheets (surfaces only: a grid "
@@ -285,6 +288,7 @@ void addMeshRows(std::vector<MeshOption>& t) {
         "dual, voxel or sheets",
         {{"dual", pipeline::Method::Dual}, {"voxel", pipeline::Method::Voxel}, {"sheets", pipeline::Method::Sheets}},
         [](MeshArgs& a) -> auto& { return a.settings.method; }));
+    t.back().setting = Setting::Method;
     t.push_back(onOff("no-pillow", g, "Do not insert the fundamental boundary sheet", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.pillow; }, true));
     t.push_back(number<int>("boundary-layers", g, "Layers of hexes in the boundary sheet (default 1)", "1..16",
@@ -318,6 +322,7 @@ void addWorstHexRows(std::vector<MeshOption>& t) {
         "node on the surface)",
         "voxels 0..1", [](MeshArgs& a) -> auto& { return a.settings.surfaceTolerance; },
         between(0.0, 1.0, "(voxels)")));
+    t.back().setting = Setting::SurfaceTolerance;
     t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
     t.push_back(number<std::optional<int>>(
         "retries", g,

@@ -4,6 +4,7 @@
 
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/octree/DualContour.hpp"
 
 namespace isohex::pipeline {
@@ -14,7 +15,8 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
     opt.meshExterior = settings.meshExterior;
     if (settings.method == Method::Voxel) opt.cellCentres = true;
     else if (settings.method != Method::Dual)
-        throw Error("--method must be 'dual' or 'voxel' (got '" + std::string(methodName(settings.method)) + "')");
+        throw SettingError({Setting::Method, " must be 'dual' or 'voxel' (got '" +
+                                                 std::string(methodName(settings.method)) + "')"});
     octree::ExtractStats stats;
     HexMesh mesh = octree::dualContourHexes(p.labels, p.extractionDomain(), opt, &stats);
     // Starting the sheet's inner copies at the held-back positions with the

@@ -8,6 +8,7 @@
 
 #include "Format.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/octree/Grid.hpp"
 
 namespace isohex::pipeline {
@@ -29,11 +30,8 @@ MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging:
     e.already = double(ru.ru_maxrss) * 1024.0;
     e.need = e.already + e.hexes * bytesPerHex + double(g.size()) * 8.0;
     e.budget = settings.load.maxMemoryMB * 1024.0 * 1024.0;
-    e.budgetName = "the --max-memory budget";
-    if (!(settings.load.maxMemoryMB > 0.0)) {
-        e.budget = 0.8 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
-        e.budgetName = "80% of this machine's memory";
-    }
+    e.budgetGiven = settings.load.maxMemoryMB > 0.0;
+    if (!e.budgetGiven) e.budget = 0.8 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     return e;
 }
 
@@ -43,28 +41,34 @@ void checkMeshMemory(const std::string& input, const imaging::Volume& vol, const
     if (e.need <= e.budget) return;
     const auto sp = g.spacing();
     const double element = sp[0] * sp[1] * sp[2];
-    // The element size whose mesh would fit, rounded up to two digits (none
-    // when what is loaded already takes most of the budget).
-    std::string fitting;
-    if (e.already < 0.9 * e.budget) {
-        double fit = std::cbrt((e.need - e.already) / (e.budget - e.already)) * std::cbrt(element);
-        const double unit = std::pow(10.0, std::floor(std::log10(fit)) - 1);
-        fitting = "Use a --size of at least " + shortNumber(std::ceil(fit / unit) * unit) + ", or raise";
-    } else {
-        std::ostringstream a;
-        a.precision(3);
-        a << "The input alone takes " << e.already / double(1 << 30) << " GiB; raise";
-        fitting = a.str();
-    }
     std::ostringstream m;
     m.precision(3);
     m << input << ": at this element size (" << shortNumber(sp[0]) << " x " << shortNumber(sp[1]) << " x "
       << shortNumber(sp[2]) << " world units; the input's voxels are " << shortNumber(vol.spacing[0]) << " x "
       << shortNumber(vol.spacing[1]) << " x " << shortNumber(vol.spacing[2]) << ") the mesh would have about "
-      << e.hexes / 1e6 << " million hexes and need about " << e.need / double(1 << 30) << " GiB (estimate), more than "
-      << e.budgetName << " (" << e.budget / double(1 << 30) << " GiB). " << fitting
-      << " --max-memory if the machine has the memory.";
-    throw Error(m.str());
+      << e.hexes / 1e6 << " million hexes and need about " << e.need / double(1 << 30) << " GiB (estimate), more than ";
+    std::vector<MessagePart> parts{m.str()};
+    if (e.budgetGiven) parts.insert(parts.end(), {"the ", Setting::MaxMemory, " budget"});
+    else parts.push_back("80% of this machine's memory");
+    std::ostringstream b;
+    b.precision(3);
+    b << " (" << e.budget / double(1 << 30) << " GiB). ";
+    parts.push_back(b.str());
+    // The element size whose mesh would fit, rounded up to two digits (none
+    // when what is loaded already takes most of the budget).
+    if (e.already < 0.9 * e.budget) {
+        double fit = std::cbrt((e.need - e.already) / (e.budget - e.already)) * std::cbrt(element);
+        const double unit = std::pow(10.0, std::floor(std::log10(fit)) - 1);
+        parts.insert(parts.end(), {"Use a ", Setting::Size,
+                                   " of at least " + shortNumber(std::ceil(fit / unit) * unit) + ", or raise"});
+    } else {
+        std::ostringstream a;
+        a.precision(3);
+        a << "The input alone takes " << e.already / double(1 << 30) << " GiB; raise";
+        parts.push_back(a.str());
+    }
+    parts.insert(parts.end(), {" ", Setting::MaxMemory, " if the machine has the memory."});
+    throw SettingError(std::move(parts));
 }
 
 }  // namespace isohex::pipeline

@@ -10,6 +10,7 @@
 #include "Format.hpp"
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/imaging/SurfaceVolume.hpp"
@@ -183,7 +184,7 @@ void chooseGrid(PrepareState& s) {
         grid.chosenBy = GridChoice::Size;
     } else if (s.settings.level) {
         if (*s.settings.level < 0 || *s.settings.level > 10)
-            throw Error("--level must be between 0 and 10 (got " + std::to_string(*s.settings.level) + ")");
+            throw SettingError({Setting::Level, " must be between 0 and 10 (got " + std::to_string(*s.settings.level) + ")"});
         step.fill(static_cast<double>(1 << *s.settings.level));
         grid.chosenBy = GridChoice::Level;
         grid.level = *s.settings.level;
@@ -270,9 +271,10 @@ void countTopology(PrepareState& s) {
     grid.topology = octree::regionTopology(s.p.labels);
     if (!grid.topology.empty()) return;
     const auto sp = grid.grid.spacing();
-    throw Error(s.input + ": no grid point lies inside the selected material(s) at this element size (" +
-                shortNumber(sp[0]) + " x " + shortNumber(sp[1]) + " x " + shortNumber(sp[2]) +
-                " world units), so there is nothing to mesh; use a smaller --size or a lower --level");
+    throw SettingError({s.input + ": no grid point lies inside the selected material(s) at this element size (" +
+                            shortNumber(sp[0]) + " x " + shortNumber(sp[1]) + " x " + shortNumber(sp[2]) +
+                            " world units), so there is nothing to mesh; use a smaller ",
+                        Setting::Size, " or a lower ", Setting::Level});
 }
 
 // Where the isosurface-topology search fell short, in world coordinates (the
@@ -404,9 +406,11 @@ void buildLabels(PrepareState& s) {
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
     if (settings.size && settings.level)
-        throw Error("--size and --level both given; choose one (--size is the element edge length in world units)");
+        throw SettingError({Setting::Size, " and ", Setting::Level, " both given; choose one (", Setting::Size,
+                            " is the element edge length in world units)"});
     if (settings.size && !(*settings.size > 0))
-        throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
+        throw SettingError(
+            {Setting::Size, " must be a positive length in world units (got " + std::to_string(*settings.size) + ")"});
     PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
     loadInput(s);
     selectMaterials(s);

@@ -6,6 +6,7 @@
 
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
+#include "isohex/core/SettingError.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
@@ -21,17 +22,21 @@ namespace {
 // The settings that have no meaning for the sheet method are refused.
 void checkSettings(const std::string& input, const MeshSettings& settings) {
     if (!imaging::isSurfaceFile(input))
-        throw Error(input + ": --method sheets meshes a closed triangle surface (.stl .obj .ply .off); "
-                            "use --method dual for scans and label maps");
+        throw SettingError({input + ": ", Setting::Method,
+                            " sheets meshes a closed triangle surface (.stl .obj .ply .off); use ", Setting::Method,
+                            " dual for scans and label maps"});
     if (settings.size && !(*settings.size > 0))
-        throw Error("--size must be a positive length in world units (got " + std::to_string(*settings.size) + ")");
-    if (settings.level) throw Error("--level is for scans; with --method sheets give the element size with --size");
+        throw SettingError(
+            {Setting::Size, " must be a positive length in world units (got " + std::to_string(*settings.size) + ")"});
+    if (settings.level)
+        throw SettingError({Setting::Level, " is for scans; with ", Setting::Method, " sheets give the element size with ",
+                            Setting::Size});
     if (settings.surfaceTolerance)
-        throw Error("--surface-tolerance is in voxels of a scan; --method sheets keeps surface nodes on the triangles "
-                    "until its volume fit, so leave it out");
+        throw SettingError({Setting::SurfaceTolerance, " is in voxels of a scan; ", Setting::Method,
+                            " sheets keeps surface nodes on the triangles until its volume fit, so leave it out"});
     if (settings.isosurfaceTopology)
-        throw Error("--isosurface-topology chooses grid points of a sampled grid; --method sheets has none (use "
-                    "--method dual)");
+        throw SettingError({Setting::IsosurfaceTopology, " chooses grid points of a sampled grid; ", Setting::Method,
+                            " sheets has none (use ", Setting::Method, " dual)"});
 }
 
 // Untangling and optimisation with surface nodes on the triangles. The

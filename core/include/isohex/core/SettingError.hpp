@@ -16,12 +16,17 @@ namespace isohex {
 
 // The settings library errors can name.
 enum class Setting : std::uint8_t {
-    Force,         // overwrite existing output files
-    Iso,           // the surface's intensity
-    Labels,        // read the image as a label map
-    Label,         // the labels to mesh
-    SliceSpacing,  // the voxel spacing of a folder of 2-D slices
-    Size,          // the element edge length
+    Force,               // overwrite existing output files
+    Iso,                 // the surface's intensity
+    Labels,              // read the image as a label map
+    Label,               // the labels to mesh
+    SliceSpacing,        // the voxel spacing of a folder of 2-D slices
+    Size,                // the element edge length
+    Level,               // the element size as a grid level (2^level voxels)
+    MaxMemory,           // the memory budget
+    Method,              // dual contouring, voxel hexes or sheet insertion
+    SurfaceTolerance,    // how far the worst-hex pass may leave the surface
+    IsosurfaceTopology,  // keep the isosurface's topology on the element grid
 };
 
 // A plain name for `s`, for a message read outside any front end.
@@ -33,6 +38,11 @@ inline std::string_view settingName(Setting s) {
         case Setting::Label: return "label";
         case Setting::SliceSpacing: return "slice spacing";
         case Setting::Size: return "size";
+        case Setting::Level: return "level";
+        case Setting::MaxMemory: return "memory budget";
+        case Setting::Method: return "method";
+        case Setting::SurfaceTolerance: return "surface tolerance";
+        case Setting::IsosurfaceTopology: return "isosurface topology";
     }
     return "setting";
 }

@@ -16,7 +16,7 @@ struct MeshMemoryEstimate {
     double already = 0;      // bytes: the process's peak so far
     double need = 0;         // bytes: already + what the mesh will take
     double budget = 0;       // bytes allowed
-    std::string budgetName;  // what the budget is, for the error
+    bool budgetGiven = false;  // the budget is the settings' maxMemoryMB (else 80% of physical memory)
 };
 
 // The hex count is the selected volume over the element volume (the whole
