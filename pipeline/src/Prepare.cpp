@@ -408,9 +408,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
     if (settings.size && settings.level)
         throw SettingError({Setting::Size, " and ", Setting::Level, " both given; choose one (", Setting::Size,
                             " is the element edge length in world units)"});
-    if (settings.size && !(*settings.size > 0))
-        throw SettingError(
-            {Setting::Size, " must be a positive length in world units (got " + std::to_string(*settings.size) + ")"});
+    checkElementSize(settings);
     PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
     loadInput(s);
     selectMaterials(s);

@@ -25,9 +25,7 @@ void checkSettings(const std::string& input, const MeshSettings& settings) {
         throw SettingError({input + ": ", Setting::Method,
                             " sheets meshes a closed triangle surface (.stl .obj .ply .off); use ", Setting::Method,
                             " dual for scans and label maps"});
-    if (settings.size && !(*settings.size > 0))
-        throw SettingError(
-            {Setting::Size, " must be a positive length in world units (got " + std::to_string(*settings.size) + ")"});
+    checkElementSize(settings);
     if (settings.level)
         throw SettingError({Setting::Level, " is for scans; with ", Setting::Method, " sheets give the element size with ",
                             Setting::Size});

@@ -20,6 +20,12 @@ std::string_view methodName(Method method);
 // The method of that name; none for any other string.
 std::optional<Method> parseMethod(std::string_view name);
 
+struct MeshSettings;
+// Throws isohex::SettingError when the element size is given and not a
+// positive length: the check every method makes for callers other than the
+// command line (whose option table refuses such a value already).
+void checkElementSize(const MeshSettings& settings);
+
 // The default of the surface tolerance, in voxels: under the 0.1-voxel bound
 // the fidelity report checks (fidelity.boundary_nodes_beyond_0_1_voxel).
 inline constexpr double kDefaultSurfaceTolerance = 0.09;
