@@ -13,6 +13,11 @@
 
 namespace isohex::pipeline {
 
+double meshPeakBytes(double already, double hexes, double gridPoints) {
+    constexpr double bytesPerHex = 450.0;
+    return already + hexes * bytesPerHex + gridPoints * 8.0;
+}
+
 MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging::Selection& sel,
                                       const octree::Grid& g, const MeshSettings& settings) {
     MeshMemoryEstimate e;
@@ -24,11 +29,10 @@ MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging:
     e.hexes = voxels * voxel / element;
     if (settings.meshExterior) e.hexes = double(g.size());
     if (settings.pillow) e.hexes *= 7.0 / 6.0;
-    constexpr double bytesPerHex = 450.0;
     struct rusage ru {};
     getrusage(RUSAGE_SELF, &ru);
     e.already = double(ru.ru_maxrss) * 1024.0;
-    e.need = e.already + e.hexes * bytesPerHex + double(g.size()) * 8.0;
+    e.need = meshPeakBytes(e.already, e.hexes, double(g.size()));
     e.budget = settings.load.maxMemoryMB * 1024.0 * 1024.0;
     e.budgetGiven = settings.load.maxMemoryMB > 0.0;
     if (!e.budgetGiven) e.budget = 0.8 * double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));

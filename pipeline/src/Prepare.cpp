@@ -402,18 +402,34 @@ void buildLabels(PrepareState& s) {
     st.finish();
 }
 
-}  // namespace
-
-Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
-    if (settings.size && settings.level)
+// The stages both prepare() and prepareGrid() run: the settings checked,
+// the input loaded and its materials selected and described.
+void loadAndSelect(PrepareState& s) {
+    if (s.settings.size && s.settings.level)
         throw SettingError({Setting::Size, " and ", Setting::Level, " both given; choose one (", Setting::Size,
                             " is the element edge length in world units)"});
-    checkElementSize(settings);
-    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
+    checkElementSize(s.settings);
     loadInput(s);
     selectMaterials(s);
     describeInput(s);
+}
+
+}  // namespace
+
+Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
+    loadAndSelect(s);
     buildLabels(s);
+    for (const auto& w : s.p.warnings) sink.note("warning", w);
+    return std::move(s.p);
+}
+
+Prepared prepareGrid(const std::string& input, const MeshSettings& settings, StageSink& sink) {
+    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
+    loadAndSelect(s);
+    Stage st(s.sink, "octree");
+    chooseGrid(s);
+    st.finish();
     for (const auto& w : s.p.warnings) sink.note("warning", w);
     return std::move(s.p);
 }

@@ -28,6 +28,10 @@ struct MeshMemoryEstimate {
 MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging::Selection& sel,
                                       const octree::Grid& grid, const MeshSettings& settings);
 
+// Bytes at the peak of meshing `hexes` hexes on a grid of `gridPoints`
+// points, when `already` bytes are in use: the model above.
+double meshPeakBytes(double already, double hexes, double gridPoints);
+
 // Throws isohex::Error naming `input`, the element and voxel sizes, the
 // estimate and an element size that would fit, when the estimate exceeds the budget.
 void checkMeshMemory(const std::string& input, const imaging::Volume& vol, const imaging::Selection& sel,

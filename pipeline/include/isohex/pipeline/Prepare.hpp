@@ -121,4 +121,9 @@ struct Prepared {
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink);
 
+// The first half of prepare(): the input loaded and selected and the element
+// grid chosen (facts.grid.grid), without sampling or repairing labels
+// (`labels` stays empty). What isohex estimate needs, at a fraction of the cost.
+Prepared prepareGrid(const std::string& input, const MeshSettings& settings, StageSink& sink);
+
 }  // namespace isohex::pipeline

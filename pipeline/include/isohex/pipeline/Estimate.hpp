@@ -1,0 +1,69 @@
+#pragma once
+// isohex estimate: a mesh's size, peak memory and time before any of it is
+// built (the scan loaded and selected and the grid chosen; no sampling,
+// repair, contouring or optimisation), so a scheduler can ask for the CPUs,
+// memory and time a job needs.
+#include <cstddef>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/StageSink.hpp"
+
+namespace isohex::pipeline {
+
+struct MeshEstimate {
+    double hexes = 0;             // expected hexes of the finished mesh (estimateMeshMemory)
+    std::size_t gridPoints = 0;   // points of the element grid
+    double loadedBytes = 0;       // peak resident memory after loading and selecting
+    double peakBytes = 0;         // expected peak resident memory of `isohex mesh`
+    double cpuSeconds = 0;        // expected CPU time (user + system) of `isohex mesh`
+    double wallSeconds = 0;       // expected wall time with `threads` threads
+    int threads = 1;              // the threads the wall time is for
+    bool threadsChosen = false;   // threads were chosen by the estimate (none asked for)
+};
+
+// The time model, fitted to bench/RESULTS.md (2026-12-02, 2-core Xeon,
+// --threads 2): CPU seconds (user + system, start-up included) against the
+// finished mesh's hexes h, least squares of log(CPU) on log(h) over the 14
+// default-pipeline runs (8 inputs, and ch2bet at 6 element sizes from 37 k
+// to 1.9 M hexes): 0.00146 h^0.773; every run within a factor 2.4 of it (most
+// within 1.3). Without optimisation (the voxel baseline's rows): 0.6 s plus
+// 5.2 microseconds per hex. Wall time: 0.5 s start-up plus the rest spread
+// over the threads at the measured efficiency (CPU / wall = 1.85 at 2 threads,
+// i.e. each thread past the first adds 0.85); beyond 2 threads that is an
+// extrapolation, not a measurement.
+struct TimeModel {
+    double cpuCoefficient = 0.00146, cpuExponent = 0.773;
+    double noOptimizeSeconds = 0.6, noOptimizePerHex = 5.2e-6;
+    double startSeconds = 0.5;
+    double extraThreadEfficiency = 0.85;
+};
+
+// CPU seconds of a default run (or one without optimisation) making `hexes` hexes.
+double expectedCpuSeconds(double hexes, const MeshSettings& settings, const TimeModel& model = {});
+// Wall seconds of that CPU time on `threads` threads.
+double expectedWallSeconds(double cpuSeconds, int threads, const TimeModel& model = {});
+// The fewest threads, up to maxThreads, whose expected wall time is at most
+// targetSeconds (maxThreads when none is).
+int chooseThreads(double cpuSeconds, int maxThreads, double targetSeconds, const TimeModel& model = {});
+
+struct EstimateOptions {
+    int threads = 0;             // the job's threads; 0: chosen (chooseThreads)
+    int maxThreads = 8;          // the most threads chosen
+    double targetSeconds = 120;  // the wall time the chosen threads aim at
+};
+
+// Loads and selects `input` and chooses its grid (prepareGrid), then
+// estimates the mesh. Throws like prepare() on bad input or settings, and a
+// SettingError for the sheet method (which has no grid before meshing).
+MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings, const EstimateOptions& options,
+                          StageSink& sink, PreparedFacts* facts = nullptr);
+
+// The estimate as isohex estimate prints it: input, element size and grid,
+// hexes, memory in MB, seconds, threads, and the model's stated accuracy.
+nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts);
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,112 @@
+#include "isohex/pipeline/Estimate.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include <tbb/parallel_for.h>
+
+#include "isohex/core/SettingError.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/pipeline/MemoryEstimate.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// The hexes of the labels sampled on the grid (before repair): dual contouring
+// makes one hex per labelled point; each sheet layer adds one hex per face
+// between a labelled point and background, and two per face between two
+// materials (every material gets its own sheet).
+double sampledHexes(const Prepared& p, const MeshSettings& settings) {
+    const octree::Labels labels = octree::sampleLabels(*p.domain, p.facts.grid.grid);
+    const octree::Grid& g = labels.grid;
+    const std::array<int, 3> d = g.dims;
+    std::vector<double> inside(std::size_t(d[2]), 0.0), faces(std::size_t(d[2]), 0.0);
+    tbb::parallel_for(0, d[2], [&](int k) {
+        for (int j = 0; j < d[1]; ++j)
+            for (int i = 0; i < d[0]; ++i) {
+                const std::int32_t m = labels.at(i, j, k);
+                if (m == 0) continue;
+                inside[k] += 1;
+                for (const auto& n : {std::array{i + 1, j, k}, std::array{i - 1, j, k}, std::array{i, j + 1, k},
+                                      std::array{i, j - 1, k}, std::array{i, j, k + 1}, std::array{i, j, k - 1}}) {
+                    const std::int32_t o = labels.at(n[0], n[1], n[2]);
+                    if (o != m) faces[k] += 1;  // each face once per material on its sides
+                }
+            }
+    });
+    double hexes = 0, sheet = 0;
+    for (int k = 0; k < d[2]; ++k) hexes += inside[k], sheet += faces[k];
+    if (settings.pillow) hexes += sheet * double(std::max(settings.boundaryLayers, 1));
+    return hexes;
+}
+
+}  // namespace
+
+double expectedCpuSeconds(double hexes, const MeshSettings& settings, const TimeModel& model) {
+    if (hexes <= 0) return model.startSeconds;
+    if (!settings.optimize) return model.noOptimizeSeconds + model.noOptimizePerHex * hexes;
+    return std::max(model.startSeconds, model.cpuCoefficient * std::pow(hexes, model.cpuExponent));
+}
+
+double expectedWallSeconds(double cpuSeconds, int threads, const TimeModel& model) {
+    const double speedUp = 1.0 + model.extraThreadEfficiency * double(std::max(threads, 1) - 1);
+    return model.startSeconds + std::max(cpuSeconds - model.startSeconds, 0.0) / speedUp;
+}
+
+int chooseThreads(double cpuSeconds, int maxThreads, double targetSeconds, const TimeModel& model) {
+    const int most = std::max(maxThreads, 1);
+    for (int t = 1; t < most; ++t)
+        if (expectedWallSeconds(cpuSeconds, t, model) <= targetSeconds) return t;
+    return most;
+}
+
+MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings, const EstimateOptions& options,
+                          StageSink& sink, PreparedFacts* facts) {
+    if (settings.method == Method::Sheets)
+        throw SettingError({input + ": the ", Setting::Method,
+                            " sheets has no grid to estimate from before meshing; estimate the dual method instead"});
+    const Prepared p = prepareGrid(input, settings, sink);
+    const MeshMemoryEstimate mem = estimateMeshMemory(*p.volume, *p.selection, p.facts.grid.grid, settings);
+    MeshEstimate e;
+    e.hexes = settings.meshExterior ? mem.hexes : sampledHexes(p, settings);
+    e.gridPoints = p.facts.grid.grid.size();
+    e.loadedBytes = mem.already;
+    e.peakBytes = meshPeakBytes(mem.already, e.hexes, double(e.gridPoints));
+    e.cpuSeconds = expectedCpuSeconds(e.hexes, settings);
+    e.threadsChosen = options.threads <= 0;
+    e.threads = e.threadsChosen ? chooseThreads(e.cpuSeconds, options.maxThreads, options.targetSeconds)
+                                : options.threads;
+    e.wallSeconds = expectedWallSeconds(e.cpuSeconds, e.threads);
+    if (facts) *facts = p.facts;
+    return e;
+}
+
+nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts) {
+    constexpr double mb = 1024.0 * 1024.0;
+    const octree::Grid& g = facts.grid.grid;
+    nlohmann::json j;
+    j["input"] = facts.input.path;
+    j["dimensions"] = facts.input.dimensions;
+    j["spacing"] = facts.input.spacing;
+    if (facts.selection.iso) j["iso"] = *facts.selection.iso;
+    j["element_size"] = g.spacing();
+    j["grid_dimensions"] = g.dims;
+    if (facts.grid.level) j["level"] = *facts.grid.level;
+    j["grid_points"] = e.gridPoints;
+    j["hexes"] = std::llround(e.hexes);
+    j["loaded_memory_mb"] = std::ceil(e.loadedBytes / mb);
+    j["peak_memory_mb"] = std::ceil(e.peakBytes / mb);
+    j["cpu_seconds"] = std::round(e.cpuSeconds * 10) / 10;
+    j["wall_seconds"] = std::round(e.wallSeconds * 10) / 10;
+    j["threads"] = e.threads;
+    j["threads_chosen"] = e.threadsChosen;
+    j["model"] = {{"hexes", "labels sampled on the grid: a hex per labelled point, + one per boundary face per sheet layer"},
+                  {"memory", "peak after loading + 450 bytes per hex + 8 bytes per grid point"},
+                  {"time", "fitted to bench/RESULTS.md: CPU s = 0.00146 hexes^0.773, within a factor 2.4"}};
+    return j;
+}
+
+}  // namespace isohex::pipeline

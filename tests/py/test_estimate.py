@@ -1,0 +1,96 @@
+"""isohex estimate against real runs: the hexes it expects within 5% of the mesh isohex
+then writes (counted by VTK on the file), its peak memory within a factor 1.5 of the
+run's own peak, threads chosen or as asked, and a damaged scan refused in one line."""
+import gzip
+import json
+import os
+import subprocess
+import sys
+import unittest
+
+import vtk
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
+
+KEYS = {"input", "hexes", "grid_points", "element_size", "grid_dimensions", "loaded_memory_mb", "peak_memory_mb",
+        "cpu_seconds", "wall_seconds", "threads", "threads_chosen", "model"}
+
+
+def cells(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    return r.GetOutput().GetNumberOfCells()
+
+
+class Estimate(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("estimate")
+        cls.phantoms = os.path.join(cls.dir, "phantoms")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.phantoms],
+                       check=True, capture_output=True)
+
+    def estimate(self, scan, *opts):
+        p = run(["estimate", scan, "--quiet", *opts])
+        return json.loads(p.stdout)
+
+    def against_mesh(self, name, scan, *opts):
+        e = self.estimate(scan, *opts)
+        self.assertTrue(KEYS <= set(e), KEYS - set(e))
+        out = os.path.join(self.dir, name + ".vtu")
+        report = os.path.join(self.dir, name + ".json")
+        run(["mesh", scan, "--quiet", "-o", out, "--report", report, "--force", *opts])
+        with open(report) as f:
+            rep = json.load(f)
+        n = cells(out)
+        self.assertLess(abs(e["hexes"] - n) / n, 0.05, f"{name}: estimate {e['hexes']} hexes, mesh {n}")
+        ratio = rep["peak_memory_mb"] / e["peak_memory_mb"]
+        self.assertTrue(1 / 1.5 < ratio < 1.5, f"{name}: estimate {e['peak_memory_mb']} MB, run {rep['peak_memory_mb']} MB")
+        self.assertGreater(e["cpu_seconds"], 0)
+        print(f"{name}: hexes {e['hexes']} / {n}, peak MB {e['peak_memory_mb']} / {rep['peak_memory_mb']:.0f}, "
+              f"CPU s {e['cpu_seconds']} (estimate), pipeline s {rep['timings_s']['total']:.1f}", file=sys.stderr)
+
+    def test_phantoms_and_scans(self):
+        self.against_mesh("sphere", os.path.join(self.phantoms, "sphere.nii.gz"), "--iso", "50", "--size", "3")
+        self.against_mesh("torus_no_sheet", os.path.join(self.phantoms, "torus.nii.gz"), "--iso", "50", "--size", "2",
+                          "--no-pillow")
+        self.against_mesh("two_materials", os.path.join(self.phantoms, "two_materials.nii.gz"), "--labels",
+                          "--size", "3")
+        self.against_mesh("skull", os.path.join(SOURCE, "samples", "skull_ct.nii.gz"), "--iso", "2.9")
+
+    def test_threads(self):
+        scan = os.path.join(SOURCE, "samples", "skull_ct.nii.gz")
+        chosen = self.estimate(scan, "--iso", "2.9", "--target-seconds", "1", "--max-threads", "3")
+        self.assertTrue(chosen["threads_chosen"])
+        self.assertEqual(chosen["threads"], 3)  # seconds of work, a one-second target: the most allowed
+        one = self.estimate(scan, "--iso", "2.9", "--threads", "1")
+        self.assertFalse(one["threads_chosen"])
+        self.assertEqual(one["threads"], 1)
+        self.assertLess(chosen["wall_seconds"], one["wall_seconds"])
+        self.assertEqual(one["hexes"], chosen["hexes"])
+
+    def test_damaged_scan_refused_in_one_line(self):
+        bad = os.path.join(self.dir, "cut.nii.gz")
+        with gzip.open(os.path.join(self.phantoms, "sphere.nii.gz")) as f:
+            head = f.read(600)
+        with gzip.open(bad, "wb") as f:
+            f.write(head)
+        p = run(["estimate", bad, "--iso", "50", "--quiet"], check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(p.stdout, "")
+        lines = p.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, p.stderr)
+        self.assertTrue(lines[0].startswith("isohex: error: " + bad), lines[0])
+
+    def test_sheet_method_refused(self):
+        p = run(["estimate", os.path.join(SOURCE, "samples", "skull_ct.nii.gz"), "--method", "sheets", "--quiet"],
+                check=False)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("sheets", p.stderr)
+        self.assertEqual(p.stdout, "")
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
