@@ -16,6 +16,9 @@ PACKAGES=(
   libgtest-dev
   # independent tools the tests check isohex's output with
   python3 python3-numpy python3-vtk9 python3-meshio gmsh calculix-ccx snakemake
+  # a single-node SLURM cluster for workflow/Snakefile's test (tests/py/test_slurm_cohort.py
+  # starts its own munged, slurmctld and slurmd; nothing is started here)
+  slurmctld slurmd slurm-client munge
 )
 
 missing=()

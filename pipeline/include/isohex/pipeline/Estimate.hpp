@@ -34,7 +34,10 @@ struct MeshEstimate {
 // 5.2 microseconds per hex. Wall time: 0.5 s start-up plus the rest spread
 // over the threads at the measured efficiency (CPU / wall = 1.85 at 2 threads,
 // i.e. each thread past the first adds 0.85); beyond 2 threads that is an
-// extrapolation, not a measurement.
+// extrapolation, not a measurement. The runs were all with the sheet: without
+// it (--no-pillow) the optimiser works harder on some inputs (bench: 0.6 to 6
+// times the CPU time of the same input with the sheet), which the model does
+// not know.
 struct TimeModel {
     double cpuCoefficient = 0.00146, cpuExponent = 0.773;
     double noOptimizeSeconds = 0.6, noOptimizePerHex = 5.2e-6;
