@@ -8,9 +8,8 @@ import subprocess
 import sys
 import unittest
 
-import vtk
-
 sys.path.insert(0, os.path.dirname(__file__))
+from vtk_tools import read_vtu  # noqa: E402
 from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
 
 KEYS = {"input", "hexes", "grid_points", "element_size", "grid_dimensions", "loaded_memory_mb", "peak_memory_mb",
@@ -18,10 +17,7 @@ KEYS = {"input", "hexes", "grid_points", "element_size", "grid_dimensions", "loa
 
 
 def cells(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput().GetNumberOfCells()
+    return read_vtu(path).GetNumberOfCells()
 
 
 class Estimate(unittest.TestCase):

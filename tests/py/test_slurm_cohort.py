@@ -19,9 +19,8 @@ import sys
 import time
 import unittest
 
-import vtk
-
 sys.path.insert(0, os.path.dirname(__file__))
+from vtk_tools import read_vtu  # noqa: E402
 from common import ISOHEX, SOURCE, workdir  # noqa: E402
 from slurm_cluster import SlurmCluster  # noqa: E402
 
@@ -39,10 +38,7 @@ DAMAGED = "damaged"
 
 
 def cells(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(path)
-    r.Update()
-    return r.GetOutput().GetNumberOfCells()
+    return read_vtu(path).GetNumberOfCells()
 
 
 class SlurmCohort(unittest.TestCase):
