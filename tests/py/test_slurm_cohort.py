@@ -4,7 +4,8 @@ damaged, meshed with Snakemake's SLURM executor and the workflow's profile. Chec
 the scheduler's own records (jobcomp/filetxt and `scontrol show job`) that every good
 mesh was made by a SLURM job sized by `isohex estimate`, that the damaged scan is
 reported with its error and the others complete, that a second run submits nothing,
-and that a run after one mesh is deleted submits exactly that scan's job.
+and that a run after one mesh is deleted and a scan added submits exactly those two jobs
+(the added one fails in its SLURM job, and its error line reaches the summary).
 Where SLURM cannot run (not root, no packages, a daemon that will not start) the
 test fails saying why; it never skips."""
 import csv
@@ -35,6 +36,7 @@ GOOD = {
     "skull": (os.path.join(SOURCE, "samples", "skull_ct.nii.gz"), "--iso 2.9 --level 1"),
 }
 DAMAGED = "damaged"
+TIGHT = "skull_tight_budget"  # added before the third run
 
 
 def cells(path):
@@ -150,17 +152,32 @@ class SlurmCohort(unittest.TestCase):
         self.assertEqual(len(self.cluster.completed_jobs()), len(self.jobs_after_first))
         for n in GOOD:
             self.assertEqual(os.path.getmtime(os.path.join(self.out, n + ".vtu")), times[n], n)
-        # one mesh lost: the next run makes that one only
+        # one mesh lost, and a scan added whose memory budget is too small for its mesh (its
+        # estimate passes, its job fails): the next run submits those two only
         os.remove(os.path.join(self.out, "torus.vtu"))
+        with open(self.manifest, "a", newline="") as f:
+            csv.writer(f).writerow([TIGHT, GOOD["skull"][0], "--iso 2.9 --max-memory 20"])
         third = self.snakemake()
-        jobs = self.cluster.completed_jobs()
-        self.assertEqual(len(jobs), len(self.jobs_after_first) + 1, third.stdout + third.stderr)
-        self.assertEqual(jobs[-1]["JobState"], "COMPLETED", jobs[-1])
-        self.assertEqual(self.slurm_job_of("torus"), jobs[-1]["JobId"])
+        jobs = {r["JobId"]: r for r in self.cluster.completed_jobs()}
+        self.assertEqual(len(jobs), len(self.jobs_after_first) + 2, third.stdout + third.stderr)
+        self.assertEqual(jobs[self.slurm_job_of("torus")]["JobState"], "COMPLETED")
+        self.assertEqual(jobs[self.slurm_job_of(TIGHT)]["JobState"], "FAILED")
         self.assertGreater(cells(os.path.join(self.out, "torus.vtu")), 100)
         for n in GOOD:
             if n != "torus":
                 self.assertEqual(os.path.getmtime(os.path.join(self.out, n + ".vtu")), times[n], n)
+        # the failed job's error line, from its log, in the summary
+        with open(os.path.join(self.out, "cohort.csv"), newline="") as f:
+            rows = {r["name"]: r for r in csv.DictReader(f)}
+        self.assertEqual(rows[TIGHT]["status"], "failed")
+        self.assertEqual(rows[TIGHT]["stage"], "mesh")
+        self.assertEqual(rows[TIGHT]["slurm_job"], self.slurm_job_of(TIGHT))
+        self.assertIn("isohex: error:", rows[TIGHT]["error"])
+        self.assertIn("--max-memory", rows[TIGHT]["error"])
+        self.assertFalse(os.path.exists(os.path.join(self.out, TIGHT + ".vtu")))
+        with open(os.path.join(self.out, "failures.txt")) as f:
+            failed = sorted(line.split(":")[0] for line in f)
+        self.assertEqual(failed, sorted([DAMAGED, TIGHT]))
         print(f"test_slurm_cohort: {time.time() - self.t0:.1f} s since the cluster started", file=sys.stderr)
 
 
