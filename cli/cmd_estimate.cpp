@@ -26,7 +26,10 @@ struct EstimateCommand {
 void addEstimateCommand(CLI::App& app) {
     auto c = std::make_shared<EstimateCommand>();
     CLI::App* cmd = app.add_subcommand(
-        "estimate", "Print the hexes, peak memory, time and threads `isohex mesh` would take, as JSON, without meshing");
+        "estimate",
+        "Print the hexes, peak memory and time `isohex mesh` would take with these options, as JSON, without "
+        "meshing: on --threads threads, or on the fewest (up to --max-threads) expected to finish within "
+        "--target-seconds");
     cmd->add_option("input", c->input, "Scan or label map, as for isohex mesh")->required();
     cmd->add_option("--max-threads", c->options.maxThreads,
                     "Without --threads: the most threads to choose (the fewest that are expected to finish "

@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/SettingError.hpp"
+#include "isohex/octree/GridEdits.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/pipeline/MemoryEstimate.hpp"
 
@@ -15,12 +16,14 @@ namespace isohex::pipeline {
 
 namespace {
 
-// The hexes of the labels sampled on the grid (before repair): dual contouring
+// The hexes of the labels sampled on the grid (before repair; with
+// keepLargest only the largest regions): dual contouring
 // makes one hex per labelled point; each sheet layer adds one hex per face
 // between a labelled point and background, and two per face between two
 // materials (every material gets its own sheet).
 double sampledHexes(const Prepared& p, const MeshSettings& settings) {
-    const octree::Labels labels = octree::sampleLabels(*p.domain, p.facts.grid.grid);
+    octree::Labels labels = octree::sampleLabels(*p.domain, p.facts.grid.grid);
+    if (settings.keepLargest) octree::keepLargestComponents(labels);
     const octree::Grid& g = labels.grid;
     const std::array<int, 3> d = g.dims;
     std::vector<double> inside(std::size_t(d[2]), 0.0), faces(std::size_t(d[2]), 0.0);
