@@ -18,3 +18,18 @@ const MeshFormatPlugin& meshFormatPlugin(Format format) {
 }
 
 }  // namespace isohex::io::detail
+
+namespace isohex::io {
+
+bool preloadFormat(const std::string& path) {
+    try {
+        const Format format = formatFromPath(path);
+        if (format == Format::Vtu || format == Format::Msh || format == Format::Exodus)
+            detail::meshFormatPlugin(format);
+        return true;
+    } catch (const Error&) {
+        return false;
+    }
+}
+
+}  // namespace isohex::io
