@@ -17,6 +17,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/imaging/ReaderPlugin.hpp"
 #include "isohex/pipeline/MeshPipeline.hpp"
 
 namespace isohex::cli {
@@ -199,6 +200,13 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
 std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names) {
     std::vector<JobResult> results;
     std::size_t failed = 0;
+    // The plugins of the jobs' formats are loaded here, once: each job's child
+    // process inherits them instead of loading them again.
+    for (const Job& job : jobs) {
+        if (!force && !job.args.run.force && upToDate(job)) continue;
+        imaging::preloadReader(job.input);
+        for (const std::string& out : job.outputs) io::preloadFormat(out);
+    }
     for (std::size_t i = 0; i < jobs.size(); ++i) {
         const Job& job = jobs[i];
         ProgressSink sink(mode, "[" + std::to_string(i + 1) + "/" + std::to_string(jobs.size()) + "] " + stemOf(job.input));

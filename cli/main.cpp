@@ -1,11 +1,8 @@
-// isohex: volumetric scans to all-hex finite-element meshes.
+// isohex: volumetric scans to all-hex finite-element meshes. This is the
+// program isohex-run, which the isohex launcher (launcher/Launcher.cpp) runs.
 #include <cstdio>
-#include <cstdlib>
-#include <fstream>
 #include <iostream>
 #include <string>
-
-#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 
@@ -22,37 +19,8 @@ int& pendingExitCode() {
 }
 }  // namespace isohex::cli
 
-namespace {
-
-// The mesh arrays run to hundreds of megabytes, and on 4 KiB pages a large part
-// of the run is spent in page faults (hundreds of thousands for a 2 M-hex mesh).
-// glibc's malloc asks the kernel for transparent huge pages when its tunable
-// glibc.malloc.hugetlb is 1, but it reads tunables only at start-up, so isohex
-// re-executes itself once with the tunable added to GLIBC_TUNABLES. Skipped when
-// the kernel has transparent huge pages off, when the user already set the
-// tunable, or with ISOHEX_HUGEPAGES=0; if the exec fails the run just goes on.
-void restartWithHugePages(char** argv) {
-    const char* opt = std::getenv("ISOHEX_HUGEPAGES");
-    if (opt && std::string(opt) == "0") return;
-    const char* cur = std::getenv("GLIBC_TUNABLES");
-    std::string tunables = cur ? cur : "";
-    if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return;
-    std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
-    std::string mode;
-    std::getline(thp, mode);
-    if (mode.find("[always]") == std::string::npos && mode.find("[madvise]") == std::string::npos) return;
-    tunables += (tunables.empty() ? "" : ":") + std::string("glibc.malloc.hugetlb=1");
-    if (setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
-    execv("/proc/self/exe", argv);
-    // Only reached when the exec failed: leave the environment as it was.
-    if (cur) setenv("GLIBC_TUNABLES", cur, 1); else unsetenv("GLIBC_TUNABLES");
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
     using namespace isohex::cli;
-    restartWithHugePages(argv);
     isohex::io::removeTemporariesOnSignal();  // an interrupted write leaves no hidden temporary
     CLI::App app{"isohex: turns volumetric scans into all-hexahedral finite-element meshes\n"
                  "whose every element is convex with positive volume, and reports their quality."};

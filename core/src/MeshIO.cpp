@@ -11,11 +11,11 @@
 #include <filesystem>
 #include <system_error>
 
+#include "MeshFormatPlugin.hpp"
 #include "MeshIODetail.hpp"
 #include "isohex/core/AtomicFile.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
-#include "isohex/core/Quality.hpp"
 
 namespace isohex::io {
 
@@ -79,16 +79,14 @@ void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt
             throw Error(path + ": cell field '" + name + "' has " + std::to_string(values.size()) +
                         " values for " + std::to_string(mesh.hexCount()) + " hexes");
     }
+    // A format's library is loaded before the temporary file exists.
+    const bool viaPlugin = format == Format::Vtu || format == Format::Msh || format == Format::Exodus;
+    const detail::MeshFormatPlugin* plugin = viaPlugin ? &detail::meshFormatPlugin(format) : nullptr;
     writeAtomically(path, opt.overwrite, [&](const std::string& tmp) {
         switch (format) {
             case Format::Vtu:
-                if (opt.scaledJacobian.empty())
-                    detail::writeVtu(mesh, tmp, path, scaledJacobians(mesh), opt.cellFields);
-                else
-                    detail::writeVtu(mesh, tmp, path, opt.scaledJacobian, opt.cellFields);
-                break;
-            case Format::Msh: detail::writeMsh(mesh, tmp, path); break;
-            case Format::Exodus: detail::writeExodus(mesh, tmp, path); break;
+            case Format::Msh:
+            case Format::Exodus: plugin->write(mesh, tmp, path, opt); break;
             case Format::Abaqus: detail::writeAbaqus(mesh, tmp, path); break;
             case Format::Medit: detail::writeMedit(mesh, tmp, path); break;
         }
@@ -109,7 +107,7 @@ HexMesh read(const std::string& path) {
         throw Error(path + ": isohex writes this format but cannot read it; read one of " +
                     joined(readableExtensions()));
     detail::requireReadableFile(path);
-    HexMesh mesh = format == Format::Vtu ? detail::readVtu(path) : detail::readMsh(path);
+    HexMesh mesh = detail::meshFormatPlugin(format).read(path);  // canRead: .vtu or .msh
     mesh.checkConsistent(path);
     if (mesh.hexCount() == 0)
         throw Error(path + ": the mesh holds no hexahedra, so there is nothing to judge, smooth or convert; check "

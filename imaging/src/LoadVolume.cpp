@@ -17,6 +17,7 @@
 
 #include "DenseGrid.hpp"
 #include "RawVolume.hpp"
+#include "ReaderPlugins.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/imaging/Volume.hpp"
 
@@ -365,16 +366,16 @@ Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
     }
     if (fs::is_directory(status)) {
         if (auto exr = filesWithExtension(path, {".exr"}); !exr.empty())
-            return fromRaw(detail::readExrSlices(exr, options), file, options);
+            return fromRaw(detail::exrReader().readSlices(exr, options), file, options);
         if (auto tif = filesWithExtension(path, {".tif", ".tiff"}); !tif.empty())
-            return fromRaw(detail::readTiffSlicesItk(tif, options), file, options);
-        return fromRaw(detail::readDicomFolderItk(path, options), file, options);
+            return fromRaw(detail::itkReaders().readTiffSlices(tif, options), file, options);
+        return fromRaw(detail::itkReaders().readDicomFolder(path, options), file, options);
     }
     if (fs::file_size(path, ec) == 0) {
         throw Error(file + ": the file is empty; it was probably not written completely. Export it again.");
     }
     if (lower(path.extension().string()) == ".vdb") return loadVdb(path, options);
-    return fromRaw(detail::readImageFileItk(path, options), file, options);
+    return fromRaw(detail::itkReaders().readImageFile(path, options), file, options);
 }
 }  // namespace
 

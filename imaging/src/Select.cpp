@@ -11,6 +11,7 @@
 
 #include "DenseGrid.hpp"
 #include "RawVolume.hpp"
+#include "ReaderPlugins.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/SettingError.hpp"
 #include "isohex/imaging/Selection.hpp"
@@ -66,9 +67,9 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
                 finite.reserve(values.size());
                 for (float v : values)
                     if (std::isfinite(v)) finite.push_back(v);
-                iso = detail::otsuThresholdItk(finite);
+                iso = detail::itkReaders().otsuThreshold(finite);
             } else {
-                iso = detail::otsuThresholdItk(values);
+                iso = detail::itkReaders().otsuThreshold(values);
             }
         } catch (const Error& e) {
             throw Error(src + ": " + e.what());  // which scan, in a batch

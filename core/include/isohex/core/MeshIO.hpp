@@ -47,4 +47,10 @@ void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt
 // missing, damaged, truncated or non-hexahedral files.
 HexMesh read(const std::string& path);
 
+// Loads now the plugin (isohex/core/Plugin.hpp) of the format of `path`, if
+// it has one (.vtu, .msh, Exodus), as `isohex batch` does before forking its
+// jobs. Returns false if it cannot be loaded or the extension is unknown; the
+// reason is left to read and write, which throw it for the file concerned.
+bool preloadFormat(const std::string& path);
+
 }  // namespace isohex::io

@@ -1,0 +1,33 @@
+#pragma once
+// Internal: the scan readers whose libraries are loaded on first use
+// (isohex/core/Plugin.hpp). ITK with GDCM and libtiff (src/Itk*.cpp,
+// TiffChecks.cpp) is the plugin libisohex_itk.so, OpenEXR (ExrRead.cpp)
+// libisohex_exr.so; both link this library for the checks every reader shares.
+// The functions are those of RawVolume.hpp.
+#include <filesystem>
+#include <vector>
+
+#include "RawVolume.hpp"
+
+namespace isohex::imaging::detail {
+
+struct ItkReaders {
+    static constexpr int kAbi = 1;
+    int abi;
+    RawVolume (*readImageFile)(const std::filesystem::path& path, const LoadOptions& options);
+    RawVolume (*readDicomFolder)(const std::filesystem::path& dir, const LoadOptions& options);
+    RawVolume (*readTiffSlices)(const std::vector<std::filesystem::path>& files, const LoadOptions& options);
+    double (*otsuThreshold)(const std::vector<float>& values);
+};
+
+struct ExrReader {
+    static constexpr int kAbi = 1;
+    int abi;
+    RawVolume (*readSlices)(const std::vector<std::filesystem::path>& files, const LoadOptions& options);
+};
+
+// Loaded on the first call; throw Error (Plugin.hpp) when they cannot be.
+const ItkReaders& itkReaders();
+const ExrReader& exrReader();
+
+}  // namespace isohex::imaging::detail

@@ -1,0 +1,99 @@
+"""The launcher and the plugins (cli/launcher/, core/include/isohex/core/Plugin.hpp):
+`isohex --version` from the launcher equals the program's; a mesh format's
+plugin is loaded only when that format is read or written; a missing or
+damaged plugin is one error line naming it and what to do, exit status 1,
+with no output or temporary file left behind."""
+import os
+import shutil
+import subprocess
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import ISOHEX, workdir  # noqa: E402
+
+# The build tree's plugins are in BUILD/lib/isohex, beside BUILD/cli/isohex.
+BUILD_PLUGINS = os.path.abspath(os.path.join(os.path.dirname(ISOHEX), "..", "lib", "isohex"))
+
+
+def isohex(args, plugin_dir):
+    env = dict(os.environ, ISOHEX_PLUGIN_DIR=plugin_dir)
+    return subprocess.run([ISOHEX] + args, capture_output=True, text=True, env=env, timeout=300)
+
+
+class Plugins(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("plugins")
+        helper = os.environ.get("ISOHEX_TEST_MESHES", "")
+        if not helper:
+            raise RuntimeError("make_test_meshes not found: set ISOHEX_TEST_MESHES (ctest does)")
+        subprocess.run([helper, cls.dir], check=True, capture_output=True)
+        cls.vtu = os.path.join(cls.dir, "block.vtu")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.dir, ignore_errors=True)
+
+    def folder(self, name, plugins=()):
+        path = os.path.join(self.dir, name)
+        os.mkdir(path)
+        for p in plugins:
+            os.symlink(os.path.join(BUILD_PLUGINS, p), os.path.join(path, p))
+        return path
+
+    def test_version_from_the_launcher_equals_the_program(self):
+        launcher = subprocess.run([ISOHEX, "--version"], capture_output=True, text=True)
+        program = subprocess.run([os.path.join(os.path.dirname(ISOHEX), "isohex-run"), "--version"],
+                                 capture_output=True, text=True)
+        self.assertEqual(launcher.returncode, 0)
+        self.assertTrue(launcher.stdout.startswith("isohex ") and "openvdb" in launcher.stdout, launcher.stdout)
+        self.assertEqual(launcher.stdout, program.stdout)
+
+    def test_launcher_without_the_program_says_so(self):
+        alone = self.folder("launcher_alone")
+        shutil.copy(ISOHEX, alone)
+        proc = subprocess.run([os.path.join(alone, os.path.basename(ISOHEX)), "quality", self.vtu],
+                              capture_output=True, text=True)
+        err = proc.stderr.strip()
+        self.assertEqual(proc.returncode, 1)
+        self.assertEqual(err.count("\n"), 0, err)
+        self.assertIn(os.path.join(alone, "isohex-run"), err)
+
+    def test_only_the_formats_plugins_are_loaded(self):
+        only_vtu = self.folder("only_vtu", ["libisohex_vtu.so"])
+        out = self.folder("out_inp")
+        proc = isohex(["convert", self.vtu, os.path.join(out, "block.inp")], only_vtu)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        self.assertGreater(os.path.getsize(os.path.join(out, "block.inp")), 0)
+
+    def test_missing_plugin_is_one_line_and_leaves_nothing(self):
+        only_vtu = self.folder("only_vtu_2", ["libisohex_vtu.so"])
+        out = self.folder("out_msh")
+        proc = isohex(["convert", self.vtu, os.path.join(out, "block.msh")], only_vtu)
+        err = proc.stderr.strip()
+        self.assertEqual(proc.returncode, 1, err)
+        self.assertEqual(err.count("\n"), 0, err)
+        for text in ("libisohex_msh.so", "missing", "ISOHEX_PLUGIN_DIR", "isohex_plugins"):
+            self.assertIn(text, err)
+        self.assertEqual(os.listdir(out), [])
+
+    def test_reading_without_the_plugin_says_what_it_is_for(self):
+        proc = isohex(["quality", self.vtu], self.folder("empty"))
+        self.assertEqual(proc.returncode, 1)
+        self.assertIn("libisohex_vtu.so (reads and writes .vtu files", proc.stderr)
+
+    def test_damaged_plugin_is_one_line_naming_it(self):
+        damaged = self.folder("damaged")
+        with open(os.path.join(damaged, "libisohex_vtu.so"), "wb") as f:
+            f.write(b"not a shared object\n" * 10)
+        proc = isohex(["quality", self.vtu], damaged)
+        err = proc.stderr.strip()
+        self.assertEqual(proc.returncode, 1)
+        self.assertEqual(err.count("\n"), 0, err)
+        self.assertIn("libisohex_vtu.so", err)
+        self.assertIn("could not be loaded", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
