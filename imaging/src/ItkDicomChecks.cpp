@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <locale>
 
 #include <gdcmMediaStorage.h>
@@ -146,6 +147,13 @@ std::string dicomPixelDataSize(const std::string& file, const gdcm::Reader& full
     return m.str();
 }
 
+// Scans `files` for `tags`, GDCM's console kept quiet; false if the scan fails.
+bool scanQuietly(gdcm::Scanner& scanner, const std::vector<std::string>& files, std::initializer_list<gdcm::Tag> tags) {
+    for (const auto& tag : tags) scanner.AddTag(tag);
+    QuietGdcm quiet;
+    return scanner.Scan(files);
+}
+
 // The explicit-VR value representations with a 4-byte length.
 bool longLengthVr(const char* vr) {
     static const char* const kLong[] = {"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
@@ -258,12 +266,7 @@ void checkDicomLength(const std::string& file) {
 void checkSliceSpacing(const std::string& folder, const std::vector<std::string>& files) {
     const gdcm::Tag position(0x0020, 0x0032), orientation(0x0020, 0x0037);
     gdcm::Scanner scanner;
-    scanner.AddTag(position);
-    scanner.AddTag(orientation);
-    {
-        QuietGdcm quiet;
-        if (!scanner.Scan(files)) return;
-    }
+    if (!scanQuietly(scanner, files, {position, orientation})) return;
     const std::vector<double> iop = dicomNumbers(scanner.GetValue(files.front().c_str(), orientation));
     if (iop.size() != 6) return;
     using V = itk::Vector<double, 3>;
@@ -337,12 +340,7 @@ void checkSliceSpacing(const std::string& folder, const std::vector<std::string>
 void checkDicomGeometryTags(const std::vector<std::string>& files) {
     const gdcm::Tag orientation(0x0020, 0x0037), spacing(0x0028, 0x0030);
     gdcm::Scanner scanner;
-    scanner.AddTag(orientation);
-    scanner.AddTag(spacing);
-    {
-        QuietGdcm quiet;
-        if (!scanner.Scan(files)) return;
-    }
+    if (!scanQuietly(scanner, files, {orientation, spacing})) return;
     for (const auto& f : files) {
         const char* iopText = scanner.GetValue(f.c_str(), orientation);
         const std::vector<double> iop = dicomNumbers(iopText);
@@ -371,13 +369,9 @@ void checkDicomGeometryTags(const std::vector<std::string>& files) {
 void checkSeriesSliceSize(const std::vector<std::string>& chosen, const std::vector<std::string>& others) {
     const gdcm::Tag uid(0x0020, 0x000e), orientation(0x0020, 0x0037), rows(0x0028, 0x0010), columns(0x0028, 0x0011);
     gdcm::Scanner scanner;
-    for (const auto& tag : {uid, orientation, rows, columns}) scanner.AddTag(tag);
     std::vector<std::string> all = chosen;
     all.insert(all.end(), others.begin(), others.end());
-    {
-        QuietGdcm quiet;
-        if (chosen.empty() || !scanner.Scan(all)) return;
-    }
+    if (chosen.empty() || !scanQuietly(scanner, all, {uid, orientation, rows, columns})) return;
     auto value = [&](const std::string& f, const gdcm::Tag& t) {
         const char* v = scanner.GetValue(f.c_str(), t);
         return v ? std::string(v) : std::string();

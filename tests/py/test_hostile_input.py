@@ -53,7 +53,7 @@ class HostileInput(unittest.TestCase):
         for piece in pieces:
             self.assertIn(piece, errors[0])
         self.assertFalse(os.path.exists(out), "an output was written")
-        self.assertEqual([f for f in os.listdir(self.dir) if f.startswith("out")], [])
+        self.assertEqual([f for f in os.listdir(self.dir) if f.startswith("out.")], [])
         return errors[0]
 
     def test_a_file_without_read_permission_says_permission_denied(self):
