@@ -92,10 +92,17 @@ void createIo(ImageFileRead& r) {
     r.io->SetFileName(r.file);
 }
 
+// The checks that must come before ITK picks its reader, whose probes read
+// the file: GDCM's asserts on a DICOM file cut inside its header, MetaIO's
+// parses the MetaImage header.
+void checkBeforeIo(const ImageFileRead& r) {
+    checkDicomStructure(r.file);
+    if (r.format == CheckedFormat::MetaImage) checkMetaImageHeader(r.file, r.options.allowDataOutside);
+}
+
 // The checks that must come before ITK reads the header: on what they refuse
 // ITK's readers abort the process, loop for ever or pad without a word.
 void checkBeforeHeader(const ImageFileRead& r) {
-    if (r.format == CheckedFormat::MetaImage) checkMetaImageHeader(r.file, r.options.allowDataOutside);
     if (r.format == CheckedFormat::Nrrd) checkNrrdHeader(r.file, r.options.allowDataOutside);
     if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz || r.format == CheckedFormat::NiftiPair) {
         const auto [header, data] = niftiFiles(r.path, r.format);
@@ -258,7 +265,7 @@ void finish(const ImageFileRead& r, RawVolume& raw) {
 
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
     ImageFileRead r(path, options);
-    checkDicomStructure(r.file);  // ITK's DICOM probe in createIo reads it with GDCM
+    checkBeforeIo(r);
     createIo(r);
     checkBeforeHeader(r);
     readHeader(r);
