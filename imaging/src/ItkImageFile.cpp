@@ -32,7 +32,12 @@ CheckedFormat checkedFormat(const std::filesystem::path& path) {
     };
     if (endsWith(".nii")) return CheckedFormat::Nifti;
     if (endsWith(".nii.gz")) return CheckedFormat::NiftiGz;
-    if (endsWith(".hdr") || endsWith(".img")) return CheckedFormat::NiftiPair;  // NIfTI-1 or Analyze 7.5
+    if (endsWith(".hdr") || endsWith(".img")) {  // NIfTI-1 or Analyze 7.5; a gzipped .img is left to ITK
+        std::error_code ec;
+        auto gz = path;
+        gz.replace_extension(".img.gz");
+        return std::filesystem::exists(gz, ec) ? CheckedFormat::Other : CheckedFormat::NiftiPair;
+    }
     if (endsWith(".mha") || endsWith(".mhd")) return CheckedFormat::MetaImage;
     if (endsWith(".nrrd") || endsWith(".nhdr")) return CheckedFormat::Nrrd;
     if (endsWith(".tif") || endsWith(".tiff")) return CheckedFormat::Tiff;
