@@ -49,6 +49,17 @@ void checkMetaImageSize(const std::string& file, std::uint64_t dataBytes);
 // libtiff reports an error walking the pages. Before ITK reads it.
 void checkTiffLayout(const std::string& file);
 
+// True if a header's file-name pattern holds one integer conversion (%d,
+// %03d, %i) and nothing else printf would read an argument for, and is at
+// most 1000 characters (NRRD and MetaImage patterns are handed to printf).
+inline bool isOneIntegerPattern(const std::string& pattern) {
+    const auto percent = pattern.find('%');
+    if (percent == std::string::npos || pattern.size() > 1000) return false;
+    std::size_t at = percent + 1;
+    while (at < pattern.size() && pattern[at] >= '0' && pattern[at] <= '9') ++at;
+    return at < pattern.size() && (pattern[at] == 'd' || pattern[at] == 'i') && pattern.find('%', at) == std::string::npos;
+}
+
 // The message for voxel data shorter than the header says.
 [[noreturn]] inline void throwTruncated(const std::string& file, std::uint64_t need, std::uint64_t have,
                                         const char* what) {

@@ -255,11 +255,7 @@ void checkFilePattern(const MetaLayout& m) {
     if (words.size() >= 3) step = static_cast<long long>(words[2]);
     // One integer conversion (%d, %03d ...) and nothing else a printf
     // would read an argument for.
-    const auto percent = pattern.find('%');
-    std::size_t at = percent + 1;
-    while (at < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[at]))) ++at;
-    if (at >= pattern.size() || (pattern[at] != 'd' && pattern[at] != 'i') ||
-        pattern.find('%', at) != std::string::npos || pattern.size() > 1000)
+    if (!isOneIntegerPattern(pattern))
         m.fail("the MetaImage file pattern '" + pattern + "' must hold one integer field such as %03d; fix the header.");
     if (step <= 0 || last < first)
         m.fail("the MetaImage file pattern '" + dataFile + "' steps by " + std::to_string(step) + " from " +

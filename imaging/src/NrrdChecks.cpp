@@ -62,12 +62,7 @@ std::vector<std::string> patternFiles(const std::string& file, const std::string
     std::string format;
     long long first = 0, last = 0, step = 0;
     if (!(in >> format >> first >> last >> step) || format.find('%') == std::string::npos) return {};
-    // one integer conversion (%d, %03d ...) and nothing else printf would read an argument for
-    const auto percent = format.find('%');
-    std::size_t at = percent + 1;
-    while (at < format.size() && std::isdigit(static_cast<unsigned char>(format[at]))) ++at;
-    if (at >= format.size() || (format[at] != 'd' && format[at] != 'i') || format.find('%', at) != std::string::npos ||
-        format.size() > 1000)
+    if (!isOneIntegerPattern(format))
         throw Error(file + ": the NRRD header's data file pattern '" + format +
                     "' must hold one integer field such as %03d; fix the header.");
     if (step == 0 || (last - first) / step < 0 || (last - first) / step > 100000)
