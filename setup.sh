@@ -10,7 +10,7 @@ PACKAGES=(
   # toolchain
   cmake ninja-build g++ pkg-config
   # libraries isohex links
-  libopenvdb-dev libboost-iostreams-dev libinsighttoolkit5-dev libeigen3-dev libtbb-dev
+  libopenvdb-dev libboost-iostreams-dev libinsighttoolkit5-dev libnifti2-dev libeigen3-dev libtbb-dev
   libopenexr-dev libassimp-dev libcli11-dev nlohmann-json3-dev zlib1g-dev libtiff-dev libgdcm-dev libcsv-dev
   libvtk9-dev libgmsh-dev libexodusii-dev libnetcdf-dev libcgal-dev
   libgtest-dev

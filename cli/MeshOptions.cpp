@@ -255,6 +255,11 @@ void addInputRows(std::vector<MeshOption>& t) {
                             between(0, 2147483647)));
     t.push_back(onOff("nan-as-outside", g, "Treat NaN/Inf voxels as outside instead of refusing", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.load.nanAsOutside; }));
+    t.push_back(onOff("allow-data-outside", g,
+                      "Read the data files an .nhdr or .mhd header names outside the header's folder (trusted "
+                      "headers only)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.load.allowDataOutside; }));
+    t.back().setting = Setting::AllowDataOutside;
     t.push_back(number<double>(
         "max-memory", g,
         "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need "

@@ -35,13 +35,28 @@ private:
 // The end of the message for a DICOM file GDCM cannot read to the end.
 extern const char* const kDicomUnreadable;
 
+// A file marked "DICM": throws if it ends inside an element before its Pixel
+// Data (Debian's GDCM aborts the process on such a file). Before GDCM reads it.
+void checkDicomStructure(const std::string& file);
+
 // One DICOM file read on its own (a multi-frame file): throws if GDCM cannot
-// read it or its Pixel Data ends past the end of the file.
+// read it, or its Pixel Data ends past the end of the file or is not the
+// size its Rows, Columns, frames and BitsAllocated give.
 void checkDicomLength(const std::string& file);
 
 // Throws if the slices' positions along their normal do not step evenly
-// (a missing slice, or variable spacing). Slices without the tags pass.
+// (a missing slice, or variable spacing) or two lie at one position.
+// Slices without the tags pass.
 void checkSliceSpacing(const std::string& folder, const std::vector<std::string>& files);
+
+// Throws for a file whose Image Orientation (Patient) is not two
+// perpendicular unit vectors or whose Pixel Spacing is not positive (ITK
+// substitutes identity and 1 mm). Files without the tags pass.
+void checkDicomGeometryTags(const std::vector<std::string>& files);
+
+// Throws if a file of `others` (the folder's other series) shares the first
+// chosen file's series UID and orientation but not its rows and columns.
+void checkSeriesSliceSize(const std::vector<std::string>& chosen, const std::vector<std::string>& others);
 
 // What GDCM makes of one file of a DICOM folder, read before its series scan.
 struct DicomFileScan {
@@ -49,7 +64,7 @@ struct DicomFileScan {
     bool named = false;   // not marked, but named .dcm or .dicom
     bool readable = false;
     bool imageWithoutPixels = false;  // an image storage class, but no Pixel Data
-    std::string cut;                  // why its Pixel Data is cut short, or empty
+    std::string pixelFault;           // why its Pixel Data cannot be read as declared (cut short, wrong size), or empty
 };
 
 // Reads every file of the folder with GDCM, one at a time, each named through

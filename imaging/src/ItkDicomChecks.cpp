@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <locale>
 
 #include <gdcmMediaStorage.h>
@@ -87,7 +88,158 @@ std::vector<double> dicomNumbers(const char* value) {
     return out;
 }
 
+// An unsigned short of the data set (Rows, BitsAllocated, ...), or -1.
+long dicomUnsigned(const gdcm::DataSet& ds, std::uint16_t group, std::uint16_t element) {
+    const gdcm::Tag tag(group, element);
+    if (!ds.FindDataElement(tag)) return -1;
+    const gdcm::ByteValue* bv = ds.GetDataElement(tag).GetByteValue();
+    if (!bv || bv->GetLength() < 2) return -1;
+    std::uint16_t v = 0;
+    std::memcpy(&v, bv->GetPointer(), 2);  // little endian: the transfer syntaxes GDCM reads natively here
+    return v;
+}
+
+// A text value of the data set (Number of Frames, ...), or "".
+std::string dicomText(const gdcm::DataSet& ds, std::uint16_t group, std::uint16_t element) {
+    const gdcm::Tag tag(group, element);
+    if (!ds.FindDataElement(tag)) return {};
+    const gdcm::ByteValue* bv = ds.GetDataElement(tag).GetByteValue();
+    return bv ? std::string(bv->GetPointer(), bv->GetLength()) : std::string();
+}
+
+// Native (not encapsulated) Pixel Data must hold exactly Rows x Columns x
+// Samples per Pixel x Number of Frames values of BitsAllocated bits (plus
+// one pad byte to an even length): GDCM pads shorter data and ITK reads
+// longer data with the wrong voxel size, both without a word. Returns what
+// is wrong, or nothing.
+std::string dicomPixelDataSize(const std::string& file, const gdcm::Reader& full) {
+    const gdcm::File& f = full.GetFile();
+    const gdcm::TransferSyntax ts = f.GetHeader().GetDataSetTransferSyntax();
+    if (ts.IsEncapsulated() || ts.IsEncoded() || ts.GetSwapCode() == gdcm::SwapCode::BigEndian) return {};
+    const gdcm::DataSet& ds = f.GetDataSet();
+    const gdcm::Tag pixelData(0x7fe0, 0x0010);
+    if (!ds.FindDataElement(pixelData)) return {};
+    const gdcm::DataElement& pd = ds.GetDataElement(pixelData);
+    if (pd.GetVL().IsUndefined() || !pd.GetByteValue()) return {};
+    const long rows = dicomUnsigned(ds, 0x0028, 0x0010), columns = dicomUnsigned(ds, 0x0028, 0x0011);
+    const long bits = dicomUnsigned(ds, 0x0028, 0x0100), stored = dicomUnsigned(ds, 0x0028, 0x0101);
+    long samples = dicomUnsigned(ds, 0x0028, 0x0002);
+    if (rows <= 0 || columns <= 0 || bits < 0) return {};  // GDCM refuses these itself
+    if (samples <= 0) samples = 1;
+    if (bits != 1 && bits != 8 && bits != 16 && bits != 32 && bits != 64)
+        return file + ": the DICOM header's BitsAllocated is " + std::to_string(bits) +
+               ", not a voxel size (8, 16, 32 or 64 bits); the file is damaged, export it again.";
+    if (stored > bits)
+        return file + ": the DICOM header's BitsStored (" + std::to_string(stored) + ") exceeds BitsAllocated (" +
+               std::to_string(bits) + "); the header contradicts itself, export the file again.";
+    long long frames = 1;
+    if (const std::vector<double> n = dicomNumbers(dicomText(ds, 0x0028, 0x0008).c_str()); n.size() == 1 && n[0] >= 1)
+        frames = static_cast<long long>(n[0]);
+    const std::uint64_t need = (std::uint64_t(rows) * std::uint64_t(columns) * std::uint64_t(samples) *
+                                    std::uint64_t(frames) * std::uint64_t(bits) + 7) / 8;
+    const std::uint64_t have = std::uint64_t(pd.GetVL());
+    if (have >= need && have <= need + 1) return {};
+    std::ostringstream m;
+    m << file << ": the DICOM Pixel Data holds " << have << " bytes but the header's " << rows << " rows x " << columns
+      << " columns x " << frames << " frame(s) x " << samples << " sample(s) x BitsAllocated " << bits << " need " << need
+      << (have < need ? ": the pixel data is short" : ": BitsAllocated or the image size does not describe the data")
+      << "; the file is damaged, copy or export it again.";
+    return m.str();
+}
+
+// Scans `files` for `tags`, GDCM's console kept quiet; false if the scan fails.
+bool scanQuietly(gdcm::Scanner& scanner, const std::vector<std::string>& files, std::initializer_list<gdcm::Tag> tags) {
+    for (const auto& tag : tags) scanner.AddTag(tag);
+    QuietGdcm quiet;
+    return scanner.Scan(files);
+}
+
+// The explicit-VR value representations with a 4-byte length.
+bool longLengthVr(const char* vr) {
+    static const char* const kLong[] = {"OB", "OD", "OF", "OL", "OV", "OW", "SQ", "SV", "UC", "UN", "UR", "UT", "UV"};
+    return std::any_of(std::begin(kLong), std::end(kLong), [&](const char* v) { return std::memcmp(v, vr, 2) == 0; });
+}
+
 }  // namespace
+
+// Debian's GDCM stops the process on an assertion (is.good() in its reader)
+// when a DICOM file ends inside an element's tag, length or value before the
+// Pixel Data. Before GDCM sees a file marked "DICM", its elements are walked
+// here, lengths only: the meta group (explicit VR little endian), then the
+// data set in its transfer syntax, into sequences and items, until the Pixel
+// Data (whose own length dicomPixelDataCut checks). A deflated data set is
+// left to GDCM (its reader fails cleanly on a cut stream).
+void checkDicomStructure(const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::error_code ec;
+    const std::uint64_t size = std::filesystem::file_size(file, ec);
+    // n bytes at p (the caller keeps p + n within the file)
+    auto bytesAt = [&](std::uint64_t p, std::size_t n) {
+        std::string b(n, '\0');
+        in.seekg(static_cast<std::streamoff>(p));
+        in.read(b.data(), static_cast<std::streamsize>(n));
+        return b;
+    };
+    if (ec || size < 132 || bytesAt(128, 4) != "DICM") return;
+    std::uint64_t at = 132;
+    bool meta = true, explicitVr = true, bigEndian = false;
+    std::string syntax;
+    auto u16 = [&](std::uint64_t p, bool big) {
+        const std::string s = bytesAt(p, 2);
+        const auto* b = reinterpret_cast<const unsigned char*>(s.data());
+        return big ? std::uint16_t(b[0] << 8 | b[1]) : std::uint16_t(b[1] << 8 | b[0]);
+    };
+    auto u32 = [&](std::uint64_t p, bool big) {
+        return big ? std::uint32_t(u16(p, true)) << 16 | u16(p + 2, true) : std::uint32_t(u16(p + 2, false)) << 16 | u16(p, false);
+    };
+    auto cut = [&](std::uint16_t g, std::uint16_t e, const std::string& what) {
+        char tag[16];
+        std::snprintf(tag, sizeof tag, "(%04x,%04x)", g, e);
+        throw Error(file + ": the DICOM file is truncated inside its header: element " + tag + " at byte " +
+                    std::to_string(at) + " " + what + ", and the file ends at byte " + std::to_string(size) +
+                    "; copy or export it again.");
+    };
+    while (at < size) {
+        if (at + 8 > size) cut(0, 0, "has no room for its tag and length");
+        const bool big = !meta && bigEndian;
+        const std::uint16_t group = u16(at, big), element = u16(at + 2, big);
+        if (meta && group != 0x0002) {  // the data set starts: its transfer syntax applies from here
+            meta = false;
+            if (syntax == "1.2.840.10008.1.2.1.99") return;  // deflated
+            explicitVr = syntax != "1.2.840.10008.1.2";
+            bigEndian = syntax == "1.2.840.10008.1.2.2";
+            continue;
+        }
+        if (group == 0x7fe0 && element == 0x0010) return;  // Pixel Data: checked on its own
+        std::uint64_t header = 8, length = 0;
+        if (group == 0xfffe) {  // items and delimiters: tag and length, no VR
+            length = 0;  // walk into an item
+        } else if (meta || explicitVr) {
+            const std::string vr = bytesAt(at + 4, 2);
+            if (longLengthVr(vr.c_str())) {
+                if (at + 12 > size) cut(group, element, "has no room for its length");
+                header = 12;
+                length = u32(at + 8, big);
+            } else {
+                length = u16(at + 6, big);
+            }
+        } else {
+            length = u32(at + 4, big);
+        }
+        if (length == 0xffffffffu) length = 0;  // undefined length (a sequence): walk into it
+        if (at + header + length > size)
+            cut(group, element, "declares " + std::to_string(length) + " bytes of value");
+        if (meta && group == 0x0002 && element == 0x0010) {
+            syntax = bytesAt(at + header, static_cast<std::size_t>(std::min<std::uint64_t>(length, 64)));
+            while (!syntax.empty() && (syntax.back() == '\0' || syntax.back() == ' ')) syntax.pop_back();
+        }
+        at += header + length;
+    }
+    if (meta) {  // GDCM asserts on a file that ends inside or right after its meta group
+        at = size;
+        cut(0x0002, 0x0000, "(the file meta information) has no data set after it");
+    }
+}
 
 const char* const kDicomUnreadable =
     ": the DICOM file is damaged or truncated (GDCM cannot read its data set to the end); copy or export it again.";
@@ -100,6 +252,7 @@ void checkDicomLength(const std::string& file) {
     if (!full.Read()) throw Error(file + kDicomUnreadable);  // ITK read a deflated data set cut short
     const std::string cut = dicomPixelDataCut(file, full, quiet);
     if (!cut.empty()) throw Error(cut);
+    if (const std::string size = dicomPixelDataSize(file, full); !size.empty()) throw Error(size);
 }
 
 // ITK stacks a series' slices at one spacing (from the first and last
@@ -113,12 +266,7 @@ void checkDicomLength(const std::string& file) {
 void checkSliceSpacing(const std::string& folder, const std::vector<std::string>& files) {
     const gdcm::Tag position(0x0020, 0x0032), orientation(0x0020, 0x0037);
     gdcm::Scanner scanner;
-    scanner.AddTag(position);
-    scanner.AddTag(orientation);
-    {
-        QuietGdcm quiet;
-        if (!scanner.Scan(files)) return;
-    }
+    if (!scanQuietly(scanner, files, {position, orientation})) return;
     const std::vector<double> iop = dicomNumbers(scanner.GetValue(files.front().c_str(), orientation));
     if (iop.size() != 6) return;
     using V = itk::Vector<double, 3>;
@@ -134,11 +282,26 @@ void checkSliceSpacing(const std::string& folder, const std::vector<std::string>
     }
     std::vector<double> steps;
     for (std::size_t i = 1; i < along.size(); ++i) steps.push_back(along[i] - along[i - 1]);
-    // Slices at one position, or out of order (GDCM could not sort them, e.g.
-    // two phases in one series): not a question of spacing; left as before.
+    // Two slices at one position (a slice twice, or two phases or echoes in
+    // one series) were stacked as neighbours (GDCM's sort gives up and says
+    // so on the console only): refused. Otherwise out of order (GDCM could
+    // not sort them): not a question of spacing; left as before.
+    std::vector<std::size_t> byPosition(along.size());
+    for (std::size_t i = 0; i < along.size(); ++i) byPosition[i] = i;
+    std::sort(byPosition.begin(), byPosition.end(), [&](std::size_t a, std::size_t b) { return along[a] < along[b]; });
+    for (std::size_t k = 1; k < byPosition.size(); ++k) {
+        const std::size_t i = byPosition[k - 1], j = byPosition[k];
+        if (std::abs(along[j] - along[i]) >= 1e-4) continue;
+        std::ostringstream m;
+        m << folder << ": two DICOM slices, " << std::filesystem::path(files[std::min(i, j)]).filename().string()
+          << " and " << std::filesystem::path(files[std::max(i, j)]).filename().string() << ", lie at the same position ("
+          << along[i] << " along the slice normal): the series holds a slice twice, or two acquisitions (phases, "
+          << "echoes). Remove the extra files, or pass a folder holding one acquisition.";
+        throw Error(m.str());
+    }
     const bool up = steps.front() > 0;
     for (double step : steps)
-        if (step == 0 || (step > 0) != up) return;
+        if ((step > 0) != up) return;
     std::vector<double> sorted = steps;
     std::nth_element(sorted.begin(), sorted.begin() + (sorted.size() - 1) / 2, sorted.end());
     const double median = sorted[(sorted.size() - 1) / 2];  // the lower middle of an even count
@@ -170,6 +333,61 @@ void checkSliceSpacing(const std::string& folder, const std::vector<std::string>
     throw Error(m.str());
 }
 
+// ITK puts identity axes in place of an Image Orientation (Patient) that is
+// not two perpendicular unit vectors (all zero, say) and 1 mm in place of a
+// Pixel Spacing of 0, without a word. Files without the tags pass (ITK's
+// defaults are then all there is).
+void checkDicomGeometryTags(const std::vector<std::string>& files) {
+    const gdcm::Tag orientation(0x0020, 0x0037), spacing(0x0028, 0x0030);
+    gdcm::Scanner scanner;
+    if (!scanQuietly(scanner, files, {orientation, spacing})) return;
+    for (const auto& f : files) {
+        const char* iopText = scanner.GetValue(f.c_str(), orientation);
+        const std::vector<double> iop = dicomNumbers(iopText);
+        if (iopText && *iopText) {
+            const double row = std::sqrt(iop.size() == 6 ? iop[0] * iop[0] + iop[1] * iop[1] + iop[2] * iop[2] : 0);
+            const double column = std::sqrt(iop.size() == 6 ? iop[3] * iop[3] + iop[4] * iop[4] + iop[5] * iop[5] : 0);
+            const double dot = iop.size() == 6 ? iop[0] * iop[3] + iop[1] * iop[4] + iop[2] * iop[5] : 1;
+            if (std::abs(row - 1) > 1e-2 || std::abs(column - 1) > 1e-2 || std::abs(dot) > 1e-2)
+                throw Error(f + ": the DICOM Image Orientation (Patient) is '" + iopText +
+                            "', not two perpendicular unit vectors, so the slice's axes are unknown; the file is "
+                            "damaged or anonymised wrongly, export it again.");
+        }
+        const char* psText = scanner.GetValue(f.c_str(), spacing);
+        const std::vector<double> ps = dicomNumbers(psText);
+        if (psText && *psText && (ps.size() != 2 || !(ps[0] > 0) || !(ps[1] > 0)))
+            throw Error(f + ": the DICOM Pixel Spacing is '" + psText +
+                        "', not two positive numbers, so the voxel size is unknown; the file is damaged, export it "
+                        "again.");
+    }
+}
+
+// GDCM's series scan (with series details) puts a slice of another size
+// into a series of its own: one 32 x 32 slice among 24 x 24 ones left a gap
+// reported as a missing slice. Slices of the chosen series' UID and
+// orientation in other series must have its size.
+void checkSeriesSliceSize(const std::vector<std::string>& chosen, const std::vector<std::string>& others) {
+    const gdcm::Tag uid(0x0020, 0x000e), orientation(0x0020, 0x0037), rows(0x0028, 0x0010), columns(0x0028, 0x0011);
+    gdcm::Scanner scanner;
+    std::vector<std::string> all = chosen;
+    all.insert(all.end(), others.begin(), others.end());
+    if (chosen.empty() || !scanQuietly(scanner, all, {uid, orientation, rows, columns})) return;
+    auto value = [&](const std::string& f, const gdcm::Tag& t) {
+        const char* v = scanner.GetValue(f.c_str(), t);
+        return v ? std::string(v) : std::string();
+    };
+    const std::string& first = chosen.front();
+    const std::string size = value(first, columns) + " x " + value(first, rows);
+    for (const auto& f : others) {
+        if (value(f, uid) != value(first, uid) || value(f, orientation) != value(first, orientation)) continue;
+        const std::string odd = value(f, columns) + " x " + value(f, rows);
+        if (odd != size)
+            throw Error(f + ": this slice is " + odd + " pixels but the other " + std::to_string(chosen.size()) +
+                        " slices of its series are " + size + ": the slice size differs within the series. Remove "
+                        "the odd file or export the series again.");
+    }
+}
+
 // Reads every file of the folder with GDCM before ITK's series scan does, one
 // at a time and named through `reading` first: Debian's GDCM stops the process
 // on an assertion for a file cut inside its header, and the scan reads the
@@ -196,6 +414,7 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
             scan.named = ext == ".dcm" || ext == ".dicom";
         }
         if (options.reading) options.reading(file.string());
+        if (scan.marked) checkDicomStructure(file.string());  // before GDCM's reader asserts on it
         QuietGdcm quiet;  // per file: dicomPixelDataCut looks for this read's warning
         gdcm::Reader reader;
         reader.SetFileName(file.c_str());
@@ -205,7 +424,8 @@ std::map<std::filesystem::path, DicomFileScan> scanDicomFolder(const std::filesy
         gdcm::MediaStorage storage;
         storage.SetFromFile(reader.GetFile());
         scan.imageWithoutPixels = gdcm::MediaStorage::IsImage(storage) && !ds.FindDataElement(gdcm::Tag(0x7fe0, 0x0010));
-        scan.cut = dicomPixelDataCut(file.string(), reader, quiet);
+        scan.pixelFault = dicomPixelDataCut(file.string(), reader, quiet);
+        if (scan.pixelFault.empty()) scan.pixelFault = dicomPixelDataSize(file.string(), reader);
     }
     if (options.reading) options.reading(dir.string());
     return out;

@@ -57,6 +57,7 @@ void listSeries(DicomFolderRead& r) {
         throw Error(r.folder + ": no DICOM series, .exr slices or .tif slices found in this folder. "
                     "Pass a folder of DICOM files (one series), a folder of slices, or an image file.");
     }
+    QuietGdcm quiet;  // its sort's complaints (two slices at one position): checkSliceSpacing says what is wrong
     for (const auto& id : ids) r.series.push_back({id, names->GetFileNames(id)});
 }
 
@@ -108,6 +109,13 @@ void checkSeriesFiles(const DicomFolderRead& r) {
             for (const auto& f : sr.files) listed.insert(std::filesystem::path(f).lexically_normal());
         checkUnlistedDicomFiles(r.scans, listed);
     }
+    checkDicomGeometryTags(r.chosen->files);
+    {
+        std::vector<std::string> others;
+        for (const auto& sr : r.series)
+            if (&sr != r.chosen) others.insert(others.end(), sr.files.begin(), sr.files.end());
+        checkSeriesSliceSize(r.chosen->files, others);
+    }
     if (r.chosen->files.size() <= 1) return;
     for (const auto& f : r.chosen->files) {
         const auto it = r.scans.find(std::filesystem::path(f).lexically_normal());
@@ -115,7 +123,7 @@ void checkSeriesFiles(const DicomFolderRead& r) {
             checkDicomLength(f);  // not expected: the scan read the same folder
         } else {
             if (!it->second.readable) throw Error(f + kDicomUnreadable);
-            if (!it->second.cut.empty()) throw Error(it->second.cut);
+            if (!it->second.pixelFault.empty()) throw Error(it->second.pixelFault);
         }
     }
     checkSliceSpacing(r.folder, r.chosen->files);

@@ -22,7 +22,7 @@ namespace {
 
 // The formats whose files isohex checks itself around ITK's reader, told by
 // the file's name (as ITK's readers pick gzip and the format).
-enum class CheckedFormat { Other, Nifti, NiftiGz, MetaImage, Tiff };
+enum class CheckedFormat { Other, Nifti, NiftiGz, NiftiPair, MetaImage, Nrrd, Tiff };
 
 CheckedFormat checkedFormat(const std::filesystem::path& path) {
     std::string name = path.filename().string();
@@ -32,9 +32,23 @@ CheckedFormat checkedFormat(const std::filesystem::path& path) {
     };
     if (endsWith(".nii")) return CheckedFormat::Nifti;
     if (endsWith(".nii.gz")) return CheckedFormat::NiftiGz;
+    if (endsWith(".hdr") || endsWith(".img")) {  // NIfTI-1 or Analyze 7.5; a gzipped .img is left to ITK
+        std::error_code ec;
+        auto gz = path;
+        gz.replace_extension(".img.gz");
+        return std::filesystem::exists(gz, ec) ? CheckedFormat::Other : CheckedFormat::NiftiPair;
+    }
     if (endsWith(".mha") || endsWith(".mhd")) return CheckedFormat::MetaImage;
+    if (endsWith(".nrrd") || endsWith(".nhdr")) return CheckedFormat::Nrrd;
     if (endsWith(".tif") || endsWith(".tiff")) return CheckedFormat::Tiff;
     return CheckedFormat::Other;
+}
+
+// A NIfTI file's header and data: the file itself, or a pair's .hdr and .img.
+std::pair<std::string, std::string> niftiFiles(const std::filesystem::path& path, CheckedFormat format) {
+    if (format != CheckedFormat::NiftiPair) return {path.string(), path.string()};
+    auto header = path, data = path;
+    return {header.replace_extension(".hdr").string(), data.replace_extension(".img").string()};
 }
 
 // One image file on its way from its name to a RawVolume; the phases below
@@ -83,13 +97,28 @@ void createIo(ImageFileRead& r) {
     r.io->SetFileName(r.file);
 }
 
+// The checks that must come before ITK picks its reader, whose probes read
+// the file: GDCM's asserts on a DICOM file cut inside its header, MetaIO's
+// parses the MetaImage header.
+void checkBeforeIo(const ImageFileRead& r) {
+    checkDicomStructure(r.file);
+    if (r.format == CheckedFormat::MetaImage) checkMetaImageHeader(r.file, r.options.allowDataOutside);
+}
+
 // The checks that must come before ITK reads the header: on what they refuse
 // ITK's readers abort the process, loop for ever or pad without a word.
 void checkBeforeHeader(const ImageFileRead& r) {
-    if (r.format == CheckedFormat::MetaImage) checkMetaImageHeader(r.file);
-    if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz) checkNiftiOrientation(r.file);
+    if (r.format == CheckedFormat::Nrrd) checkNrrdHeader(r.file, r.options.allowDataOutside);
+    if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz || r.format == CheckedFormat::NiftiPair) {
+        const auto [header, data] = niftiFiles(r.path, r.format);
+        checkNiftiHeaderFields(header, data);
+        checkNiftiOrientation(header);
+    }
     if (r.format == CheckedFormat::Tiff) checkTiffLayout(r.file);
-    if (std::string(r.io->GetNameOfClass()) == "GDCMImageIO") checkDicomLength(r.file);
+    if (std::string(r.io->GetNameOfClass()) == "GDCMImageIO") {
+        checkDicomLength(r.file);
+        checkDicomGeometryTags({r.file});
+    }
 }
 
 // Reads the header: sizes, components and the pixel and component types.
@@ -97,6 +126,8 @@ void readHeader(ImageFileRead& r) {
     try {
         r.io->ReadImageInformation();
     } catch (const itk::ExceptionObject& e) {
+        if (describe(e).find("orthonormal") != std::string::npos)  // a sheared NIfTI sform and qform
+            throwSheared(r.file, "the header's sform and qform give no orthonormal axes");
         throw Error(r.file + ": the " + formatName(*r.io) + " header cannot be read (" + describe(e) +
                     "). The file is damaged or not a " + formatName(*r.io) + " file; re-export it.");
     }
@@ -117,11 +148,13 @@ void checkImageKind(const ImageFileRead& r) {
                     "; isohex reads real-valued scalar images (integer or float). Convert it to "
                     "a scalar image first (e.g. the magnitude of complex data).");
     }
-    if (r.header.dimensions < 3 || r.header.dimensions > 4) {
+    // GDCM reads one slice file as 3-D, one slice thick: a 2-D image all the same.
+    const bool oneSlice = std::string(r.io->GetNameOfClass()) == "GDCMImageIO" && r.header.size[2] == 1;
+    if (r.header.dimensions < 3 || r.header.dimensions > 4 || oneSlice) {
         std::ostringstream m;
-        m << r.file << ": a " << r.header.dimensions
+        m << r.file << ": a " << (oneSlice ? 2 : r.header.dimensions)
           << "-D image; isohex needs a 3-D volume (or a 4-D image with the volume index option).";
-        if (r.header.dimensions == 2) m << " For a stack of 2-D slices pass the folder holding them.";
+        if (r.header.dimensions == 2 || oneSlice) m << " For a stack of 2-D slices pass the folder holding them.";
         throw Error(m.str());
     }
 }
@@ -161,8 +194,10 @@ void checkVolumeChoice(ImageFileRead& r) {
 void checkDataSize(const ImageFileRead& r) {
     checkMemoryBudget(r.file, r.header, r.options.maxMemoryMB);
     const auto bytes = static_cast<std::uint64_t>(r.io->GetImageSizeInBytes());
-    if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz)
-        checkNiftiDataSize(r.file, bytes, r.format == CheckedFormat::NiftiGz);
+    if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz || r.format == CheckedFormat::NiftiPair) {
+        const auto [header, data] = niftiFiles(r.path, r.format);
+        checkNiftiDataSize(header, data, bytes, r.format == CheckedFormat::NiftiGz);
+    }
     if (r.format == CheckedFormat::MetaImage) checkMetaImageSize(r.file, bytes);
 }
 
@@ -235,6 +270,7 @@ void finish(const ImageFileRead& r, RawVolume& raw) {
 
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options) {
     ImageFileRead r(path, options);
+    checkBeforeIo(r);
     createIo(r);
     checkBeforeHeader(r);
     readHeader(r);

@@ -8,6 +8,10 @@
 #include <initializer_list>
 #include <sstream>
 
+#include <cerrno>
+#include <cstring>
+
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <openvdb/io/File.h>
@@ -356,6 +360,33 @@ std::vector<fs::path> filesWithExtension(const fs::path& dir, std::initializer_l
 }  // namespace
 
 namespace {
+
+// The input is a file or folder isohex may open: a named pipe blocked the
+// reader for ever, a device was read as voxels, and a file without read
+// permission was called damaged by the reader that failed to open it.
+void checkInputKind(const fs::path& path, const fs::file_status& status) {
+    const std::string file = path.string();
+    const auto type = status.type();
+    if (type != fs::file_type::regular && type != fs::file_type::directory) {
+        const char* what = type == fs::file_type::fifo                                          ? "a named pipe (FIFO)"
+                           : type == fs::file_type::character || type == fs::file_type::block ? "a device"
+                           : type == fs::file_type::socket                                      ? "a socket"
+                                                                                                 : "not a regular file";
+        throw Error(file + ": is " + what + ", not a scan file or folder; isohex reads regular files (a pipe "
+                    "or device would block or never end). Save the scan to a file and pass its path.");
+    }
+    const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        const int err = errno;
+        if (err == EACCES || err == EPERM)
+            throw Error(file + ": permission denied: this user may not read the " +
+                        (type == fs::file_type::directory ? "folder" : "file") +
+                        ". Make it readable (chmod u+r, or ask its owner) and retry.");
+        throw Error(file + ": cannot be opened (" + std::strerror(err) + "); check the path and retry.");
+    }
+    ::close(fd);
+}
+
 Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
     const std::string file = path.string();
     std::error_code ec;
@@ -364,6 +395,7 @@ Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
         throw Error(file + ": no such file or folder. Check the path (relative paths start at " +
                     fs::current_path().string() + ").");
     }
+    checkInputKind(path, status);
     if (fs::is_directory(status)) {
         if (auto exr = filesWithExtension(path, {".exr"}); !exr.empty())
             return fromRaw(detail::exrReader().readSlices(exr, options), file, options);
@@ -375,6 +407,7 @@ Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
         throw Error(file + ": the file is empty; it was probably not written completely. Export it again.");
     }
     if (lower(path.extension().string()) == ".vdb") return loadVdb(path, options);
+    if (detail::isNifti2(path)) return fromRaw(detail::readNifti2(path, options), file, options);
     return fromRaw(detail::itkReaders().readImageFile(path, options), file, options);
 }
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include <zlib.h>
 
+#include "DataFilePlace.hpp"
 #include "FormatChecks.hpp"
 
 namespace isohex::imaging::detail {
@@ -151,21 +152,18 @@ namespace {
 // it, and where its data files are looked for.
 struct MetaLayout {
     std::string file;
+    bool allowDataOutside = false;
     MetaHeader header;
     std::filesystem::path dir;  // the header's folder
     long long ndims = 0;
     std::vector<long long> dims;  // DimSize; 0 for a size that is not a positive whole number
     long long slices = 0;         // the last dimension's size, when DimSize gives NDims sizes
 
-    explicit MetaLayout(const std::string& f) : file(f), header(f), dir(std::filesystem::path(f).parent_path()) {}
+    MetaLayout(const std::string& f, bool allowOutside)
+        : file(f), allowDataOutside(allowOutside), header(f), dir(std::filesystem::path(f).parent_path()) {}
     [[noreturn]] void fail(const std::string& what) const { throw Error(file + ": " + what); }
-    // A data file named in the header must exist next to it.
-    void requireFile(const std::string& name) const {
-        std::error_code ec;
-        if (!std::filesystem::is_regular_file(dir / name, ec))
-            fail("its voxel data file '" + (dir / name).string() +
-                 "' is missing; keep the header and its data files together.");
-    }
+    // A data file named in the header must be a regular file beside it.
+    void requireFile(const std::string& name) const { checkDataFilePlace(file, name, allowDataOutside); }
 };
 
 // NDims (1 to 8: MetaIO loops for ever on 0 or less) and DimSize.
@@ -257,11 +255,7 @@ void checkFilePattern(const MetaLayout& m) {
     if (words.size() >= 3) step = static_cast<long long>(words[2]);
     // One integer conversion (%d, %03d ...) and nothing else a printf
     // would read an argument for.
-    const auto percent = pattern.find('%');
-    std::size_t at = percent + 1;
-    while (at < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[at]))) ++at;
-    if (at >= pattern.size() || (pattern[at] != 'd' && pattern[at] != 'i') ||
-        pattern.find('%', at) != std::string::npos || pattern.size() > 1000)
+    if (!isOneIntegerPattern(pattern))
         m.fail("the MetaImage file pattern '" + pattern + "' must hold one integer field such as %03d; fix the header.");
     if (step <= 0 || last < first)
         m.fail("the MetaImage file pattern '" + dataFile + "' steps by " + std::to_string(step) + " from " +
@@ -278,13 +272,20 @@ void checkFilePattern(const MetaLayout& m) {
     }
 }
 
-// HeaderSize (bytes skipped before the data) must end inside the data file.
+// One data file (or LOCAL): the file must be a regular file beside the
+// header, and HeaderSize (bytes skipped before the data; -1: the data ends
+// the file) must be -1 or more and end inside it.
 void checkHeaderSize(const MetaLayout& m) {
-    long long headerSize = 0;
-    if (const std::string* value = m.header.get("HeaderSize")) std::istringstream(*value) >> headerSize;
-    if (headerSize <= 0) return;
     const std::string& dataFile = m.header.dataFile;
     const bool local = dataFile == "LOCAL" || dataFile == "Local" || dataFile == "local";
+    if (!local) m.requireFile(dataFile);
+    long long headerSize = 0;
+    if (const std::string* value = m.header.get("HeaderSize")) std::istringstream(*value) >> headerSize;
+    if (headerSize < -1)
+        m.fail("the MetaImage header's HeaderSize is " + std::to_string(headerSize) +
+               "; it must be the bytes before the data (0 or more, or -1 for data that ends the file). "
+               "Fix the header and retry.");
+    if (headerSize <= 0) return;
     const std::filesystem::path data = local ? std::filesystem::path(m.file) : m.dir / dataFile;
     std::error_code ec;
     const auto have = std::filesystem::file_size(data, ec);
@@ -300,13 +301,17 @@ void checkHeaderSize(const MetaLayout& m) {
 // forever printing errors, ASCII data (BinaryData = False) crashes the
 // process (ITK 5.2/5.3), and a LIST or pattern naming missing files, an empty
 // ElementDataFile or a HeaderSize past the end of the data leave voxels
-// unread, which it reports only as a warning. Checked before MetaIO reads
+// unread, which it reports only as a warning; without ElementDataFile it
+// aborts the process. Data files must be regular files in the header's
+// folder (checkDataFilePlace). Checked before MetaIO reads
 // the header. (The data size of LOCAL and single-file data is checked after,
 // by checkMetaImageSize, which needs the element size.)
-void checkMetaImageHeader(const std::string& file) {
-    MetaLayout m(file);
+void checkMetaImageHeader(const std::string& file, bool allowDataOutside) {
+    MetaLayout m(file, allowDataOutside);
     readDimensions(m);
-    if (!m.header.hasDataFile) return;  // not a MetaImage header as far as this check goes: MetaIO judges it
+    if (!m.header.hasDataFile)  // MetaIO reads past its buffer (a fortified abort) looking for it
+        m.fail("the MetaImage header has no ElementDataFile line (LOCAL, LIST or the data file's name), so it "
+               "says nowhere where its voxels are; fix the header or export the image again.");
     checkDataDeclaration(m);
     if (m.header.dataFile.rfind("LIST", 0) == 0)
         checkListedFiles(m);

@@ -8,10 +8,12 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <sstream>
 #include <type_traits>
 
 #include <zlib.h>
 
+#include "DataFilePlace.hpp"
 #include "FormatChecks.hpp"
 
 namespace isohex::imaging::detail {
@@ -82,18 +84,96 @@ std::uint64_t gunzippedSize(const std::string& file) {
 
 }  // namespace
 
-// NIfTI's reader zero-fills missing voxel bytes with only a debug message, so
-// check the size against the header ourselves: the file's size, or for a
-// .nii.gz its uncompressed size (reading it through: a cut gzip stream ends
-// early), against vox_offset plus the voxel bytes.
-void checkNiftiDataSize(const std::string& file, std::uint64_t dataBytes, bool gzipped) {
+int niftiVersion(const std::string& file) {
     const NiftiHeader h(file);
-    if (h.got < 352 || !h.known) return;  // too short for a header; ITK has judged it already
+    return h.got < 4 || !h.known ? 0 : h.v1 ? 1 : 2;
+}
+
+// NIfTI's reader zero-fills missing voxel bytes with only a debug message, and
+// reads the start of data longer than the header says as a whole volume, so
+// check the size against the header ourselves: the file's size (for a pair,
+// the .img's), or for a .nii.gz its uncompressed size (reading it through: a
+// cut gzip stream ends early), against vox_offset plus the voxel bytes. A
+// file cut right after its header is truncated too, not a volume of zeros.
+void checkNiftiDataSize(const std::string& file, const std::string& dataFile, std::uint64_t dataBytes, bool gzipped) {
+    const NiftiHeader h(file);
+    if (h.got < (h.v1 ? 348 : 540) || !h.known) return;  // too short for a header; ITK has judged it already
     const double voxOffset = h.voxOffset();
     if (!gzipped && (h.compressed || !(voxOffset >= 0))) return;  // (a gzip stream named .nii: its file size says nothing)
-    const std::uint64_t need = std::uint64_t(gzipped ? std::max(voxOffset, 352.0) : voxOffset) + dataBytes;
-    const std::uint64_t have = gzipped ? gunzippedSize(file) : std::filesystem::file_size(file);
-    if (have < need) throwTruncated(file, need, have, gzipped ? "uncompressed bytes" : "bytes");
+    const double headerEnd = h.v1 ? 352.0 : 544.0;
+    const bool pair = dataFile != file;
+    const std::uint64_t need = std::uint64_t(gzipped ? std::max(voxOffset, headerEnd) : voxOffset) + dataBytes;
+    const std::uint64_t have = gzipped ? gunzippedSize(file) : std::filesystem::file_size(dataFile);
+    if (have < need) throwTruncated(pair ? dataFile : file, need, have, gzipped ? "uncompressed bytes" : "bytes");
+    if (have > need)
+        throw Error((pair ? dataFile : file) + ": holds " + std::to_string(have - need) +
+                    " bytes more voxel data than the NIfTI header's dim and datatype account for (" +
+                    std::to_string(dataBytes) + " bytes from byte " + std::to_string(std::uint64_t(voxOffset)) +
+                    "): the header does not describe the data (dim too small, or the wrong datatype), so its "
+                    "voxels would be read scrambled. Fix the header or export the file again.");
+}
+
+namespace {
+
+// Bits per voxel of each NIfTI datatype, 0 for codes NIfTI does not define.
+int niftiTypeBits(int datatype) {
+    switch (datatype) {
+        case 2: case 256: return 8;
+        case 4: case 512: return 16;
+        case 8: case 16: case 768: case 2304: return 32;
+        case 128: return 24;
+        case 32: case 64: case 1024: case 1280: return 64;
+        case 1536: case 1792: return 128;
+        case 2048: return 256;
+        default: return 0;
+    }
+}
+
+[[noreturn]] void refuseField(const std::string& file, const std::string& what) {
+    throw Error(file + ": the NIfTI header's " + what + ". Fix the header or export the file again.");
+}
+
+// vox_offset: a number, and for a single file past the header (nifti1_io
+// moves a smaller one to the end of the header without a word).
+void checkVoxOffset(const std::string& file, const NiftiHeader& h, bool pair) {
+    const double at = h.v1 ? double(h.field<float>(108)) : double(h.field<std::int64_t>(168));
+    const double headerEnd = h.v1 ? 352.0 : 544.0;
+    std::ostringstream value;
+    value << at;
+    if (!std::isfinite(at)) refuseField(file, "vox_offset (where the voxels start) is " + value.str() + ", not a number");
+    if (at < 0) refuseField(file, "vox_offset (where the voxels start) is negative (" + value.str() + ")");
+    if (!pair && at < headerEnd)
+        refuseField(file, "vox_offset (where the voxels start) is " + value.str() + ", inside the " +
+                              std::to_string(int(headerEnd)) + "-byte header; in a .nii file the voxels start at byte " +
+                              std::to_string(int(headerEnd)) + " or later");
+}
+
+}  // namespace
+
+// Header fields nifti1_io reads past without a word: a bitpix that is not
+// the datatype's size (the voxels are read by datatype, so the header
+// contradicts itself), vox_offset, and a zero pixdim where the spacing comes
+// from pixdim (no sform), which it takes as 1 mm. The data file of a pair
+// (.hdr with .img) must be a regular file; its absence is the .img's fault.
+void checkNiftiHeaderFields(const std::string& file, const std::string& dataFile) {
+    const bool pair = dataFile != file;
+    if (pair) checkDataFilePlace(file, std::filesystem::path(dataFile).filename().string(), true);  // named by convention, not by the header
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;  // ITK judges short headers
+    const int datatype = h.field<std::int16_t>(h.v1 ? 70 : 12), bitpix = h.field<std::int16_t>(h.v1 ? 72 : 14);
+    if (const int bits = niftiTypeBits(datatype); bits > 0 && bitpix != bits)
+        refuseField(file, "datatype (" + std::to_string(datatype) + ", " + std::to_string(bits) +
+                              " bits per voxel) and bitpix (" + std::to_string(bitpix) +
+                              ") disagree, so the voxels' size is unknown");
+    checkVoxOffset(file, h, pair);
+    const bool nifti = std::memcmp(h.bytes + (h.v1 ? 344 : 4), h.v1 ? (pair ? "ni1" : "n+1") : (pair ? "ni2" : "n+2"), 3) == 0;
+    const int sform = !nifti ? 0 : h.v1 ? h.field<std::int16_t>(254) : h.field<std::int32_t>(348);
+    const auto dims = h.v1 ? std::int64_t(h.field<std::int16_t>(40)) : h.field<std::int64_t>(16);
+    for (int k = 1; k <= std::min<std::int64_t>(dims, 3) && sform <= 0; ++k)
+        if (h.real(76 + 4 * k, 104 + 8 * k) == 0.0)
+            refuseField(file, "pixdim[" + std::to_string(k) + "] (the voxel spacing along axis " +
+                                  std::to_string(k - 1) + ") is 0 and no sform gives the spacing instead; "
+                                  "nifti1_io would assume 1 mm without a word");
 }
 
 // NIfTI orientation fields that are not finite make ITK's reader abort the

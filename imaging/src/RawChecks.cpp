@@ -1,6 +1,7 @@
 // The checks every reader runs on the RawVolume it made (see RawChecks.hpp).
 #include "RawChecks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <sstream>
@@ -37,6 +38,37 @@ void convertToLabels(RawVolume& raw, const std::string& file, bool integerFile) 
     raw.values.shrink_to_fit();
 }
 
+void throwSheared(const std::string& file, const std::string& detail) {
+    throw Error(file + ": the image's axes are not perpendicular (" + detail +
+                "): its voxels are sheared, and isohex meshes grids whose axes are perpendicular (ITK refuses "
+                "sheared NIfTI files alike). Resample the image onto a grid with perpendicular axes (e.g. with "
+                "ITK's ResampleImageFilter or 3D Slicer) and retry.");
+}
+
+// ITK reads NRRD space directions and a MetaImage TransformMatrix that are
+// not perpendicular as they are (the NIfTI reader refuses them): the mesh,
+// built on the voxel grid, then did not follow the isosurface. Within 1e-4
+// of perpendicular (directions written to six decimals pass).
+void checkAxesPerpendicular(const std::array<double, 9>& D, const std::string& file) {
+    for (int a = 0; a < 3; ++a)
+        for (int b = a + 1; b < 3; ++b) {
+            double dot = 0, na = 0, nb = 0;
+            for (int w = 0; w < 3; ++w) {
+                dot += D[3 * w + a] * D[3 * w + b];
+                na += D[3 * w + a] * D[3 * w + a];
+                nb += D[3 * w + b] * D[3 * w + b];
+            }
+            const double cosine = dot / std::sqrt(na * nb);
+            if (std::fabs(cosine) > 1e-4) {
+                std::ostringstream m;
+                m.precision(4);
+                m << "axes " << a << " and " << b << " meet at " << std::acos(std::clamp(cosine, -1.0, 1.0)) * 180.0 / M_PI
+                  << " degrees";
+                throwSheared(file, m.str());
+            }
+        }
+}
+
 void checkGeometry(const RawVolume& raw, const std::string& file) {
     for (int a = 0; a < 3; ++a) {
         if (!(raw.spacing[a] > 0.0) || !std::isfinite(raw.spacing[a])) {
@@ -70,6 +102,7 @@ void checkGeometry(const RawVolume& raw, const std::string& file) {
         throw Error(file + ": the direction cosines are singular (determinant " +
                     std::to_string(det) + "); fix the orientation in the header and retry.");
     }
+    checkAxesPerpendicular(D, file);
     // OpenVDB refuses a transform whose determinant (the voxel volume) is
     // below 3e-15 (3 x its double tolerance): micrometre voxels given in
     // metres (1e-6 m: 1e-18).

@@ -41,6 +41,10 @@ void checkMemoryBudget(const std::string& file, const RawHeader& header, double 
 
 // ITK: one image file (NIfTI, NRRD, MetaImage, TIFF, a single DICOM file).
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options);
+// True for a .nii or .nii.gz file with a NIfTI-2 header (540 bytes).
+bool isNifti2(const std::filesystem::path& path);
+// libnifti2: a NIfTI-2 file (ITK 5.2 reads NIfTI-1 only).
+RawVolume readNifti2(const std::filesystem::path& path, const LoadOptions& options);
 // ITK: a folder holding one or more DICOM series.
 RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions& options);
 // ITK: a folder of 2-D TIFF slices, stacked in natural file-name order.

@@ -13,6 +13,8 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfOutputFile.h>
+#include <gdcmReader.h>
+#include <gdcmWriter.h>
 #include <itkGDCMImageIO.h>
 #include <itkGDCMImageIOFactory.h>
 #include <itkImage.h>
@@ -269,6 +271,21 @@ std::array<double, 3> itkPhysicalPoint(const Geometry& g, const std::array<long,
     itk::Image<float, 3>::PointType p;
     image->TransformIndexToPhysicalPoint(i, p);
     return {p[0], p[1], p[2]};
+}
+
+void setDicomElement(const fs::path& file, std::uint16_t group, std::uint16_t element, const std::string& bytes) {
+    gdcm::Reader reader;
+    reader.SetFileName(file.c_str());
+    if (!reader.Read()) throw std::runtime_error("GDCM cannot read " + file.string());
+    gdcm::DataSet& ds = reader.GetFile().GetDataSet();
+    const gdcm::Tag tag(group, element);
+    gdcm::DataElement de = ds.FindDataElement(tag) ? ds.GetDataElement(tag) : gdcm::DataElement(tag);
+    de.SetByteValue(bytes.data(), static_cast<std::uint32_t>(bytes.size()));
+    ds.Replace(de);
+    gdcm::Writer writer;
+    writer.SetFile(reader.GetFile());
+    writer.SetFileName(file.c_str());
+    if (!writer.Write()) throw std::runtime_error("GDCM cannot write " + file.string());
 }
 
 }  // namespace isohex::imaging::test

@@ -5,12 +5,20 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
 namespace isohex::imaging::test {
 
 namespace fs = std::filesystem;
+
+// Runs `f`, expects isohex::Error (a GoogleTest failure otherwise), checks
+// that its message mentions every piece, and returns the message.
+std::string expectError(const std::function<void()>& f, const std::vector<std::string>& pieces);
+// A file's bytes, written and read whole.
+void writeBytes(const fs::path& p, const std::string& bytes);
+std::string readAll(const fs::path& p);
 
 // The folder of real scans (env ISOHEX_SHARED_DATA, set by ctest).
 fs::path sharedData();
@@ -42,6 +50,9 @@ void writeDicomSeries(const fs::path& dir, const Dims& dims, const std::vector<s
 void writeMultiFrameDicom(const fs::path& path, const Dims& dims, const std::vector<std::int16_t>& v,
                           const Geometry& g);
 std::string dicomTag(const fs::path& file, const std::string& tag);
+// Sets a data element of a DICOM file to `bytes` (its value as stored: text,
+// or little-endian binary), through GDCM's reader and writer.
+void setDicomElement(const fs::path& file, std::uint16_t group, std::uint16_t element, const std::string& bytes);
 // Images the loader must refuse or handle specially.
 void writeComplexImage(const fs::path& path, const Dims& dims);
 void write4DImage(const fs::path& path, const Dims& dims, int frames);  // value = frame index

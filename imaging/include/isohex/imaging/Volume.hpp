@@ -44,6 +44,10 @@ struct LoadOptions {
     // NaN / Inf voxels are an error unless this is set; then they are kept in
     // the grid and every selection treats them as outside.
     bool nanAsOutside = false;
+    // A header (.nhdr, .mhd) may name data files only in its own folder or
+    // below it unless this is set; devices, pipes, folders and the header
+    // itself are refused either way.
+    bool allowDataOutside = false;
     // Refuse volumes whose estimated peak memory while loading exceeds this
     // many MiB. 0 = 80 % of the machine's physical memory.
     double maxMemoryMB = 0.0;
