@@ -49,7 +49,7 @@ struct LeafWalk {
         const std::int32_t m = labels.at(static_cast<int>(a[0]), static_cast<int>(a[1]), static_cast<int>(a[2]));
         if (m == 0) return;
         const TemplateChoice choice = chooseTemplate(marks);
-        if (choice.action == TemplateChoice::Action::Refine)
+        if (choice.action == TemplateChoice::Action::Promote)
             throw Error("internal error: a leaf of the refinement tree has marked corners no template takes");
         if (choice.action == TemplateChoice::Action::Plain) {
             std::array<NodeKey, 8> h;

@@ -11,42 +11,54 @@ namespace isohex::octree {
 
 namespace {
 
-// The marked corners of cell (i, j, k): corner (dx, dy, dz) is marked when one
-// of the 8 cells around it is refined.
-std::uint8_t markedCorners(const RefinementLevel& L, int i, int j, int k) {
-    bool r[3][3][3];
-    for (int c = 0; c < 3; ++c)
-        for (int b = 0; b < 3; ++b)
-            for (int a = 0; a < 3; ++a) {
-                const int x = i + a - 1, y = j + b - 1, z = k + c - 1;
-                r[c][b][a] = L.contains(x, y, z) && L.refined[L.index(x, y, z)] != 0;
-            }
-    std::uint8_t mask = 0;
-    for (int corner = 0; corner < 8; ++corner) {
-        const int dx = corner & 1, dy = corner >> 1 & 1, dz = corner >> 2 & 1;
-        bool marked = false;
-        for (int n = 0; n < 8 && !marked; ++n) marked = r[dz + (n >> 2 & 1)][dy + (n >> 1 & 1)][dx + (n & 1)];
-        if (marked) mask = static_cast<std::uint8_t>(mask | 1u << corner);
-    }
-    return mask;
-}
+// Marked corners of one level: one byte per cell corner.
+struct CornerMarks {
+    std::array<int, 3> dims;  // corners per axis (cells + 1)
+    std::vector<std::uint8_t> marked;
 
-// Promotion to a fixed point: an unrefined cell whose marked corners no
-// template takes is refined, which marks more corners. Sweeps in index order
-// update in place (a promotion is seen by the cells after it in the same
-// sweep), so the result depends on the refined set alone. Returns how many
-// cells were promoted.
+    explicit CornerMarks(const RefinementLevel& L)
+        : dims{L.dims[0] + 1, L.dims[1] + 1, L.dims[2] + 1},
+          marked(static_cast<std::size_t>(dims[0]) * dims[1] * dims[2], 0) {}
+    std::size_t index(int i, int j, int k) const {
+        return (static_cast<std::size_t>(k) * static_cast<std::size_t>(dims[1]) + static_cast<std::size_t>(j)) *
+                   static_cast<std::size_t>(dims[0]) +
+               static_cast<std::size_t>(i);
+    }
+    // The mask of cell (i, j, k): bit x + 2y + 4z for its corner (i + x, j + y, k + z).
+    std::uint8_t mask(int i, int j, int k) const {
+        std::uint8_t m = 0;
+        for (int c = 0; c < 8; ++c)
+            if (marked[index(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))]) m = static_cast<std::uint8_t>(m | 1u << c);
+        return m;
+    }
+    void mark(int i, int j, int k, std::uint8_t m) {
+        for (int c = 0; c < 8; ++c)
+            if (m >> c & 1) marked[index(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1))] = 1;
+    }
+};
+
+// Marked-node closure of one level: refined cells mark their 8 corners; an
+// unrefined cell whose mask has no template marks the corners its promotion
+// adds (TemplateChoice::promoteTo), until nothing changes. Sweeps in index
+// order update in place, so the result depends on the refined set alone.
+// Leaves each unrefined cell's mask in L.marks; returns how many cells were
+// promoted.
 std::size_t closeLevel(RefinementLevel& L) {
+    CornerMarks corners(L);
+    for (int k = 0; k < L.dims[2]; ++k)
+        for (int j = 0; j < L.dims[1]; ++j)
+            for (int i = 0; i < L.dims[0]; ++i)
+                if (L.refined[L.index(i, j, k)]) corners.mark(i, j, k, 0xFF);
     std::size_t promoted = 0;
     for (bool changed = true; changed;) {
         changed = false;
         for (int k = 0; k < L.dims[2]; ++k)
             for (int j = 0; j < L.dims[1]; ++j)
                 for (int i = 0; i < L.dims[0]; ++i) {
-                    const std::size_t c = L.index(i, j, k);
-                    if (L.refined[c]) continue;
-                    if (chooseTemplate(markedCorners(L, i, j, k)).action != TemplateChoice::Action::Refine) continue;
-                    L.refined[c] = 1;
+                    if (L.refined[L.index(i, j, k)]) continue;
+                    const TemplateChoice c = chooseTemplate(corners.mask(i, j, k));
+                    if (c.action != TemplateChoice::Action::Promote) continue;
+                    corners.mark(i, j, k, c.promoteTo);
                     ++promoted;
                     changed = true;
                 }
@@ -55,7 +67,7 @@ std::size_t closeLevel(RefinementLevel& L) {
         for (int j = 0; j < L.dims[1]; ++j)
             for (int i = 0; i < L.dims[0]; ++i) {
                 const std::size_t c = L.index(i, j, k);
-                L.marks[c] = L.refined[c] ? 0 : markedCorners(L, i, j, k);
+                L.marks[c] = L.refined[c] ? 0 : corners.mask(i, j, k);
             }
     return promoted;
 }

@@ -122,20 +122,48 @@ std::vector<CubeSymmetry> makeSymmetries() {
     return out;
 }
 
+// Whether every one of the cube's 12 edges has a marked end (then every face
+// is split in nine and the 27 unit cubes conform).
+bool coversEveryEdge(int mask) {
+    for (int c = 0; c < 8; ++c)
+        for (int axis = 0; axis < 3; ++axis) {
+            const int d = c | 1 << axis;
+            if (d != c && !(mask >> c & 1) && !(mask >> d & 1)) return false;
+        }
+    return true;
+}
+
 struct ChoiceTable {
     std::array<TemplateChoice, 256> choice;
+
+    static TemplateChoice direct(int m) {
+        TemplateChoice c;
+        if (m == 0) return c;
+        for (TemplateKind k : {TemplateKind::Vertex, TemplateKind::Edge, TemplateKind::Face})
+            for (const CubeSymmetry& s : cubeSymmetries())
+                if (s.applyToMask(canonicalMask(k)) == m) return {TemplateChoice::Action::Template, k, s, 0};
+        if (coversEveryEdge(m)) return {TemplateChoice::Action::Template, TemplateKind::Full, CubeSymmetry{}, 0};
+        c.action = TemplateChoice::Action::Promote;
+        return c;
+    }
+
     ChoiceTable() {
+        for (int m = 0; m < 256; ++m) choice[static_cast<std::size_t>(m)] = direct(m);
+        // Promotion: the superset with a template and the fewest added corners;
+        // among those a transition template before FULL, then the smallest mask.
         for (int m = 0; m < 256; ++m) {
             TemplateChoice& c = choice[static_cast<std::size_t>(m)];
-            c.action = m == 0 ? TemplateChoice::Action::Plain : TemplateChoice::Action::Refine;
-            for (TemplateKind k : {TemplateKind::Vertex, TemplateKind::Edge, TemplateKind::Face}) {
-                if (m == 0 || c.action == TemplateChoice::Action::Template) break;
-                for (const CubeSymmetry& s : cubeSymmetries())
-                    if (s.applyToMask(canonicalMask(k)) == m) {
-                        c = {TemplateChoice::Action::Template, k, s};
-                        break;
-                    }
-            }
+            if (c.action != TemplateChoice::Action::Promote) continue;
+            int best = 0xFF;
+            const auto rank = [&](int s) {
+                const bool full = choice[static_cast<std::size_t>(s)].kind == TemplateKind::Full;
+                return std::popcount(static_cast<unsigned>(s)) * 1024 + full * 512 + s;
+            };
+            for (int s = 0; s < 256; ++s)
+                if ((s & m) == m && choice[static_cast<std::size_t>(s)].action == TemplateChoice::Action::Template &&
+                    rank(s) < rank(best))
+                    best = s;
+            c.promoteTo = static_cast<std::uint8_t>(best);
         }
     }
 };

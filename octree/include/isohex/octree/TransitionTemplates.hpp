@@ -14,8 +14,18 @@
 // an edge is split in three iff one of its ends is marked; a face with no
 // marked corner is one quad, with one the VERTEX pattern (5 quads), with the
 // two of one edge the EDGE pattern (10 quads: two rows of three unit quads
-// along the edge, then the 3-to-1 strip), with all four nine unit quads.
-// Every other mask has no template: the cell must be refined (promotion).
+// along the edge, then the 3-to-1 strip), with two diagonal, three or four
+// nine unit quads (every edge of such a face is split).
+//
+// Masks with a template: none (plain), one corner (VERTEX), one edge (EDGE),
+// one face (FACE), and every mask that marks an end of each of the 12 edges
+// (FULL: 27 unit cubes, every face split in nine; e.g. seven corners, the
+// cell in a concave corner of a refined region, or two opposite corners of
+// every face). Any other mask is promoted: corners are added, the fewest
+// that reach a mask with a template, and the neighbours sharing them see the
+// new marks (marked-node closure). Without FULL for masks short of eight,
+// concave corners of a refined region would be refined and make new concave
+// corners, which fills the bounding box of a curved boundary band.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -26,7 +36,7 @@ enum class TemplateKind : std::uint8_t {
     Vertex,  // one corner marked: 7 hexes
     Edge,    // the two corners of one edge: 17 hexes
     Face,    // the four corners of one face: 31 hexes (18 unit cubes and Schneiders' 13-hex 9-to-1 layer)
-    Full,    // all eight: 27 unit cubes (a refined cell's children)
+    Full,    // every edge has a marked end: 27 unit cubes (also a refined cell's children)
 };
 
 // A template hex: its 8 corners in VTK order, quarter-lattice coordinates 0..12.
@@ -59,9 +69,10 @@ std::uint8_t canonicalMask(TemplateKind kind);
 
 // What a cell with the given marked corners becomes.
 struct TemplateChoice {
-    enum class Action : std::uint8_t { Plain, Template, Refine } action = Action::Plain;
+    enum class Action : std::uint8_t { Plain, Template, Promote } action = Action::Plain;
     TemplateKind kind = TemplateKind::Full;
-    CubeSymmetry symmetry;  // maps the canonical placement onto this mask
+    CubeSymmetry symmetry;       // maps the canonical placement onto this mask (identity for FULL)
+    std::uint8_t promoteTo = 0;  // Promote: the mask to mark (a superset with a template)
 };
 TemplateChoice chooseTemplate(std::uint8_t markedCorners);
 
