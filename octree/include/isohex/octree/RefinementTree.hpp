@@ -24,6 +24,20 @@
 // template hexes are final and deeper refinement must sit inside fully
 // refined parents. So a leaf's level differs from that of any face, edge or
 // corner neighbour by at most one.
+//
+// Known limit of this template set (vertex, edge, face, and the 27 unit
+// cubes for masks that mark an end of every edge): a cell whose two
+// adjacent faces are marked (six corners: the convex edge of a coarse region
+// wrapped by refined cells) has no template, and its promotion adds a corner
+// that its neighbours further inside must take, so a coarse region enclosed
+// by refined cells is eaten from its edges: the closure then refines the
+// whole inside. That two-face ("concave edge") template cannot keep unit
+// cubes beside its corner column (the corner hex would need the two strips'
+// corner quads, which share no edge, as adjacent faces); it needs a
+// transition spread over the 2x2 columns at the unsplit edge, which is the
+// next step (Ito, Shih and Soni 2009; Tong and Zhang 2025 for relaxed
+// balance). Until then the adaptive mesh of a closed object keeps the
+// hex count of the uniform one.
 #include <array>
 #include <cstddef>
 #include <cstdint>
