@@ -22,7 +22,8 @@ namespace {
 // the (x, radial) plane swept along the piece (4 hexes each): faces y = 0 and
 // z = 0 show the EDGE pattern, x = 0 and x = 3 the VERTEX pattern.
 //
-// FACE (z = 0 marked): 18 unit-cube places in z in [0, 2], then Schneiders'
+// FACE (z = 0 marked): 18 hexes in z in [0, 2] (the unit cubes, but see the
+// moved nodes below), then Schneiders'
 // 13-hex 9-to-1 layer in z in [2, 3] (4 corner pillars, 4 edge pillars, a
 // centre hex, two y-side caps, a plate and the top hex); its four sides show
 // the 3-to-1 strip with the middle nodes at z = 2.5. Nodes inside the cell
