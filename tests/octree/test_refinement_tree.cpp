@@ -157,6 +157,9 @@ TEST(RefinementTree, LabelChangesKeepTheBoundaryAndTheVolumeOfTheUniformMesh) {
     // node classes come from the uniform mesh: every boundary node is on the surface
     for (Index n : ta.boundaryNodes) EXPECT_NE(m.nodeClass[static_cast<std::size_t>(n)].kind, NodeKind::Interior);
     // coarse hexes are positively oriented (only boundary hexes of dual contouring may be inverted)
-    for (Index h = 0; h < static_cast<Index>(m.hexCount()); ++h)
-        if (a.hexLevel[static_cast<std::size_t>(h)] > 0) EXPECT_GT(minJacobianDeterminant(hexCoords(m, h)), 0);
+    for (Index h = 0; h < static_cast<Index>(m.hexCount()); ++h) {
+        if (a.hexLevel[static_cast<std::size_t>(h)] > 0) {
+            EXPECT_GT(minJacobianDeterminant(hexCoords(m, h)), 0);
+        }
+    }
 }

@@ -31,13 +31,27 @@
 // wrapped by refined cells) has no template, and its promotion adds a corner
 // that its neighbours further inside must take, so a coarse region enclosed
 // by refined cells is eaten from its edges: the closure then refines the
-// whole inside. That two-face ("concave edge") template cannot keep unit
-// cubes beside its corner column (the corner hex would need the two strips'
-// corner quads, which share no edge, as adjacent faces); it needs a
-// transition spread over the 2x2 columns at the unsplit edge, which is the
-// next step (Ito, Shih and Soni 2009; Tong and Zhang 2025 for relaxed
-// balance). Until then the adaptive mesh of a closed object keeps the
-// hex count of the uniform one.
+// whole inside. No other choice of marks avoids this: an exhaustive search
+// over every marking of a block whose outer shell is refined
+// (tools/template-closure-search.py) finds none that keeps the centre cell
+// plain with this template set, and finds one as soon as the two-face masks
+// are allowed; so the two-face template is required, not a closure rule.
+// What it must show: the two marked faces and the two end faces split in
+// nine, the two other faces the EDGE pattern whose 3-to-1 strips meet at
+// the unsplit edge. Its x-chords X1 and X3 are one sheet that turns at that
+// edge, and that sheet meets the middle sheet X2 in a curve whose ends are
+// the two strips' top quads, which share an edge, so the curve must cross
+// other sheets. With only the eight sheets the faces ask for, the crossings
+// checked (the turn dipping past the planes next to the edge) put two strip
+// quads of one face on one hex (a flat hex); an extra closed (pillow) sheet
+// is the likely way out. Nor is it a sweep of the 2-D strip across the
+// cross-section (columns split in three, whole, or strip pieces): that needs
+// at least five cells around the unsplit edge where the end faces have one.
+// It cannot keep unit cubes beside its corner column either (the corner hex
+// would need the two strips' corner quads, which share no edge, as adjacent
+// faces). Deriving it is the next step (Ito, Shih and Soni 2009; Tong and
+// Zhang 2025 for relaxed balance). Until then the adaptive mesh of a closed
+// object keeps the hex count of the uniform one.
 #include <array>
 #include <cstddef>
 #include <cstdint>
