@@ -46,7 +46,10 @@
 // quads of one face on one hex (a flat hex); an extra closed (pillow) sheet
 // is the likely way out. Nor is it a sweep of the 2-D strip across the
 // cross-section (columns split in three, whole, or strip pieces): that needs
-// at least five cells around the unsplit edge where the end faces have one.
+// at least five cells around the unsplit edge where the end faces have one
+// (tools/two-face-sweep-template.py builds and checks such a sweep: its end
+// faces show 14 quads, so every face with three marked corners would have
+// to, and the seven-corner template would then need an odd count there).
 // It cannot keep unit cubes beside its corner column either (the corner hex
 // would need the two strips' corner quads, which share no edge, as adjacent
 // faces). Deriving it is the next step (Ito, Shih and Soni 2009; Tong and
