@@ -100,6 +100,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     io::WriteOptions w;
     w.overwrite = args.run.force;
     w.scaledJacobian = q.scaledJacobian;
+    w.cellFields = out.cellFields;
     // Each file is written whole or not at all (a temporary file renamed);
     // if one fails, the files this job created before it are removed again,
     // so a failed job leaves none of its outputs behind (files it replaced

@@ -298,6 +298,12 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       [](MeshArgs& a) -> auto& { return a.settings.pillow; }, true));
     t.push_back(number<int>("boundary-layers", g, "Layers of hexes in the boundary sheet (default 1)", "1..16",
                             [](MeshArgs& a) -> auto& { return a.settings.boundaryLayers; }, between(1, 16)));
+    t.push_back(onOff("adaptive", g,
+                      "Coarse hexes where the labels do not change (a 27-tree with transition templates); the "
+                      "boundary keeps the element size",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }));
+    t.push_back(onOff("uniform", g, "One hex per grid point everywhere (the default; the opposite of --adaptive)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }, true));
     t.push_back(onOff("mesh-exterior", g, "Also mesh the background out to a box around the object", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.meshExterior; }));
     t.push_back(onOff("fix-boundary", g, "Optimise interior nodes only; surface nodes stay where extracted",
@@ -423,6 +429,10 @@ void checkSettings(MeshArgs& a) {
     if (a.labels && s.select.iso)
         throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
     checkOptimiserOptions(s);
+    if (s.adaptive && (s.method != pipeline::Method::Dual || s.meshExterior))
+        throw Error("--adaptive coarsens the hexes of --method dual inside the object; leave out --method " +
+                    std::string(pipeline::methodName(s.method)) + (s.meshExterior ? " and --mesh-exterior" : "") +
+                    " or --adaptive");
 }
 
 }  // namespace isohex::cli

@@ -10,6 +10,10 @@
 namespace isohex::pipeline {
 
 HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink) {
+    return contour(p, settings, sink, nullptr);
+}
+
+HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink, AdaptiveFacts* adaptive) {
     Stage st(sink, "extract");
     octree::ExtractOptions opt;
     opt.meshExterior = settings.meshExterior;
@@ -30,6 +34,12 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
             if (mesh.surfaces[s].inside <= 0 && mesh.surfaces[s].outside <= 0)
                 for (auto& c : mesh.nodeClass)
                     if (c.kind == NodeKind::Surface && c.id == static_cast<std::int32_t>(s)) c = {NodeKind::Fixed, -1};
+    if (settings.adaptive) {
+        if (!adaptive) throw Error("internal error: adaptive contouring without a place for its facts");
+        if (settings.method != Method::Dual || settings.meshExterior)
+            throw SettingError({Setting::Method, " must be 'dual' without meshing the exterior for the adaptive mesher"});
+        mesh = coarsenContour(p, std::move(mesh), settings, *adaptive);
+    }
     st.finish();
     return mesh;
 }

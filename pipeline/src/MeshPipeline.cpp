@@ -35,7 +35,13 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     r.warnings = m.prepared.warnings;
     r.warnings.insert(r.warnings.end(), warnings.begin(), warnings.end());
     r.seconds = clock.seconds();
-    return {std::move(m.mesh), toJson(r)};
+    std::vector<std::pair<std::string, std::vector<double>>> fields;
+    if (m.adaptive) {
+        fields.emplace_back("level", std::vector<double>(m.adaptive->hexLevel.begin(), m.adaptive->hexLevel.end()));
+        r.adaptive = std::move(m.adaptive);
+        r.adaptive->hexLevel.clear();
+    }
+    return {std::move(m.mesh), toJson(r), std::move(fields)};
 }
 
 }  // namespace isohex::pipeline

@@ -278,6 +278,15 @@ nlohmann::json toJson(const FidelityResult& f) {
     return j;
 }
 
+nlohmann::json toJson(const AdaptiveFacts& a) {
+    return {{"levels", a.topLevel},
+            {"hexes_per_level", a.hexesPerLevel},
+            {"uniform_hexes", a.uniformHexes},
+            {"smallest_edge", a.smallestEdge},
+            {"largest_edge", a.largestEdge},
+            {"cells_refined", {{"label_change_level_1", a.cellsAtLabelChanges}, {"balance_per_level", a.cellsForBalance}}}};
+}
+
 nlohmann::json toJson(const MeshReport& r) {
     nlohmann::json j;
     j["input"] = toJson(r.prepared.input);
@@ -292,6 +301,7 @@ nlohmann::json toJson(const MeshReport& r) {
     nlohmann::json perMaterial;
     for (const auto& [m, n] : r.hexesPerMaterial) perMaterial.push_back({{"material", m}, {"hexes", n}});
     j["materials"] = perMaterial;
+    if (r.adaptive) j["adaptive"] = toJson(*r.adaptive);
     j["warnings"] = r.warnings;
     j["pipeline_seconds"] = r.seconds;
     return j;

@@ -133,10 +133,13 @@ void warnLeft(RetryState& s, int maxRetries, double floor, std::vector<std::stri
 Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& sink) {
     Meshing m;
     m.prepared = std::move(prepared);
-    m.mesh = contour(m.prepared, settings, sink);
+    if (settings.adaptive) m.adaptive.emplace();
+    m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
     m.pillow = pillowBoundary(m.mesh, settings, sink);
+    // the sheet's hexes are appended, each on a boundary hex of the finest level
+    if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
     return m;
 }

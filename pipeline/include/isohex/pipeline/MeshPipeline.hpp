@@ -33,6 +33,7 @@ struct MeshReport {
     std::optional<RetryResult> retries;  // Method::Dual with optimisation
     FidelityResult fidelity;
     std::vector<std::pair<std::int32_t, std::size_t>> hexesPerMaterial;  // by material
+    std::optional<AdaptiveFacts> adaptive;  // settings.adaptive
     std::vector<std::string> warnings;   // preparation's first
     double seconds = 0;
 };
@@ -40,6 +41,8 @@ struct MeshReport {
 struct MeshOutcome {
     HexMesh mesh;
     nlohmann::json report;  // ReportJson.hpp's writing of the run's report
+    // Per-hex fields for the mesh file (.vtu cell data): "level" with --adaptive.
+    std::vector<std::pair<std::string, std::vector<double>>> cellFields;
 };
 
 // Meshes `input` by settings.method, with the report of every stage.

@@ -47,6 +47,11 @@ struct MeshSettings {
     bool pillow = true;
     int boundaryLayers = 1;
     bool meshExterior = false;
+    // Coarse hexes where the labels are uniform (octree's 27-tree with
+    // transition templates); the boundary keeps the finest size. Off: one
+    // hex per grid point (the uniform mesher, the default).
+    bool adaptive = false;
+    int adaptiveLevels = 3;       // levels of the tree above the finest hexes (coarse hexes up to 3^levels steps)
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     bool fixBoundary = false;

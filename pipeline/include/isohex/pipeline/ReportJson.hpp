@@ -22,6 +22,7 @@ nlohmann::json toJson(const WorstHexPassResult& pass);   // "worst_hexes"
 nlohmann::json toJson(const OptimizeResult& opt);        // "optimization"
 nlohmann::json toJson(const RetryResult& retries);       // "retries"
 nlohmann::json toJson(const FidelityResult& fidelity);   // "fidelity"
+nlohmann::json toJson(const AdaptiveFacts& adaptive);    // "adaptive"
 // The whole report of a run on a scan, and of the sheet method.
 nlohmann::json toJson(const MeshReport& report);
 nlohmann::json toJson(const SheetMethodReport& report);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/pipeline/AdaptiveContour.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Pillow.hpp"
@@ -34,6 +35,7 @@ struct Meshing {
     std::size_t contouredHexes = 0, contouredNodes = 0;  // the report's "extracted"
     PillowResult pillow;
     OptimizeResult optimization;
+    std::optional<AdaptiveFacts> adaptive;  // settings.adaptive: the tree's facts, a level per hex
 };
 
 struct RetryEdit {

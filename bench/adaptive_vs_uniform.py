@@ -1,0 +1,80 @@
+#!/usr/bin/python3
+"""Adaptive (--adaptive) against uniform (--uniform) meshing at the same finest element size, on the bench
+inputs: hexes, wall time and peak memory (GNU time), minimum and mean scaled Jacobian (VTK's vtkMeshQuality)
+and volume (vtkCellSizeFilter) of the written files. Prints a Markdown table.
+
+    bench/adaptive_vs_uniform.py [--isohex build/cli/isohex] [--data ../shared/data] [--work DIR] [--quick]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+import vtk
+from vtk.util import numpy_support as ns
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def cases(data, quick):
+    c = [("skull_ct (iso 2.9, default level)", "skull_ct.nii.gz", ["--iso", "2.9"]),
+         ("JHU labels (all, default level)", "JHU-WhiteMatter-labels-2mm.nii.gz", ["--labels"]),
+         ("femur.off (default level)", "femur.off", []),
+         ("ch2bet 3 mm (--keep-largest)", "ch2bet.nii.gz", ["--size", "3", "--keep-largest"])]
+    if not quick:
+        c.append(("ch2bet 2 mm (--keep-largest)", "ch2bet.nii.gz", ["--size", "2", "--keep-largest"]))
+    return [(label, os.path.join(data, f), opts) for label, f, opts in c]
+
+
+def vtk_figures(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    r.Update()
+    grid = r.GetOutput()
+    q = vtk.vtkMeshQuality()
+    q.SetInputData(grid)
+    q.SetHexQualityMeasureToScaledJacobian()
+    q.Update()
+    sj = ns.vtk_to_numpy(q.GetOutput().GetCellData().GetArray("Quality"))
+    s = vtk.vtkCellSizeFilter()
+    s.SetInputData(grid)
+    s.ComputeVolumeOn()
+    s.Update()
+    vol = ns.vtk_to_numpy(s.GetOutput().GetCellData().GetArray("Volume")).sum()
+    return grid.GetNumberOfCells(), float(sj.min()), float(sj.mean()), float(vol)
+
+
+def run(isohex, inp, opts, mode, work, tag):
+    vtu, rep, tim = (os.path.join(work, f"{tag}_{mode}{ext}") for ext in (".vtu", ".json", ".time"))
+    cmd = ["/usr/bin/time", "-f", "%e %M", "-o", tim, isohex, "mesh", inp, "-o", vtu, "--report", rep, "--force",
+           "--quiet", "--" + mode] + opts
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    wall, kb = open(tim).read().split()[-2:]
+    with open(rep) as f:
+        report = json.load(f)
+    return (float(wall), int(kb) / 1024.0, report) + vtk_figures(vtu)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--isohex", default=os.environ.get("ISOHEX", os.path.join(HERE, "..", "build", "cli", "isohex")))
+    ap.add_argument("--data", default=os.environ.get("ISOHEX_SHARED_DATA", os.path.join(HERE, "..", "..", "shared", "data")))
+    ap.add_argument("--work", default=None)
+    ap.add_argument("--quick", action="store_true", help="leave out ch2bet at 2 mm")
+    a = ap.parse_args()
+    work = a.work or tempfile.mkdtemp(prefix="isohex-adaptive-")
+    print("| input | mode | hexes | wall s | peak MB | min SJ | mean SJ | volume | hexes per level |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for i, (label, inp, opts) in enumerate(cases(a.data, a.quick)):
+        for mode in ("uniform", "adaptive"):
+            wall, mb, rep, hexes, smin, smean, vol = run(a.isohex, inp, opts, mode, work, f"case{i}")
+            levels = rep.get("adaptive", {}).get("hexes_per_level", "")
+            print(f"| {label} | {mode} | {hexes} | {wall:.1f} | {mb:.0f} | {smin:.3f} | {smean:.3f} | {vol:.6g} | {levels} |",
+                  flush=True)
+    print(f"\nfiles in {work}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,68 @@
+#pragma once
+// The hexes of a closed 27-tree (RefinementTree.hpp): the leaves' hexes,
+// template hexes where corners are marked, as one conformal HexMesh.
+//
+// Nodes are keyed by their place on the quarter lattice of the level-0
+// nodes: a level-0 node (the centre of a grid cell, grid coordinate
+// n - 1/2) has key 4n per axis; template nodes fall on quarters of a child
+// cell, and a child of a level-l cell is 3^(l-1) level-0 hexes wide, so
+// every key is an integer. Equal places get equal keys whatever cell made
+// them, so sorting the keys once numbers the nodes of a conformal mesh
+// (linear in the hexes, deterministic).
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/octree/Labels.hpp"
+#include "isohex/octree/RefinementTree.hpp"
+
+namespace isohex::octree {
+
+// 4x the node coordinate per axis, 21 bits each (x lowest), so keys sort in
+// z, y, x order like the grid's cells.
+using NodeKey = std::uint64_t;
+inline NodeKey nodeKey(std::int64_t qx, std::int64_t qy, std::int64_t qz) {
+    return static_cast<NodeKey>(qx) | static_cast<NodeKey>(qy) << 21 | static_cast<NodeKey>(qz) << 42;
+}
+inline std::array<std::int64_t, 3> keyCoords(NodeKey k) {
+    constexpr NodeKey m = (NodeKey{1} << 21) - 1;
+    return {static_cast<std::int64_t>(k & m), static_cast<std::int64_t>(k >> 21 & m), static_cast<std::int64_t>(k >> 42 & m)};
+}
+
+// The leaves' hexes before nodes are numbered: one hex per labelled grid
+// point inside refined level-1 cells, one per labelled unrefined leaf without
+// marked corners, a template's hexes per leaf with marked corners. A leaf's
+// material is the label of its points (one label, by the criterion).
+struct LeafHexes {
+    std::vector<std::array<NodeKey, 8>> hexes;  // VTK order, positive on a right-handed grid
+    std::vector<std::int32_t> material;
+    std::vector<std::uint8_t> level;            // level of the leaf each hex fills
+};
+LeafHexes leafHexes(const RefinementTree& tree, const Labels& labels);
+
+// A conformal mesh with a level per hex.
+struct AdaptiveMesh {
+    HexMesh mesh;
+    std::vector<std::uint8_t> hexLevel;  // per hex
+    std::vector<NodeKey> nodeKeys;       // per node, ascending
+    std::vector<std::size_t> hexesPerLevel;
+};
+
+// Position and class of the node with a key.
+using NodePlacer = std::function<void(NodeKey key, Vec3& position, NodeClass& cls)>;
+
+// Numbers the nodes of `leaves` (ascending keys) and places each by `place`
+// (default: its lattice position on the grid, interior). On a mirrored grid
+// each hex's corners are reordered so it stays positively oriented.
+AdaptiveMesh assembleAdaptive(const LeafHexes& leaves, const Grid& grid, const NodePlacer& place = {});
+
+// The adaptive mesh of a tree built over `labels`, taking every node that is
+// a node of `uniform` (dualContourHexes of the same labels, one hex per
+// labelled point, without meshExterior) from it with its position and class,
+// and putting the others at their lattice position as interior nodes. The
+// surfaces and curves are those of `uniform`.
+AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, const HexMesh& uniform);
+
+}  // namespace isohex::octree

@@ -1,0 +1,50 @@
+#include "isohex/pipeline/AdaptiveContour.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "isohex/core/HexCell.hpp"
+#include "isohex/octree/AdaptiveHexes.hpp"
+#include "isohex/octree/RefinementTree.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// Shortest and longest hex edge (each edge counted from every hex it is in).
+void edgeRange(const HexMesh& m, double& shortest, double& longest) {
+    static constexpr int edge[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                        {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+    shortest = std::numeric_limits<double>::infinity();
+    longest = 0;
+    for (const Hex& h : m.hexes)
+        for (const auto& e : edge) {
+            const Vec3& a = m.nodes[static_cast<std::size_t>(h[e[0]])];
+            const Vec3& b = m.nodes[static_cast<std::size_t>(h[e[1]])];
+            const double d = std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                       (a[2] - b[2]) * (a[2] - b[2]));
+            shortest = std::min(shortest, d);
+            longest = std::max(longest, d);
+        }
+    if (m.hexes.empty()) shortest = 0;
+}
+
+}  // namespace
+
+HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
+    octree::RefinementSettings rs;
+    rs.maxLevel = settings.adaptiveLevels;
+    const octree::RefinementTree tree = octree::refineAtLabelChanges(p.labels, rs);
+    octree::AdaptiveMesh a = octree::coarsenDualMesh(p.labels, tree, uniform);
+    facts.topLevel = tree.top();
+    facts.uniformHexes = uniform.hexCount();
+    facts.hexesPerLevel = a.hexesPerLevel;
+    facts.cellsAtLabelChanges = tree.requested.size() > 1 ? tree.requested[1] : 0;
+    facts.cellsForBalance.assign(tree.promoted.begin() + 1, tree.promoted.end());
+    facts.hexLevel = std::move(a.hexLevel);
+    edgeRange(a.mesh, facts.smallestEdge, facts.largestEdge);
+    return std::move(a.mesh);
+}
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,89 @@
+"""--adaptive (octree's 27-tree over the dual-contouring grid) against --uniform at the same element size,
+judged on the written files with VTK: vtkMeshQuality's scaled Jacobian (no inverted hex), vtkCellSizeFilter's
+volume (the same solid), the "level" cell array and the report's "adaptive" key; the default output has
+neither."""
+import json
+import os
+import sys
+import unittest
+
+import numpy as np
+from vtk.util import numpy_support as ns
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import SOURCE, run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
+
+sys.path.insert(0, os.path.join(SOURCE, "samples"))
+from make_phantoms import ramp, write_nifti  # noqa: E402
+
+
+def rounded_box(path, n=44):
+    """A box with rounded edges and a spherical dent, 1 mm voxels: flat faces, curved parts, a concavity."""
+    x, y, z = np.meshgrid(*(np.arange(n, dtype=float),) * 3, indexing="ij")
+    q = np.stack([np.abs(x - 21.5) - 12.0, np.abs(y - 21.5) - 12.0, np.abs(z - 21.5) - 9.0])
+    box = np.linalg.norm(np.maximum(q, 0.0), axis=0) + np.minimum(q.max(axis=0), 0.0) - 3.0
+    dent = 7.0 - np.sqrt((x - 21.5) ** 2 + (y - 21.5) ** 2 + (z - 36.0) ** 2)
+    write_nifti(path, ramp(np.maximum(box, dent)))
+
+
+class Adaptive(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        d = workdir("adaptive")
+        cls.scan = os.path.join(d, "box.nii.gz")
+        rounded_box(cls.scan)
+        cls.out = {}
+        for mode in ("uniform", "adaptive"):
+            vtu, rep = os.path.join(d, mode + ".vtu"), os.path.join(d, mode + ".json")
+            run(["mesh", cls.scan, "-o", vtu, "--report", rep, "--size", "1", "--" + mode, "--quiet"])
+            with open(rep) as f:
+                cls.out[mode] = (read_vtu(vtu), json.load(f))
+        vtu = os.path.join(d, "default.vtu")
+        run(["mesh", cls.scan, "-o", vtu, "--report", vtu + ".json", "--size", "1", "--quiet"])
+        with open(vtu + ".json") as f:
+            cls.default = (read_vtu(vtu), json.load(f))
+
+    def test_no_inverted_hex(self):
+        grid, _ = self.out["adaptive"]
+        self.assertGreater(vtk_sj(grid).min(), 0.0)
+
+    def test_no_more_hexes_than_uniform_and_the_same_solid(self):
+        a, ra = self.out["adaptive"]
+        u, ru = self.out["uniform"]
+        self.assertLessEqual(a.GetNumberOfCells(), u.GetNumberOfCells())
+        self.assertEqual(ra["adaptive"]["uniform_hexes"], ru["extracted"]["hexes"])
+        va, vu = vtk_volumes(a).sum(), vtk_volumes(u).sum()
+        self.assertLess(abs(va - vu) / vu, 0.01)
+
+    def test_level_array_and_report_agree(self):
+        grid, rep = self.out["adaptive"]
+        arr = grid.GetCellData().GetArray("level")
+        self.assertIsNotNone(arr)
+        level = ns.vtk_to_numpy(arr).astype(int)
+        self.assertEqual(len(level), grid.GetNumberOfCells())
+        per_level = rep["adaptive"]["hexes_per_level"]
+        self.assertEqual(sum(per_level), rep["extracted"]["hexes"])
+        # the sheet's hexes are on boundary hexes of the finest level
+        counts = np.bincount(level, minlength=len(per_level))
+        self.assertEqual(counts[0] - per_level[0], grid.GetNumberOfCells() - rep["extracted"]["hexes"])
+        self.assertEqual(list(counts[1:]), per_level[1:])
+        self.assertGreater(rep["adaptive"]["cells_refined"]["label_change_level_1"], 0)
+        self.assertLessEqual(rep["adaptive"]["smallest_edge"], rep["adaptive"]["largest_edge"])
+
+    def test_default_is_uniform_without_level_or_adaptive_key(self):
+        grid, rep = self.default
+        self.assertIsNone(grid.GetCellData().GetArray("level"))
+        self.assertNotIn("adaptive", rep)
+        self.assertEqual(grid.GetNumberOfCells(), self.out["uniform"][0].GetNumberOfCells())
+
+    def test_adaptive_refuses_other_methods(self):
+        p = run(["mesh", self.scan, "-o", os.path.join(workdir("adaptive_bad"), "x.vtu"), "--adaptive",
+                 "--method", "voxel"], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--adaptive", p.stderr)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1)
+
+
+if __name__ == "__main__":
+    unittest.main()
