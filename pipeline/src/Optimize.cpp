@@ -4,6 +4,7 @@
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/FieldProjector.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/StuckHexes.hpp"
 
 namespace isohex::pipeline {
@@ -43,8 +44,9 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         const double voxels =
             settings.fixBoundary ? 0.0 : settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
         const double slack = voxels * p.selection->materials.front().field.voxelSize();
-        r.worstHexes =
-            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, slack, &topo);
+        // aimed at the certified minimum when that is higher (--min-quality)
+        r.worstHexes = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector,
+                                    worstHexTargetFor(p.facts.input.path, settings), slack, &topo);
         r.worstHexes->surfaceToleranceVoxels = voxels;
     }
     r.fixBoundary = settings.fixBoundary;
