@@ -73,6 +73,14 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     o.target = target;
     o.surfaceSlack = maxDeviation;
     o.meanRounds = 0;  // only the nodes of the hexes below the target move
+    // surface nodes leave their surface by the slack alone: no release of
+    // inverted hexes' nodes by edge lengths, no joint moves (the optimiser
+    // and its pass had those)
+    o.releaseDistance = 0;
+    o.jointRings = 0;
+    std::vector<double> offBefore(mesh.nodes.size(), 0.0);
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        if (mesh.nodeClass[v].kind == NodeKind::Surface) offBefore[v] = offSurface(mesh, projector, static_cast<Index>(v));
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, &projector, o);
     r.nodesMoved = w.nodesMoved;
     r.minBefore = w.minBefore;
@@ -81,7 +89,10 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     r.belowAfter = w.belowAfter;
     for (std::size_t v = 0; v < mesh.nodes.size(); ++v) {
         if (mesh.nodes[v] == before[v]) continue;
+        // a node already off its surface (released to untangle, held back at
+        // extraction) counts where the relaxation took it farther
         const double d = offSurface(mesh, projector, static_cast<Index>(v));
+        if (!(d > offBefore[v])) continue;
         r.largestDeviationVoxels = std::max(r.largestDeviationVoxels, d / voxel);
         if (d > tolerance) ++r.nodesOff;
     }

@@ -20,6 +20,15 @@ WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector
     return r;
 }
 
+smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink) {
+    Stage st(sink, "boundary_quads");
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+    const smoothing::BoundaryQuadResult r = smoothing::smoothBoundaryQuads(mesh, projector, buildTopology(mesh));
+    st.finish();
+    return r;
+}
+
 OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
                         bool warnLeftInverted) {
     OptimizeResult r;

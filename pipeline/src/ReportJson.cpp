@@ -233,6 +233,10 @@ nlohmann::json toJson(const WorstHexPassResult& p) {
     return j;
 }
 
+nlohmann::json toJson(const smoothing::BoundaryQuadResult& r) {
+    return {{"sweeps", r.sweeps}, {"moves", r.moves}, {"seconds", r.seconds}};
+}
+
 nlohmann::json toJson(const RelaxationResult& r) {
     return {{"mean", "boundary_relaxation"},
             {"max_deviation_voxels", r.maxDeviationVoxels},

@@ -46,8 +46,9 @@ inline constexpr std::size_t kMaxPlacesListed = 200;
 // the target, surface nodes free within --max-deviation of their isosurface.
 struct RelaxationResult {
     double maxDeviationVoxels = 0;
-    std::size_t nodesOff = 0;          // surface nodes left farther than the surface tolerance off their surface
-    double largestDeviationVoxels = 0; // of any surface node the relaxation moved
+    // surface nodes the relaxation took farther off their surface, beyond the surface tolerance
+    std::size_t nodesOff = 0;
+    double largestDeviationVoxels = 0;  // the farthest of the nodes it took farther off
     std::size_t nodesMoved = 0;
     double minBefore = 0, minAfter = 0;
     std::size_t belowBefore = 0, belowAfter = 0;
