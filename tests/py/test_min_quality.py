@@ -9,7 +9,7 @@ import sys
 import unittest
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SOURCE, run, workdir  # noqa: E402
+from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
 from vtk_tools import vtk_sj  # noqa: E402
 
 EXIT_BELOW_QUALITY = 4  # documented in README and `isohex mesh --help`
@@ -86,6 +86,15 @@ class MinQuality(unittest.TestCase):
         self.assertIs(q["min_quality_certified"], True)
         self.assertGreaterEqual(vtk_sj(out).min(), q["target"])
         self.assertGreater(vtk_sj(out).min(), 0)
+
+    def test_a_surface_is_certified_at_its_default_of_0_5(self):
+        src = os.path.join(SHARED_DATA, "sphere966.off")
+        out, report = self.paths("surface_default")
+        run(["mesh", src, "-o", out, "--report", report, "-q", "--force"])
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.5, True, True))
+        self.assertGreaterEqual(vtk_sj(out).min(), 0.5)
 
     def test_boundary_relaxation_is_bounded_and_reported(self):
         # a label atlas whose worst hexes sit at junctions: above the surface
