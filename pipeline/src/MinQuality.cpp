@@ -27,6 +27,7 @@ const char* causeText(BelowCause cause) {
 
 double minQualityFor(const std::string& input, const MeshSettings& settings) {
     if (settings.minQuality) return *settings.minQuality;
+    if (settings.method == Method::Sheets) return kDefaultMinQualitySheetMethod;
     return imaging::isSurfaceFile(input) ? kDefaultMinQualitySurface : kDefaultMinQualityScan;
 }
 
