@@ -24,6 +24,14 @@ def workdir(name):
     return d
 
 
+def phantoms(name):
+    """A new work folder with samples/make_phantoms.py's phantoms written into it."""
+    d = workdir(name)
+    subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), d], check=True,
+                   capture_output=True)
+    return d
+
+
 def polygon_topology(polys):
     """Components and Euler characteristic V - E + F of a polygon surface given
     as a numpy array of vertex ids (one row per polygon, all the same size)."""

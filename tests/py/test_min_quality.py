@@ -4,24 +4,20 @@ written, and the report's certificate, judged by VTK's vtkMeshQuality on the
 written files."""
 import json
 import os
-import subprocess
 import sys
 import unittest
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from common import EXIT_BELOW_QUALITY, SHARED_DATA, SOURCE, phantoms, run, workdir  # noqa: E402
 from vtk_tools import vtk_sj  # noqa: E402
 
-EXIT_BELOW_QUALITY = 4  # documented in README and `isohex mesh --help`
 JHU = os.path.join(SOURCE, "samples", "JHU-WhiteMatter-labels-2mm.nii.gz")
 
 
 class MinQuality(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.dir = workdir("min_quality")
-        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
-                       check=True, capture_output=True)
+        cls.dir = phantoms("min_quality")
         cls.sphere = os.path.join(cls.dir, "sphere.nii.gz")
 
     def paths(self, name):
