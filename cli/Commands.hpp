@@ -11,6 +11,9 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitError = 1;        // bad input, unreadable file, failed job
 inline constexpr int kExitUsage = 2;        // bad command line
 inline constexpr int kExitInvalidMesh = 3;  // --strict and the mesh failed a check
+// mesh, batch, insert-sheet: a mesh stayed below --min-quality (written only
+// with --allow-below); the places are named on stderr and in the report
+inline constexpr int kExitBelowQuality = 4;
 
 // Set by a command whose work succeeded but whose verdict should fail the process.
 int& pendingExitCode();

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "Commands.hpp"
 #include "Isolate.hpp"
 #include "Report.hpp"
 #include "Svg.hpp"
@@ -71,6 +72,34 @@ bool upToDate(const Job& job) {
     return !all.empty();
 }
 
+namespace {
+
+// A job's figures for the summary line.
+JobResult resultOf(const Job& job, const QualitySummary& s, double seconds) {
+    JobResult r;
+    r.input = job.input;
+    r.status = "ok";
+    r.hexes = s.hexes;
+    r.minScaledJacobian = s.scaledJacobian.min;
+    r.meanScaledJacobian = s.scaledJacobian.mean;
+    r.inverted = s.inverted;
+    r.below02 = s.below02;
+    r.seconds = seconds;
+    return r;
+}
+
+// What a mesh below the minimum quality says: the target, what was reached,
+// whether it was written, and the places.
+std::string belowMessage(const pipeline::QualityCertificate& c, bool written) {
+    char figures[96];
+    std::snprintf(figures, sizeof figures, "%g: smallest scaled Jacobian %.3g, ", c.target, c.achieved);
+    return "below the minimum quality " + std::string(figures) + std::to_string(c.hexesBelow) + " hex(es) below it" +
+           (written ? " (written: --allow-below)" : " (nothing written; --allow-below writes it)") + ":\n" +
+           pipeline::describePlaces(c, 10);
+}
+
+}  // namespace
+
 JobResult runJob(const Job& job, ProgressSink& sink) {
     const Stopwatch total;
     MeshArgs args = job.args;
@@ -89,6 +118,14 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     const QualitySummary s = summarize(out.mesh, q);
     const ValidityReport v = validate(out.mesh);
     const double qualitySeconds = quality.seconds();
+    if (!out.quality.certified && !args.settings.allowBelow) {
+        // Nothing is written: the mesh is refused, its places named.
+        JobResult r = resultOf(job, s, total.seconds());
+        r.status = "below";
+        r.written = false;
+        r.message = belowMessage(out.quality, false);
+        return r;
+    }
     nlohmann::json report = out.report;
     const nlohmann::json qj = toJson(s);
     for (const auto& [k, val] : qj.items()) report[k] = val;
@@ -149,28 +186,26 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
         }
         throw;
     }
-    JobResult r;
-    r.input = job.input;
-    r.status = "ok";
-    r.hexes = s.hexes;
-    r.minScaledJacobian = s.scaledJacobian.min;
-    r.meanScaledJacobian = s.scaledJacobian.mean;
-    r.inverted = s.inverted;
-    r.below02 = s.below02;
-    r.seconds = timings["total"];
+    JobResult r = resultOf(job, s, timings["total"]);
     if (!v.ok()) {
         // one readable line; the report's validity block has every example
         const std::string m = describeDefects(v);
         r.message = m + (job.report.empty() ? "" : "; every example in the report's validity block");
+    }
+    if (!out.quality.certified) {
+        r.status = "below";
+        r.message = belowMessage(out.quality, true) + (r.message.empty() ? "" : r.message + "\n");
     }
     return r;
 }
 
 namespace {
 
+std::string firstLine(const std::string& s) { return s.substr(0, s.find('\n')); }
+
 // A job's result as the isolated child sends it to the parent.
 nlohmann::json resultJson(const JobResult& r) {
-    return {{"status", r.status},     {"message", bytesOf(r.message)},
+    return {{"status", r.status},     {"message", bytesOf(r.message)}, {"written", r.written},
             {"hexes", r.hexes},       {"min", r.minScaledJacobian}, {"mean", r.meanScaledJacobian},
             {"inverted", r.inverted}, {"below02", r.below02},      {"seconds", r.seconds}};
 }
@@ -179,6 +214,7 @@ JobResult resultFrom(const nlohmann::json& j) {
     JobResult r;
     r.status = j.at("status").get<std::string>();
     r.message = textOf(j.at("message"));
+    r.written = j.at("written").get<bool>();
     r.hexes = j.at("hexes").get<std::size_t>();
     r.minScaledJacobian = j.at("min").is_number() ? j.at("min").get<double>() : 0.0;
     r.meanScaledJacobian = j.at("mean").is_number() ? j.at("mean").get<double>() : 0.0;
@@ -198,9 +234,15 @@ JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
     return r;
 }
 
-std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names) {
+int JobsOutcome::exitCode() const {
+    if (failed > 0) return kExitError;
+    return belowQuality > 0 ? kExitBelowQuality : kExitOk;
+}
+
+JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names) {
     std::vector<JobResult> results;
-    std::size_t failed = 0;
+    JobsOutcome outcome;
+    std::size_t& failed = outcome.failed;
     // The plugins of the jobs' formats are loaded here, once: each job's child
     // process inherits them instead of loading them again.
     for (const Job& job : jobs) {
@@ -219,7 +261,12 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
         sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
         try {
             results.push_back(runJobIsolated(job, sink));
-            sink.event("job_end", {{"input", job.input}, {"status", "ok"}});
+            const JobResult& r = results.back();
+            if (r.status == "below") {
+                ++outcome.belowQuality;
+                sink.note("error", job.input + ": " + r.message);
+            }
+            sink.event("job_end", {{"input", job.input}, {"status", r.status}});
         } catch (const std::exception& e) {
             ++failed;
             const std::string message = boundedMessage(userMessage(e, names), 65536);
@@ -232,19 +279,19 @@ std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
                 "inverted", "seconds / message");
     for (const auto& r : results) {
         std::string name = r.input.size() > 40 ? "..." + r.input.substr(r.input.size() - 37) : r.input;
-        if (r.status == "ok")
+        if (r.status == "ok" || r.status == "below")
             std::printf("%-40s %-8s %10zu %8.3f %8.3f %8zu %8zu  %.1f%s%s\n", name.c_str(), r.status.c_str(), r.hexes,
                         r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted, r.seconds,
-                        r.message.empty() ? "" : "  ", r.message.c_str());
+                        r.message.empty() ? "" : "  ", firstLine(r.message).c_str());
         else
             std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", name.c_str(), r.status.c_str(), "-", "-", "-", "-", "-",
                         r.message.c_str());
     }
-    std::printf("%zu job(s): %zu ok, %zu skipped, %zu failed\n", results.size(),
+    std::printf("%zu job(s): %zu ok, %zu skipped, %zu failed, %zu below the minimum quality\n", results.size(),
                 static_cast<std::size_t>(std::count_if(results.begin(), results.end(), [](auto& r) { return r.status == "ok"; })),
                 static_cast<std::size_t>(std::count_if(results.begin(), results.end(), [](auto& r) { return r.status == "skipped"; })),
-                failed);
-    return failed;
+                failed, outcome.belowQuality);
+    return outcome;
 }
 
 }  // namespace isohex::cli

@@ -19,8 +19,9 @@ struct Job {
 
 struct JobResult {
     std::string input;
-    std::string status;  // "ok", "failed", "skipped"
+    std::string status;  // "ok", "failed", "skipped", "below" (--min-quality not met)
     std::string message;
+    bool written = true;  // the outputs were written ("below" without --allow-below: none)
     std::size_t hexes = 0;
     double minScaledJacobian = 0;
     double meanScaledJacobian = 0;
@@ -50,10 +51,18 @@ bool upToDate(const Job& job);
 // The file name of `input` without its extension(s): "ct.nii.gz" -> "ct".
 std::string stemOf(const std::string& input);
 
+// What runJobs counted.
+struct JobsOutcome {
+    std::size_t failed = 0;        // errors
+    std::size_t belowQuality = 0;  // meshes left below --min-quality
+    // kExitError if a job failed, else kExitBelowQuality if one stayed below, else kExitOk.
+    int exitCode() const;
+};
+
 // Runs every job (skipping up-to-date ones unless force), printing a summary
-// table to stdout; returns the number of failed jobs.
+// table to stdout.
 // A failed job's message names the settings the user can change the `names`
 // way (the flags of `mesh`, the manifest columns of `batch`).
-std::size_t runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names);
+JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names);
 
 }  // namespace isohex::cli

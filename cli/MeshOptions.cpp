@@ -348,6 +348,28 @@ void addWorstHexRows(std::vector<MeshOption>& t) {
         "scaled Jacobian 0..1", [](MeshArgs& a) -> auto& { return a.settings.retryBelow; }, between(0.0, 1.0)));
 }
 
+// The rows of the certified minimum quality.
+void addMinQualityRows(std::vector<MeshOption>& t) {
+    const char* g = "Quality";
+    t.push_back(number<std::optional<double>>(
+        "min-quality", g,
+        "Certified minimum scaled Jacobian of the mesh written (default 0 for scans and label maps: no inverted or "
+        "degenerate hex; 0.5 for triangle surfaces, 0.2 with --method sheets). The max-min pass aims at it; a mesh "
+        "left below it is not written (unless --allow-below), its places are named, and the command exits with "
+        "status 4",
+        "scaled Jacobian 0..1", [](MeshArgs& a) -> auto& { return a.settings.minQuality; }, between(0.0, 1.0)));
+    t.push_back(onOff("allow-below", g,
+                      "Write the mesh even when it stays below --min-quality (the exit status is still 4 and the "
+                      "report says quality.min_quality_certified false)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.allowBelow; }));
+    t.push_back(number<std::optional<double>>(
+        "max-deviation", g,
+        "How far, in voxels, boundary and interface nodes may leave the isosurface to lift hexes still below "
+        "--min-quality after the optimiser and the retries (default 0.5; reported as quality.means)",
+        "voxels 0..5", [](MeshArgs& a) -> auto& { return a.settings.maxDeviation; }, between(0.0, 5.0, "(voxels)")));
+    t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
+}
+
 // The labels of "3,7"; throws isohex::Error naming --label.
 std::vector<std::int32_t> parseLabels(const std::string& list) {
     std::vector<std::int32_t> labels;
@@ -383,6 +405,12 @@ void checkOptimiserOptions(const pipeline::MeshSettings& s) {
         if (s.retries && *s.retries == 0 && s.retryBelow.value_or(0) > 0)
             throw Error("--retry-below has no effect with --retries 0; leave one of them out");
     }
+    if (s.maxDeviation && (s.fixBoundary || !s.worstHexPass || !s.optimize))
+        throw Error("--max-deviation has no effect with --fix-boundary, --no-worst-hex-pass or --no-optimize (no "
+                    "surface node moves off its surface there); leave it out");
+    if (s.maxDeviation && s.method != pipeline::Method::Dual)
+        throw Error("--max-deviation is in voxels of a scan's isosurface; --method " +
+                    std::string(pipeline::methodName(s.method)) + " has none (leave it out)");
 }
 
 }  // namespace
@@ -400,16 +428,20 @@ const std::vector<MeshOption>& meshOptions() {
         addInputRows(t);
         addMeshRows(t);
         addWorstHexRows(t);
+        addMinQualityRows(t);
         return t;
     }();
     return table;
 }
 
-void addMeshOptions(CLI::App* cmd, MeshArgs& a) {
+void addMeshOptions(CLI::App* cmd, MeshArgs& a, const std::vector<std::string>& only) {
+    auto wanted = [&](const MeshOption& o) { return only.empty() || std::count(only.begin(), only.end(), o.name) > 0; };
     std::map<std::string, CLI::Option*> flags;
-    for (const MeshOption& o : meshOptions()) flags[o.name] = o.addFlag(*cmd, a)->group(o.group);
     for (const MeshOption& o : meshOptions())
-        for (const auto& other : o.excludes) flags.at(o.name)->excludes(flags.at(other));
+        if (wanted(o)) flags[o.name] = o.addFlag(*cmd, a)->group(o.group);
+    for (const MeshOption& o : meshOptions())
+        for (const auto& other : o.excludes)
+            if (wanted(o) && flags.count(other)) flags.at(o.name)->excludes(flags.at(other));
 }
 
 const MeshOption* findColumn(const std::string& column) {

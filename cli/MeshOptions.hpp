@@ -51,8 +51,9 @@ struct MeshOption {
 // Every mesh option, in the order of --help.
 const std::vector<MeshOption>& meshOptions();
 
-// Declares every mesh option as a flag of `cmd`.
-void addMeshOptions(CLI::App* cmd, MeshArgs& a);
+// Declares every mesh option as a flag of `cmd`; with `only`, just the
+// options of those names (insert-sheet takes the quality rows alone).
+void addMeshOptions(CLI::App* cmd, MeshArgs& a, const std::vector<std::string>& only = {});
 
 // The option whose column is `column` (as MeshOption::column() writes it);
 // nullptr if there is none.

@@ -97,7 +97,7 @@ void ProgressSink::note(std::string_view level, const std::string& text) {
         event(std::string(level), {{"message", text}});
         return;
     }
-    if (mode_ == Mode::Quiet && level != "warning") return;
+    if (mode_ == Mode::Quiet && level != "warning" && level != "error") return;
     if (terminal_) std::fputs("\r\033[K", stderr);
     std::fprintf(stderr, "isohex: %s%s%s: %s\n", job_.c_str(), job_.empty() ? "" : ": ", std::string(level).c_str(),
                  text.c_str());

@@ -74,8 +74,8 @@ void addBatchCommand(CLI::App& app) {
             ProgressSink sink(c->args.run.progressMode());
             sink.note("warning", c->manifest + ": the manifest lists no jobs");
         }
-        if (runJobs(jobs, c->args.run.force, c->args.run.progressMode(), SettingNames::Columns) > 0)
-            pendingExitCode() = kExitError;
+        pendingExitCode() =
+            runJobs(jobs, c->args.run.force, c->args.run.progressMode(), SettingNames::Columns).exitCode();
     });
 }
 

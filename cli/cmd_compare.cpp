@@ -126,6 +126,9 @@ pipeline::MeshSettings compareSettings(const CompareArgs& c) {
         throw Error(std::string(s.retries.value_or(0) > 0 ? "--retries" : "--retry-below") +
                     " is for isohex mesh: compare meshes every variant from one grid, and editing the grid for "
                     "one variant would make them differ");
+    if (s.minQuality || s.allowBelow || s.maxDeviation)
+        throw Error("--min-quality, --allow-below and --max-deviation are for the meshes isohex mesh writes: compare "
+                    "reports the variants' quality as they come (leave them out)");
     s.fixBoundary = !c.moveBoundary;
     s.fixBoundaryByCompare = s.fixBoundary;
     return s;
@@ -193,7 +196,8 @@ nlohmann::json optimizeVariants(std::vector<Variant>& variants, const pipeline::
     nlohmann::json out;
     out["input"] = pipeline::toJson(p.facts.input);
     out["grid"] = pipeline::toJson(p.facts.grid);
-    out["protocol"] = s.fixBoundary ? "boundary nodes fixed, interior optimised (seed 5.2.2)"
+    out["protocol"] = s.fixBoundary ? "boundary quads smoothed on the isosurface, then boundary nodes fixed, interior "
+                                      "optimised (seed 5.2.2)"
                                     : "boundary nodes slide on the isosurface";
     out["seed"] = c.seed;
     std::printf("%-44s %9s %8s %8s %8s %9s %8s\n", "variant", "hexes", "min SJ", "mean SJ", "<0.2", "inverted",
@@ -201,6 +205,10 @@ nlohmann::json optimizeVariants(std::vector<Variant>& variants, const pipeline::
     for (auto& v : variants) {
         const Stopwatch t;
         sink.setJob("variant " + v.key);  // its warnings say which variant they are about
+        // the seed's protocol: the boundary quads improved on the isosurface
+        // before the boundary is fixed
+        nlohmann::json quads;
+        if (s.fixBoundary) quads = pipeline::toJson(pipeline::smoothBoundaryOnIsosurface(v.mesh, p, sink));
         const nlohmann::json opt = pipeline::toJson(pipeline::optimize(v.mesh, p, s, sink));
         sink.setJob({});
         v.seconds += t.seconds();
@@ -211,6 +219,7 @@ nlohmann::json optimizeVariants(std::vector<Variant>& variants, const pipeline::
         j["label"] = v.label;
         j["operations"] = v.ops;
         j["optimization"] = opt;
+        if (!quads.is_null()) j["boundary_quads"] = quads;
         j["seconds"] = v.seconds;
         out["variants"].push_back(j);
         series.push_back({v.key + ": " + v.label, qs.histogram, qs.degenerate});

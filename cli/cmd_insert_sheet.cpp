@@ -12,10 +12,13 @@
 #include "Isolate.hpp"
 #include "JobStage.hpp"
 #include "Jobs.hpp"
+#include "MeshOptions.hpp"
 #include "Progress.hpp"
 #include "RunOptions.hpp"
 #include "Threads.hpp"
 #include "Report.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
+#include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
@@ -35,7 +38,30 @@ struct InsertSheetArgs {
     insertion::Intersected intersected = insertion::Intersected::Auto;
     bool optimize = true;
     RunArgs run;
+    MeshArgs quality;  // --min-quality and --allow-below (the option table's rows)
 };
+
+// The mesh the surfaces cut may be a scan's, so the default minimum is a
+// scan's: no inverted or degenerate hex.
+double minQualityOf(const InsertSheetArgs& a) {
+    return a.quality.settings.minQuality.value_or(pipeline::kDefaultMinQualityScan);
+}
+
+// After the optimiser, a max-min pass aimed at the minimum quality where
+// hexes are below it (none otherwise: the mesh stays as optimised); then the
+// certificate. Prints the places when it is not met.
+pipeline::QualityCertificate meetMinQuality(HexMesh& mesh, const insertion::SheetGeometry& geometry,
+                                            const InsertSheetArgs& a) {
+    const double target = minQualityOf(a);
+    pipeline::QualityCertificate c = pipeline::certifyQuality(mesh, target);
+    if (!c.certified && a.optimize) {
+        pipeline::worstHexPass(mesh, &geometry, std::max(target, smoothing::WorstHexOptions{}.target));
+        c = pipeline::certifyQuality(mesh, target);
+        c.worstHexTarget = std::max(target, smoothing::WorstHexOptions{}.target);
+    }
+    c.defaultTarget = !a.quality.settings.minQuality.has_value();
+    return c;
+}
 }  // namespace
 
 void addInsertSheetCommand(CLI::App& app) {
@@ -63,6 +89,7 @@ void addInsertSheetCommand(CLI::App& app) {
         ->check(CLI::IsMember({"auto", "side1", "side2"}));
     cmd->add_flag("!--no-optimize", a->optimize, "Skip untangling and optimisation");
     addRunOptions(cmd, a->run, {RunOption::Force, RunOption::Quiet, RunOption::Threads});
+    addMeshOptions(cmd, a->quality, {"min-quality", "allow-below"});
     cmd->callback([a] {
         applyThreads(a->run.threads);
         const Stopwatch total;
@@ -75,7 +102,7 @@ void addInsertSheetCommand(CLI::App& app) {
         if (!std::filesystem::exists(a->mesh)) throw Error(a->mesh + ": no such file; check the path");
         // In a child process, as isohex mesh: a reader crashing on a damaged
         // file is an error naming it (cli/Isolate.hpp).
-        runIsolated(a->mesh, {a->output}, [&] {
+        const nlohmann::json done = runIsolated(a->mesh, {a->output}, [&] {
             // Every surface is read and checked before any work.
             std::vector<std::shared_ptr<const insertion::TriangleTree>> trees;
             for (const auto& s : a->surfaces) {
@@ -106,6 +133,19 @@ void addInsertSheetCommand(CLI::App& app) {
                 invertedBefore = r.invertedBefore;
                 invertedAfter = r.invertedAfter;
             }
+            const pipeline::QualityCertificate cert = meetMinQuality(mesh, geometry, *a);
+            if (!cert.certified) {
+                std::fflush(stdout);
+                std::cerr << "isohex: error: " << a->output << ": below the minimum quality " << cert.target
+                          << ": smallest scaled Jacobian " << cert.achieved << ", " << cert.hexesBelow
+                          << " hex(es) below it"
+                          << (a->quality.settings.allowBelow ? " (written: --allow-below)"
+                                                             : " (nothing written; --allow-below writes it)")
+                          << ":\n"
+                          << pipeline::describePlaces(cert, 10);
+                // (this runs in the child: the parent sets the exit status)
+                if (!a->quality.settings.allowBelow) return nlohmann::json{{"below_quality", true}};
+            }
             const HexQuality q = computeQuality(mesh);
             const QualitySummary s = summarize(mesh, q);
             const ValidityReport v = validate(mesh);
@@ -128,8 +168,9 @@ void addInsertSheetCommand(CLI::App& app) {
                           << (a->optimize ? "" : "; run without --no-optimize to untangle them")
                           << "; isohex quality " << a->output << " lists them\n";
             std::fflush(stdout);
-            return nlohmann::json::object();
+            return nlohmann::json{{"below_quality", !cert.certified}};
         });
+        if (done.value("below_quality", false)) pendingExitCode() = kExitBelowQuality;
     });
 }
 

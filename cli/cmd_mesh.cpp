@@ -50,8 +50,15 @@ void addMeshCommand(CLI::App& app) {
             std::printf("%s: %zu hexes, scaled Jacobian min %.3f mean %.3f, %zu below 0.2, %zu inverted, %.1f s\n",
                         c->inputs[0].c_str(), r.hexes, r.minScaledJacobian, r.meanScaledJacobian, r.below02, r.inverted,
                         r.seconds);
-            for (const auto& o : c->outputs) std::printf("wrote %s\n", o.c_str());
-            if (!r.message.empty()) sink.note("warning", r.message);  // stderr (a JSON line with --log-json)
+            if (r.written)
+                for (const auto& o : c->outputs) std::printf("wrote %s\n", o.c_str());
+            if (r.status == "below") {
+                std::fflush(stdout);
+                sink.note("error", c->inputs[0] + ": " + r.message);
+                pendingExitCode() = kExitBelowQuality;
+            } else if (!r.message.empty()) {
+                sink.note("warning", r.message);  // stderr (a JSON line with --log-json)
+            }
             return;
         }
         if (c->outDir.empty()) throw Error("several inputs need --out-dir DIR (outputs are named after the inputs)");
@@ -81,7 +88,7 @@ void addMeshCommand(CLI::App& app) {
             jobs.push_back(std::move(j));
         }
         for (const auto& o : jobs.front().outputs) io::formatFromPath(o);
-        if (runJobs(jobs, c->args.run.force, c->args.run.progressMode(), SettingNames::Flags) > 0) pendingExitCode() = kExitError;
+        pendingExitCode() = runJobs(jobs, c->args.run.force, c->args.run.progressMode(), SettingNames::Flags).exitCode();
     });
 }
 

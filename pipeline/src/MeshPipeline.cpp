@@ -9,10 +9,26 @@
 
 namespace isohex::pipeline {
 
+namespace {
+
+// The outcome with its certificate, in the report as "quality".
+MeshOutcome certified(MeshOutcome out, const std::string& input, const MeshSettings& settings,
+                      const std::optional<RelaxationResult>& relaxation) {
+    out.quality = certifyQuality(out.mesh, minQualityFor(input, settings));
+    out.quality.defaultTarget = !settings.minQuality.has_value();
+    if (worstHexTargetFor(input, settings) > settings.worstHexTarget && settings.optimize && settings.worstHexPass)
+        out.quality.worstHexTarget = worstHexTargetFor(input, settings);
+    out.quality.relaxation = relaxation;
+    out.report["quality"] = toJson(out.quality);
+    return out;
+}
+
+}  // namespace
+
 MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink) {
     if (settings.method == Method::Sheets) {
         SheetMeshing s = runSheetMethod(input, settings, sink);
-        return {std::move(s.mesh), toJson(s.report)};
+        return certified({std::move(s.mesh), toJson(s.report), {}}, input, settings, std::nullopt);
     }
     const Stopwatch clock;
     Meshing m = meshLabels(prepare(input, settings, sink), settings, sink);
@@ -22,6 +38,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     if (settings.optimize) {
         RetryResult retries = retryStuckHexes(m, settings, sink, warnings);
         if (settings.method == Method::Dual) r.retries = std::move(retries);
+        r.relaxation = relaxToMinQuality(m.mesh, m.prepared, settings, sink);
     }
     r.fidelity = timedStage(sink, "fidelity", [&] { return fidelity(m.mesh, m.prepared); });
     r.prepared = m.prepared.facts;
@@ -41,7 +58,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         r.adaptive = std::move(m.adaptive);
         r.adaptive->hexLevel.clear();
     }
-    return {std::move(m.mesh), toJson(r), std::move(fields)};
+    return certified({std::move(m.mesh), toJson(r), std::move(fields), {}}, input, settings, r.relaxation);
 }
 
 }  // namespace isohex::pipeline

@@ -4,6 +4,7 @@
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/FieldProjector.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/StuckHexes.hpp"
 
 namespace isohex::pipeline {
@@ -16,6 +17,15 @@ WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector
     r.options.surfaceSlack = slack;
     r.result = smoothing::raiseWorstHexes(mesh, projector, r.options, topo);
     r.seconds = clock.seconds();
+    return r;
+}
+
+smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink) {
+    Stage st(sink, "boundary_quads");
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+    const smoothing::BoundaryQuadResult r = smoothing::smoothBoundaryQuads(mesh, projector, buildTopology(mesh));
+    st.finish();
     return r;
 }
 
@@ -43,8 +53,9 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         const double voxels =
             settings.fixBoundary ? 0.0 : settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
         const double slack = voxels * p.selection->materials.front().field.voxelSize();
-        r.worstHexes =
-            worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector, settings.worstHexTarget, slack, &topo);
+        // aimed at the certified minimum when that is higher (--min-quality)
+        r.worstHexes = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector,
+                                    worstHexTargetFor(p.facts.input.path, settings), slack, &topo);
         r.worstHexes->surfaceToleranceVoxels = voxels;
     }
     r.fixBoundary = settings.fixBoundary;

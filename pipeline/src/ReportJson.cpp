@@ -233,6 +233,43 @@ nlohmann::json toJson(const WorstHexPassResult& p) {
     return j;
 }
 
+nlohmann::json toJson(const smoothing::BoundaryQuadResult& r) {
+    return {{"sweeps", r.sweeps}, {"moves", r.moves}, {"seconds", r.seconds}};
+}
+
+nlohmann::json toJson(const RelaxationResult& r) {
+    return {{"mean", "boundary_relaxation"},
+            {"max_deviation_voxels", r.maxDeviationVoxels},
+            {"surface_nodes_off", r.nodesOff},
+            {"largest_deviation_voxels", r.largestDeviationVoxels},
+            {"nodes_moved", r.nodesMoved},
+            {"min_scaled_jacobian_before", r.minBefore},
+            {"min_scaled_jacobian_after", r.minAfter},
+            {"below_target_before", r.belowBefore},
+            {"below_target_after", r.belowAfter},
+            {"seconds", r.seconds}};
+}
+
+nlohmann::json toJson(const QualityCertificate& c) {
+    nlohmann::json places = nlohmann::json::array();
+    for (const BelowPlace& p : c.places)
+        places.push_back({{"at", p.at}, {"material", p.material}, {"scaled_jacobian", p.scaledJacobian},
+                          {"cause", causeText(p.cause)}});
+    nlohmann::json means = nlohmann::json::array();
+    if (c.worstHexTarget) means.push_back({{"mean", "worst_hex_pass"}, {"target", *c.worstHexTarget}});
+    if (c.relaxation) means.push_back(toJson(*c.relaxation));
+    return {{"min_quality_certified", c.certified},
+            {"target", c.target},
+            {"default_target", c.defaultTarget},
+            {"achieved", c.achieved},
+            {"min", c.achieved},
+            {"mean", c.mean},
+            {"histogram", {{"edges", kScaledJacobianBins}, {"counts", c.histogram}}},
+            {"hexes_below_target", c.hexesBelow},
+            {"places", places},
+            {"means", means}};
+}
+
 nlohmann::json toJson(const OptimizeResult& o) {
     nlohmann::json j;
     j["enabled"] = o.enabled;

@@ -11,6 +11,7 @@
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/insertion/RegularGrid.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/imaging/SurfaceVolume.hpp"
 #include "isohex/smoothing/Optimize.hpp"
@@ -32,6 +33,9 @@ void checkSettings(const std::string& input, const MeshSettings& settings) {
     if (settings.surfaceTolerance)
         throw SettingError({Setting::SurfaceTolerance, " is in voxels of a scan; ", Setting::Method,
                             " sheets keeps surface nodes on the triangles until its volume fit, so leave it out"});
+    if (settings.maxDeviation)
+        throw SettingError({Setting::Method, " sheets keeps surface nodes on the triangles until its volume fit; the "
+                            "maximum deviation is in voxels of a scan, so leave it out"});
     if (settings.isosurfaceTopology)
         throw SettingError({Setting::IsosurfaceTopology, " chooses grid points of a sampled grid; ", Setting::Method,
                             " sheets has none (use ", Setting::Method, " dual)"});
@@ -52,7 +56,7 @@ void optimizeOnTriangles(SheetMeshing& out, insertion::SheetGeometry& geometry, 
     if (settings.fixBoundary) return;
     if (settings.worstHexPass)
         out.report.worstHexes = timedStage(sink, "worst_hexes", [&] {
-            return worstHexPass(out.mesh, &geometry, settings.worstHexTarget);
+            return worstHexPass(out.mesh, &geometry, worstHexTargetFor(out.report.path, settings));
         });
     out.report.surfaceFit =
         timedStage(sink, "surface_fit", [&] { return insertion::fitSurfaceVolume(out.mesh, surface, surfaceId); });

@@ -24,6 +24,14 @@ def workdir(name):
     return d
 
 
+def phantoms(name):
+    """A new work folder with samples/make_phantoms.py's phantoms written into it."""
+    d = workdir(name)
+    subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), d], check=True,
+                   capture_output=True)
+    return d
+
+
 def polygon_topology(polys):
     """Components and Euler characteristic V - E + F of a polygon surface given
     as a numpy array of vertex ids (one row per polygon, all the same size)."""
@@ -45,3 +53,23 @@ def polygon_topology(polys):
             parent[max(ra, rb)] = min(ra, rb)
     components = len({find(int(v)) for v in used})
     return components, len(used) - len(edges) + len(polys)
+
+
+EXIT_BELOW_QUALITY = 4  # isohex's exit status when a mesh stays below --min-quality
+
+
+def run_below_allowed(args, mesh, target=0.0, **kw):
+    """Runs a command meant to leave poor hexes (--no-optimize, --fix-boundary)
+    with --allow-below: the mesh is written, and the exit status is 4 exactly
+    when VTK's scaled Jacobian on the written `mesh` (a .vtu) has a hex below
+    `target`, at or below 0, or degenerate (VTK's 1e30), else 0."""
+    from vtk_tools import vtk_sj
+    p = run(list(args) + ["--allow-below"], check=False, **kw)
+    sj = vtk_sj(mesh)
+    below = bool(((sj < target) | (sj <= 0) | (sj > 1 + 1e-9)).any())
+    expected = EXIT_BELOW_QUALITY if below else 0
+    if p.returncode != expected:
+        sys.stderr.write(p.stdout + p.stderr)
+        raise AssertionError(f"isohex {' '.join(map(str, args))} exited {p.returncode}, expected {expected} "
+                             f"(VTK: min scaled Jacobian {sj.min():.3f})")
+    return p

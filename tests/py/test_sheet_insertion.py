@@ -12,7 +12,7 @@ import vtk
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from common import SHARED_DATA, SOURCE, run, workdir, EXIT_BELOW_QUALITY  # noqa: E402
 from vtk_tools import read_vtu, vtk_hex_quality  # noqa: E402
 
 SAMPLES = os.path.join(SOURCE, "samples")
@@ -147,12 +147,16 @@ class BlockWithSphericalCuts(unittest.TestCase):
         # smoothed) and the defects as raw JSON on stdout
         d = workdir("cuts_noopt")
         out = os.path.join(d, "cut.vtu")
+        # (--allow-below: a mesh with inverted hexes is below every minimum
+        # quality, written only on request, and the exit status says so)
         p = run(["insert-sheet", "--mesh", os.path.join(SAMPLES, "spherical_cuts_block.vtu"),
                  "--surface", os.path.join(SAMPLES, "spherical_cut_1.off"),
                  "--surface", os.path.join(SAMPLES, "spherical_cut_2.off"),
-                 "--keep", "outside", "-o", out, "-q", "--no-optimize"])
+                 "--keep", "outside", "-o", out, "-q", "--no-optimize", "--allow-below"], check=False)
         inverted = int((vtk_hex_quality(read_vtu(out), "ScaledJacobian") <= 0).sum())
         self.assertGreater(inverted, 0)  # the case the messages are for
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertIn("below the minimum quality 0: smallest scaled Jacobian", p.stderr)
         self.assertIn("%d inverted (not smoothed: --no-optimize)" % inverted, p.stdout)
         self.assertNotIn("before smoothing", p.stdout)
         self.assertNotIn("{", p.stdout + p.stderr)

@@ -15,6 +15,7 @@
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Pillow.hpp"
 #include "isohex/pipeline/Prepare.hpp"
@@ -31,6 +32,7 @@ struct MeshReport {
     PillowResult pillow;
     OptimizeResult optimization;
     std::optional<RetryResult> retries;  // Method::Dual with optimisation
+    std::optional<RelaxationResult> relaxation;  // when hexes stayed below the certified minimum
     FidelityResult fidelity;
     std::vector<std::pair<std::int32_t, std::size_t>> hexesPerMaterial;  // by material
     std::optional<AdaptiveFacts> adaptive;  // settings.adaptive
@@ -40,12 +42,14 @@ struct MeshReport {
 
 struct MeshOutcome {
     HexMesh mesh;
-    nlohmann::json report;  // ReportJson.hpp's writing of the run's report
+    nlohmann::json report;  // ReportJson.hpp's writing of the run's report ("quality": the certificate)
     // Per-hex fields for the mesh file (.vtu cell data): "level" with --adaptive.
     std::vector<std::pair<std::string, std::vector<double>>> cellFields;
+    QualityCertificate quality;  // of `mesh` against --min-quality
 };
 
-// Meshes `input` by settings.method, with the report of every stage.
+// Meshes `input` by settings.method, with the report of every stage and the
+// certificate of the mesh against the minimum quality.
 MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink);
 
 }  // namespace isohex::pipeline

@@ -71,6 +71,18 @@ struct MeshSettings {
     // The scaled Jacobian below which a hex counts as stuck too; unset:
     // kDefaultRetryBelow; 0: inverted hexes only.
     std::optional<double> retryBelow;
+    // The certified minimum scaled Jacobian of the mesh written (--min-quality);
+    // unset: the default of the input's kind (pipeline/MinQuality.hpp). The
+    // max-min pass aims at the larger of it and worstHexTarget.
+    std::optional<double> minQuality;
+    // Write the mesh even when it stays below minQuality (the command still
+    // fails with its own status).
+    bool allowBelow = false;
+    // How far (voxels) the bounded boundary relaxation may leave a surface
+    // node off its isosurface to lift hexes still below minQuality; unset:
+    // kDefaultMaxDeviation (MinQuality.hpp); at most the surface tolerance:
+    // no relaxation.
+    std::optional<double> maxDeviation;
 };
 
 }  // namespace isohex::pipeline

@@ -9,6 +9,7 @@
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/StageSink.hpp"
+#include "isohex/smoothing/BoundaryQuads.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
@@ -36,6 +37,11 @@ struct OptimizeResult {
     smoothing::SmoothingResult smoothingResult;
     std::optional<WorstHexPassResult> worstHexes;  // with settings.worstHexPass
 };
+
+// Stage "boundary_quads" of compare's protocol (the seed's): the boundary and
+// interface quads smoothed on the scan's isosurfaces before the boundary is
+// fixed (smoothing::smoothBoundaryQuads).
+smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink);
 
 // Stage "optimize". Unless `warnLeftInverted` is false, a warning names the
 // hexes still inverted after it.

@@ -6,6 +6,7 @@
 
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/MeshPipeline.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Pillow.hpp"
 #include "isohex/pipeline/Prepare.hpp"
@@ -20,9 +21,11 @@ nlohmann::json toJson(const GridFacts& grid);            // "grid"
 nlohmann::json toJson(const PillowResult& pillow);       // "pillow"
 nlohmann::json toJson(const WorstHexPassResult& pass);   // "worst_hexes"
 nlohmann::json toJson(const OptimizeResult& opt);        // "optimization"
+nlohmann::json toJson(const smoothing::BoundaryQuadResult& r);  // compare's "boundary_quads"
 nlohmann::json toJson(const RetryResult& retries);       // "retries"
 nlohmann::json toJson(const FidelityResult& fidelity);   // "fidelity"
 nlohmann::json toJson(const AdaptiveFacts& adaptive);    // "adaptive"
+nlohmann::json toJson(const QualityCertificate& quality);  // "quality"
 // The whole report of a run on a scan, and of the sheet method.
 nlohmann::json toJson(const MeshReport& report);
 nlohmann::json toJson(const SheetMethodReport& report);

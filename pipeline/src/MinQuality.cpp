@@ -1,0 +1,170 @@
+#include "isohex/pipeline/MinQuality.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "Format.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "Stage.hpp"
+#include "isohex/imaging/SurfaceVolume.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/FieldProjector.hpp"
+#include "isohex/pipeline/StuckHexes.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
+
+namespace isohex::pipeline {
+
+const char* causeText(BelowCause cause) {
+    switch (cause) {
+        case BelowCause::LabelJunction: return "label junction";
+        case BelowCause::ThinFeature: return "feature thinner than an element";
+        case BelowCause::BoundaryPinned: return "boundary node pinned to the isosurface";
+        case BelowCause::Interior: return "interior hex no node placement lifts";
+    }
+    return "interior hex no node placement lifts";
+}
+
+double minQualityFor(const std::string& input, const MeshSettings& settings) {
+    if (settings.minQuality) return *settings.minQuality;
+    if (settings.method == Method::Sheets) return kDefaultMinQualitySheetMethod;
+    return imaging::isSurfaceFile(input) ? kDefaultMinQualitySurface : kDefaultMinQualityScan;
+}
+
+double worstHexTargetFor(const std::string& input, const MeshSettings& settings) {
+    return std::max(settings.worstHexTarget, minQualityFor(input, settings));
+}
+
+namespace {
+
+// The distance of each surface node of `mesh` from its surface (0 for the
+// other nodes and for surfaces the projector leaves alone).
+double offSurface(const HexMesh& mesh, const smoothing::SurfaceProjector& projector, Index v) {
+    const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
+    if (c.kind != NodeKind::Surface || !projector.projectsOnto(c.id)) return 0;
+    const Vec3& x = mesh.nodes[static_cast<std::size_t>(v)];
+    const Vec3 p = projector.project(c.id, x);
+    if (!std::isfinite(p[0])) return 0;
+    return std::sqrt((p[0] - x[0]) * (p[0] - x[0]) + (p[1] - x[1]) * (p[1] - x[1]) + (p[2] - x[2]) * (p[2] - x[2]));
+}
+
+BelowCause causeOf(const HexMesh& mesh, Index h) {
+    int onSurface = 0;
+    bool junction = false;
+    for (Index v : mesh.hexes[static_cast<std::size_t>(h)]) {
+        const NodeKind k = mesh.nodeClass[static_cast<std::size_t>(v)].kind;
+        if (k == NodeKind::Curve || k == NodeKind::Fixed) junction = true;
+        if (k != NodeKind::Interior) ++onSurface;
+    }
+    if (junction) return BelowCause::LabelJunction;
+    if (onSurface == 8) return BelowCause::ThinFeature;
+    if (onSurface > 0) return BelowCause::BoundaryPinned;
+    return BelowCause::Interior;
+}
+
+}  // namespace
+
+RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double target,
+                               double maxDeviation, double tolerance, double voxel) {
+    const Stopwatch clock;
+    RelaxationResult r;
+    r.maxDeviationVoxels = maxDeviation / voxel;
+    const std::vector<Vec3> before = mesh.nodes;
+    smoothing::WorstHexOptions o;
+    o.target = target;
+    o.surfaceSlack = maxDeviation;
+    o.meanRounds = 0;  // only the nodes of the hexes below the target move
+    // surface nodes leave their surface by the slack alone: no release of
+    // inverted hexes' nodes by edge lengths, no joint moves (the optimiser
+    // and its pass had those)
+    o.releaseDistance = 0;
+    o.jointRings = 0;
+    std::vector<double> offBefore(mesh.nodes.size(), 0.0);
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        if (mesh.nodeClass[v].kind == NodeKind::Surface) offBefore[v] = offSurface(mesh, projector, static_cast<Index>(v));
+    const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, &projector, o);
+    r.nodesMoved = w.nodesMoved;
+    r.minBefore = w.minBefore;
+    r.minAfter = w.minAfter;
+    r.belowBefore = w.belowBefore;
+    r.belowAfter = w.belowAfter;
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v) {
+        if (mesh.nodes[v] == before[v]) continue;
+        // a node already off its surface (released to untangle, held back at
+        // extraction) counts where the relaxation took it farther
+        const double d = offSurface(mesh, projector, static_cast<Index>(v));
+        if (!(d > offBefore[v])) continue;
+        r.largestDeviationVoxels = std::max(r.largestDeviationVoxels, d / voxel);
+        if (d > tolerance) ++r.nodesOff;
+    }
+    r.seconds = clock.seconds();
+    return r;
+}
+
+std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared& p, const MeshSettings& settings,
+                                                  StageSink& sink) {
+    if (!settings.optimize || settings.fixBoundary || !settings.worstHexPass || settings.method != Method::Dual)
+        return std::nullopt;
+    const double tolerance = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
+    const double maxDeviation = settings.maxDeviation.value_or(kDefaultMaxDeviation);
+    if (!(maxDeviation > tolerance)) return std::nullopt;
+    const double target = minQualityFor(p.facts.input.path, settings);
+    const std::vector<double> sj = scaledJacobians(mesh);
+    // as certifyQuality counts: below the target, not positive, or degenerate
+    if (std::none_of(sj.begin(), sj.end(), [&](double v) { return v > 1.0 + 1e-9 || !(v > 0) || v < target; }))
+        return std::nullopt;
+    Stage st(sink, "relax");
+    const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
+    const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+    const double voxel = p.selection->materials.front().field.voxelSize();
+    RelaxationResult r = relaxBoundary(mesh, projector, target, maxDeviation * voxel, tolerance * voxel, voxel);
+    st.finish();
+    return r;
+}
+
+QualityCertificate certifyQuality(const HexMesh& mesh, double target) {
+    QualityCertificate c;
+    c.target = target;
+    const std::vector<double> sj = scaledJacobians(mesh);
+    std::vector<std::pair<double, Index>> below;
+    double sum = 0;
+    std::size_t counted = 0;
+    c.achieved = sj.empty() ? 0.0 : 1.0;
+    for (std::size_t h = 0; h < sj.size(); ++h) {
+        const bool degenerate = sj[h] > 1.0 + 1e-9;  // Verdict's 1e30: a collapsed edge
+        const double v = degenerate ? 0.0 : sj[h];
+        c.achieved = std::min(c.achieved, v);
+        if (!degenerate) {
+            sum += v;
+            ++counted;
+            const auto* it = std::upper_bound(kScaledJacobianBins.begin(), kScaledJacobianBins.end(), v);
+            ++c.histogram[static_cast<std::size_t>(std::clamp<long>(it - kScaledJacobianBins.begin() - 1, 0, 10))];
+        }
+        if (degenerate || !(v > 0) || v < target) below.emplace_back(v, static_cast<Index>(h));
+    }
+    c.mean = counted ? sum / static_cast<double>(counted) : 0.0;
+    c.hexesBelow = below.size();
+    c.certified = below.empty() && !sj.empty();
+    std::sort(below.begin(), below.end());
+    if (below.size() > kMaxPlacesListed) below.resize(kMaxPlacesListed);
+    for (const auto& [v, h] : below)
+        c.places.push_back({hexCentre(mesh, h), mesh.material[static_cast<std::size_t>(h)], v, causeOf(mesh, h)});
+    return c;
+}
+
+std::string describePlaces(const QualityCertificate& c, std::size_t lines) {
+    std::string s;
+    for (std::size_t i = 0; i < c.places.size() && i < lines; ++i) {
+        const BelowPlace& p = c.places[i];
+        s += "  at (" + shortNumber(p.at[0]) + ", " + shortNumber(p.at[1]) + ", " + shortNumber(p.at[2]) +
+             "), material " + std::to_string(p.material) + ", scaled Jacobian " + shortNumber(p.scaledJacobian) +
+             ": " + causeText(p.cause) + "\n";
+    }
+    const std::size_t shown = std::min(lines, c.places.size());
+    if (c.hexesBelow > shown)
+        s += "  and " + std::to_string(c.hexesBelow - shown) + " more hex(es) below " + shortNumber(c.target) +
+             " (the report's quality.places lists " + std::to_string(c.places.size()) + ")\n";
+    return s;
+}
+
+}  // namespace isohex::pipeline

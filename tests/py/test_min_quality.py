@@ -1,0 +1,156 @@
+"""End-to-end tests of the certified minimum quality (--min-quality, --allow-below,
+--max-deviation) of `mesh`, `batch` and `insert-sheet`: the exit status, what is
+written, and the report's certificate, judged by VTK's vtkMeshQuality on the
+written files."""
+import json
+import os
+import sys
+import unittest
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import EXIT_BELOW_QUALITY, SHARED_DATA, SOURCE, phantoms, run, workdir  # noqa: E402
+from vtk_tools import vtk_sj  # noqa: E402
+
+JHU = os.path.join(SOURCE, "samples", "JHU-WhiteMatter-labels-2mm.nii.gz")
+
+
+class MinQuality(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = phantoms("min_quality")
+        cls.sphere = os.path.join(cls.dir, "sphere.nii.gz")
+
+    def paths(self, name):
+        return os.path.join(self.dir, name + ".vtu"), os.path.join(self.dir, name + ".json")
+
+    def test_unreachable_target_fails_names_places_and_writes_nothing(self):
+        out, report = self.paths("unreachable")
+        p = run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.95", "-o", out,
+                 "--report", report, "-q"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertIn("below the minimum quality 0.95", p.stderr)
+        # each place: position, material and cause
+        self.assertRegex(p.stderr, r"at \([-0-9.e]+, [-0-9.e]+, [-0-9.e]+\), material 1, scaled Jacobian [0-9.e-]+: "
+                                   r"(boundary node pinned to the isosurface|feature thinner than an element|"
+                                   r"label junction|interior hex)")
+        self.assertFalse(os.path.exists(out))
+        self.assertFalse(os.path.exists(report))
+        self.assertEqual([f for f in os.listdir(self.dir) if f.startswith(".") or "unreachable" in f], [])
+
+    def test_allow_below_writes_the_mesh_and_certifies_false(self):
+        out, report = self.paths("allowed")
+        p = run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.95", "--allow-below",
+                 "-o", out, "--report", report, "-q", "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        sj = vtk_sj(out)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertIs(q["min_quality_certified"], False)
+        self.assertEqual(q["target"], 0.95)
+        self.assertIs(q["default_target"], False)
+        self.assertAlmostEqual(q["achieved"], sj.min(), delta=1e-9)
+        self.assertAlmostEqual(q["mean"], sj.mean(), delta=1e-9)
+        self.assertEqual(q["hexes_below_target"], int((sj < 0.95).sum()))
+        self.assertEqual(sum(q["histogram"]["counts"]), len(sj))
+        self.assertEqual(len(q["places"]), min(200, q["hexes_below_target"]))
+        worst = q["places"][0]
+        self.assertAlmostEqual(worst["scaled_jacobian"], sj.min(), delta=1e-9)
+        self.assertEqual(worst["material"], 1)
+        self.assertEqual(len(worst["at"]), 3)
+        # the max-min pass aimed at the target
+        self.assertIn({"mean": "worst_hex_pass", "target": 0.95}, q["means"])
+
+    def test_reachable_target_certifies_true(self):
+        out, report = self.paths("reachable")
+        run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.4", "-o", out,
+             "--report", report, "-q", "--force"])
+        sj = vtk_sj(out)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertIs(q["min_quality_certified"], True)
+        self.assertEqual(q["target"], 0.4)
+        self.assertGreaterEqual(sj.min(), 0.4)
+        self.assertEqual(q["hexes_below_target"], 0)
+        self.assertEqual(q["places"], [])
+
+    def test_default_target_is_certified_on_a_phantom(self):
+        out, report = self.paths("default")
+        run(["mesh", self.sphere, "--iso", "50", "--size", "3", "-o", out, "--report", report, "-q", "--force"])
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertIs(q["default_target"], True)
+        self.assertIs(q["min_quality_certified"], True)
+        self.assertGreaterEqual(vtk_sj(out).min(), q["target"])
+        self.assertGreater(vtk_sj(out).min(), 0)
+
+    def test_a_surface_is_certified_at_its_default_of_0_5(self):
+        src = os.path.join(SHARED_DATA, "sphere966.off")
+        out, report = self.paths("surface_default")
+        run(["mesh", src, "-o", out, "--report", report, "-q", "--force"])
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.5, True, True))
+        self.assertGreaterEqual(vtk_sj(out).min(), 0.5)
+
+    def test_boundary_relaxation_is_bounded_and_reported(self):
+        # a label atlas whose worst hexes sit at junctions: above the surface
+        # tolerance the relaxation runs and reports how far nodes went
+        out, report = self.paths("relaxed")
+        p = run(["mesh", JHU, "--labels", "--size", "4", "--min-quality", "0.3", "--max-deviation", "0.5",
+                 "--allow-below", "-o", out, "--report", report, "-q", "--force"], check=False)
+        self.assertIn(p.returncode, (0, EXIT_BELOW_QUALITY), p.stderr)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        relax = [m for m in q["means"] if m["mean"] == "boundary_relaxation"]
+        self.assertEqual(len(relax), 1, q["means"])
+        r = relax[0]
+        self.assertEqual(r["max_deviation_voxels"], 0.5)
+        self.assertLessEqual(r["largest_deviation_voxels"], 0.5 + 1e-6)
+        self.assertGreaterEqual(r["min_scaled_jacobian_after"], r["min_scaled_jacobian_before"])
+        sj = vtk_sj(out)
+        self.assertAlmostEqual(q["achieved"], sj.min(), delta=1e-9)
+        self.assertEqual(q["min_quality_certified"], bool(sj.min() >= 0.3))
+        self.assertEqual(p.returncode == 0, q["min_quality_certified"])
+
+    def test_max_deviation_needs_moving_surface_nodes(self):
+        p = run(["mesh", self.sphere, "--iso", "50", "--max-deviation", "0.5", "--fix-boundary", "-o",
+                 os.path.join(self.dir, "x.vtu")], check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "x.vtu")))
+
+    def test_batch_row_below_fails_with_its_cause(self):
+        d = workdir("min_quality_batch")
+        manifest = os.path.join(d, "jobs.csv")
+        with open(manifest, "w") as f:
+            f.write("input,output,min_quality\n")
+            f.write(f"{self.sphere},ok.vtu,\n")
+            f.write(f"{self.sphere},below.vtu,0.95\n")
+        p = run(["batch", manifest, "--iso", "50", "--size", "3", "-q"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stdout + p.stderr)
+        rows = [line for line in p.stdout.splitlines() if line.startswith(self.sphere[-30:]) or "sphere" in line]
+        self.assertTrue(any(" ok " in r for r in rows), p.stdout)
+        self.assertTrue(any(" below " in r and "below the minimum quality 0.95" in r for r in rows), p.stdout)
+        self.assertIn("1 below the minimum quality", p.stdout)
+        self.assertIn("scaled Jacobian", p.stderr)  # the places, on stderr
+        self.assertTrue(os.path.exists(os.path.join(d, "ok.vtu")))
+        self.assertFalse(os.path.exists(os.path.join(d, "below.vtu")))
+
+    def test_insert_sheet_below_writes_nothing(self):
+        block = os.path.join(SOURCE, "samples", "spherical_cuts_block.vtu")
+        cut = os.path.join(SOURCE, "samples", "spherical_cut_1.off")
+        out = os.path.join(self.dir, "cut.vtu")
+        p = run(["insert-sheet", "--mesh", block, "--surface", cut, "-o", out, "--min-quality", "0.95", "-q"],
+                check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertIn("below the minimum quality 0.95", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        p = run(["insert-sheet", "--mesh", block, "--surface", cut, "-o", out, "--min-quality", "0.95",
+                 "--allow-below", "-q"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertTrue(os.path.exists(out))
+        run(["insert-sheet", "--mesh", block, "--surface", cut, "-o", out, "--min-quality", "0.2", "-q", "--force"])
+        self.assertGreaterEqual(vtk_sj(out).min(), 0.2)
+
+
+if __name__ == "__main__":
+    unittest.main()
