@@ -22,5 +22,6 @@ void addSmoothCommand(CLI::App& app);
 void addCompareCommand(CLI::App& app);
 void addBatchCommand(CLI::App& app);
 void addInsertSheetCommand(CLI::App& app);
+void addMergeCommand(CLI::App& app);
 
 }  // namespace isohex::cli

@@ -66,6 +66,7 @@ int main(int argc, char** argv) {
     addSmoothCommand(app);
     addBatchCommand(app);
     addInsertSheetCommand(app);
+    addMergeCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

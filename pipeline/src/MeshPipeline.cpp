@@ -12,7 +12,7 @@ namespace isohex::pipeline {
 MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settings, StageSink& sink) {
     if (settings.method == Method::Sheets) {
         SheetMeshing s = runSheetMethod(input, settings, sink);
-        return {std::move(s.mesh), toJson(s.report)};
+        return {std::move(s.mesh), toJson(s.report), {}, {}};
     }
     const Stopwatch clock;
     Meshing m = meshLabels(prepare(input, settings, sink), settings, sink);
@@ -35,7 +35,10 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     r.warnings = m.prepared.warnings;
     r.warnings.insert(r.warnings.end(), warnings.begin(), warnings.end());
     r.seconds = clock.seconds();
-    return {std::move(m.mesh), toJson(r)};
+    if (!m.prepared.part) return {std::move(m.mesh), toJson(r), {}, {}};
+    r.part = PartFacts{*m.prepared.part, 0};
+    for (auto c : m.partNodes->onCut) r.part->cutNodes += c;
+    return {std::move(m.mesh), toJson(r), m.prepared.part, std::move(m.partNodes)};
 }
 
 }  // namespace isohex::pipeline

@@ -27,6 +27,7 @@ enum class Setting : std::uint8_t {
     Method,              // dual contouring, voxel hexes or sheet insertion
     SurfaceTolerance,    // how far the worst-hex pass may leave the surface
     IsosurfaceTopology,  // keep the isosurface's topology on the element grid
+    Part,                // mesh one part of a scan split into parts
 };
 
 // A plain name for `s`, for a message read outside any front end.
@@ -43,6 +44,7 @@ inline std::string_view settingName(Setting s) {
         case Setting::Method: return "method";
         case Setting::SurfaceTolerance: return "surface tolerance";
         case Setting::IsosurfaceTopology: return "isosurface topology";
+        case Setting::Part: return "part";
     }
     return "setting";
 }

@@ -15,6 +15,7 @@
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Pillow.hpp"
 #include "isohex/pipeline/Prepare.hpp"
@@ -35,11 +36,16 @@ struct MeshReport {
     std::vector<std::pair<std::int32_t, std::size_t>> hexesPerMaterial;  // by material
     std::vector<std::string> warnings;   // preparation's first
     double seconds = 0;
+    std::optional<PartFacts> part;       // settings.part
 };
 
 struct MeshOutcome {
     HexMesh mesh;
     nlohmann::json report;  // ReportJson.hpp's writing of the run's report
+    // With settings.part: where the part lies and its nodes' keys, for the
+    // part file (addPartArrays).
+    std::optional<PartWindow> part;
+    std::optional<PartNodes> partNodes;
 };
 
 // Meshes `input` by settings.method, with the report of every stage.

@@ -20,6 +20,13 @@ std::string_view methodName(Method method);
 // The method of that name; none for any other string.
 std::optional<Method> parseMethod(std::string_view name);
 
+// Which slab of a scan split into parts to mesh: part `index` (1-based) of
+// `count` (Part.hpp, docs/SPLIT-SCANS.md).
+struct PartSpec {
+    int index = 1, count = 1;
+    bool operator==(const PartSpec&) const = default;
+};
+
 struct MeshSettings;
 // Throws isohex::SettingError when the element size is given and not a
 // positive length: the check every method makes for callers other than the
@@ -66,6 +73,8 @@ struct MeshSettings {
     // The scaled Jacobian below which a hex counts as stuck too; unset:
     // kDefaultRetryBelow; 0: inverted hexes only.
     std::optional<double> retryBelow;
+    // Mesh only this part of the scan, for `isohex merge` (unset: the whole scan).
+    std::optional<PartSpec> part;
 };
 
 }  // namespace isohex::pipeline

@@ -34,6 +34,7 @@ struct Meshing {
     std::size_t contouredHexes = 0, contouredNodes = 0;  // the report's "extracted"
     PillowResult pillow;
     OptimizeResult optimization;
+    std::optional<PartNodes> partNodes;  // with prepared.part: the keys of the part's nodes
 };
 
 struct RetryEdit {
