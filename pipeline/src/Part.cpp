@@ -27,17 +27,19 @@ void checkPartSettings(const MeshSettings& s) {
         throw SettingError(std::move(why));
     };
     if (s.keepLargest)
-        refuse({"keep-largest: which region is largest is a question about the whole scan (mesh whole, or select the "
-                "region first, e.g. with a label map); leave out ", Setting::Part, " or keep-largest"});
+        refuse({"keep-largest: which region is largest is a question about the whole scan (mesh it whole, or select "
+                "the region first, e.g. as a label map); leave out ", Setting::Part, " or keep-largest"});
     if (s.isosurfaceTopology)
         refuse({Setting::IsosurfaceTopology, ": its search spends one budget over the whole grid in grid order; "
                 "leave out ", Setting::Part, " or ", Setting::IsosurfaceTopology});
     if (s.method == Method::Sheets)
         refuse({Setting::Method, " sheets: the sheets follow the whole surface; use ", Setting::Method, " dual"});
     if (s.meshExterior)
-        refuse({"mesh-exterior: the box around the object is the whole scan's; leave out ", Setting::Part});
+        refuse({"mesh-exterior: the box around the object is the whole scan's; leave out ", Setting::Part,
+                " or mesh-exterior"});
     if (s.boundaryLayers != 1)
-        refuse({"boundary-layers above 1: the layers are diced sheets of the whole mesh; leave out ", Setting::Part});
+        refuse({"boundary-layers above 1: the layers are diced sheets of the whole mesh; leave out ", Setting::Part,
+                " or boundary-layers"});
 }
 
 std::vector<std::int32_t> sortedMaterials(const HexMesh& mesh) {
