@@ -26,5 +26,6 @@ void addCompareCommand(CLI::App& app);
 void addBatchCommand(CLI::App& app);
 void addInsertSheetCommand(CLI::App& app);
 void addEstimateCommand(CLI::App& app);
+void addMergeCommand(CLI::App& app);
 
 }  // namespace isohex::cli

@@ -112,6 +112,11 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     if (!job.report.empty()) files.push_back(job.report);
     const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.run.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
+    if (args.settings.part)
+        for (const auto& o : job.outputs)
+            if (io::formatFromPath(o) != io::Format::Vtu)
+                throw Error(o + ": a part (--part) is written as .vtu, with the node keys isohex merge joins the "
+                                "parts by; write part files as .vtu and give the merged mesh's format to isohex merge");
     pipeline::MeshOutcome out = pipeline::runMeshPipeline(job.input, args.settings, sink);
     const Stopwatch quality;
     const HexQuality q = computeQuality(out.mesh);
@@ -138,6 +143,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     w.overwrite = args.run.force;
     w.scaledJacobian = q.scaledJacobian;
     w.cellFields = out.cellFields;
+    if (out.part) pipeline::addPartArrays(w, out.mesh, *out.partNodes, *out.part);
     // Each file is written whole or not at all (a temporary file renamed);
     // if one fails, the files this job created before it are removed again,
     // so a failed job leaves none of its outputs behind (files it replaced

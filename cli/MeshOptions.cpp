@@ -202,6 +202,45 @@ MeshOption sliceSpacing() {
     return o;
 }
 
+// "K/N" as part K of N; nullopt when it is not two whole numbers with 1 <= K <= N.
+std::optional<pipeline::PartSpec> parsePart(const std::string& text) {
+    const auto slash = text.find('/');
+    if (slash == std::string::npos) return std::nullopt;
+    try {
+        std::size_t a = 0, b = 0;
+        const std::string k = text.substr(0, slash), n = text.substr(slash + 1);
+        const int index = std::stoi(k, &a), count = std::stoi(n, &b);
+        if (a != k.size() || b != n.size() || count < 1 || index < 1 || index > count) return std::nullopt;
+        return pipeline::PartSpec{index, count};
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+// --part K/N: one slab of the scan, for isohex merge.
+MeshOption partRow() {
+    static const char* help =
+        "Mesh only part K of N (e.g. 2/4): the element grid is cut across its longest axis into N slabs; join the "
+        "parts' .vtu files with isohex merge (docs/SPLIT-SCANS.md)";
+    static const char* says = "must be K/N with 1 <= K <= N, e.g. 2/4";
+    MeshOption o = row("part", "Mesh", help, "K/N, e.g. 2/4");
+    o.addFlag = [](CLI::App& cmd, MeshArgs& a) {
+        return cmd
+            .add_option_function<std::string>(
+                "--part", [&a](const std::string& v) { a.settings.part = parsePart(v); }, help)
+            ->check(CLI::Validator(
+                [](const std::string& v) {
+                    return parsePart(v) ? std::string() : "--part " + std::string(says) + " (got '" + v + "')";
+                },
+                "K/N"));
+    };
+    o.setColumn = [](const Field& f, MeshArgs& a) {
+        a.settings.part = parsePart(f.scalar());
+        if (!a.settings.part) throw FieldError{says};
+    };
+    return o;
+}
+
 // The selection rows: which part of the scan becomes the mesh.
 void addSelectionRows(std::vector<MeshOption>& t) {
     const char* g = "Selection";
@@ -306,6 +345,8 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }, true));
     t.push_back(onOff("mesh-exterior", g, "Also mesh the background out to a box around the object", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.meshExterior; }));
+    t.push_back(partRow());
+    t.back().setting = Setting::Part;
     t.push_back(onOff("fix-boundary", g, "Optimise interior nodes only; surface nodes stay where extracted",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.fixBoundary; }));
     t.push_back(onOff("no-optimize", g, "Skip untangling and mean-ratio optimisation", "true/false",

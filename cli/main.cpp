@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
     addBatchCommand(app);
     addInsertSheetCommand(app);
     addEstimateCommand(app);
+    addMergeCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

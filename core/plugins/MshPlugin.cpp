@@ -10,7 +10,9 @@ void write(const HexMesh& mesh, const std::string& tmpPath, const std::string& p
     io::detail::writeMsh(mesh, tmpPath, path);
 }
 
-const io::detail::MeshFormatPlugin kApi{io::detail::MeshFormatPlugin::kAbi, write, io::detail::readMsh};
+HexMesh read(const std::string& path, const io::detail::ArrayRequest*) { return io::detail::readMsh(path); }
+
+const io::detail::MeshFormatPlugin kApi{io::detail::MeshFormatPlugin::kAbi, write, read};
 
 }  // namespace
 

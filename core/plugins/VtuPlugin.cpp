@@ -9,9 +9,9 @@ using namespace isohex;
 
 void write(const HexMesh& mesh, const std::string& tmpPath, const std::string& path, const io::WriteOptions& opt) {
     if (opt.scaledJacobian.empty())
-        io::detail::writeVtu(mesh, tmpPath, path, scaledJacobians(mesh), opt.cellFields);
+        io::detail::writeVtu(mesh, tmpPath, path, scaledJacobians(mesh), opt);
     else
-        io::detail::writeVtu(mesh, tmpPath, path, opt.scaledJacobian, opt.cellFields);
+        io::detail::writeVtu(mesh, tmpPath, path, opt.scaledJacobian, opt);
 }
 
 const io::detail::MeshFormatPlugin kApi{io::detail::MeshFormatPlugin::kAbi, write, io::detail::readVtu};

@@ -6,16 +6,17 @@
 
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/core/MeshIO.hpp"
+#include "MeshIODetail.hpp"
 
 namespace isohex::io::detail {
 
 struct MeshFormatPlugin {
-    static constexpr int kAbi = 1;
+    static constexpr int kAbi = 2;
     int abi;
     // Fills `tmpPath`; errors name `path`, the user's file.
     void (*write)(const HexMesh& mesh, const std::string& tmpPath, const std::string& path, const WriteOptions& opt);
-    // nullptr for a format isohex only writes.
-    HexMesh (*read)(const std::string& path);
+    // nullptr for a format isohex only writes; `arrays` (readWithArrays) only for .vtu.
+    HexMesh (*read)(const std::string& path, const ArrayRequest* arrays);
 };
 
 // The plugin of a format with a library (.vtu, .msh, Exodus), loaded on the

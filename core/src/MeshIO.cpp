@@ -79,6 +79,12 @@ void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt
             throw Error(path + ": cell field '" + name + "' has " + std::to_string(values.size()) +
                         " values for " + std::to_string(mesh.hexCount()) + " hexes");
     }
+    for (const auto& [name, values] : opt.pointFields)
+        if (name.empty() || name == "node_class" || name == "node_surface" || values.size() != mesh.nodeCount())
+            throw Error(path + ": point field '" + name + "' is reserved or has " + std::to_string(values.size()) +
+                        " values for " + std::to_string(mesh.nodeCount()) + " nodes");
+    if ((!opt.pointFields.empty() || !opt.fieldData.empty()) && format != Format::Vtu)
+        throw Error(path + ": point fields and field data are written to .vtu files only");
     // A format's library is loaded before the temporary file exists.
     const bool viaPlugin = format == Format::Vtu || format == Format::Msh || format == Format::Exodus;
     const detail::MeshFormatPlugin* plugin = viaPlugin ? &detail::meshFormatPlugin(format) : nullptr;
@@ -93,7 +99,9 @@ void write(const HexMesh& mesh, const std::string& path, const WriteOptions& opt
     });
 }
 
-HexMesh read(const std::string& path) {
+namespace {
+
+HexMesh readChecked(const std::string& path, const detail::ArrayRequest* arrays) {
     Format format{};
     try {
         format = formatFromPath(path);
@@ -107,7 +115,8 @@ HexMesh read(const std::string& path) {
         throw Error(path + ": isohex writes this format but cannot read it; read one of " +
                     joined(readableExtensions()));
     detail::requireReadableFile(path);
-    HexMesh mesh = detail::meshFormatPlugin(format).read(path);  // canRead: .vtu or .msh
+    if (arrays && format != Format::Vtu) throw Error(path + ": expected a .vtu file (with isohex's arrays)");
+    HexMesh mesh = detail::meshFormatPlugin(format).read(path, arrays);  // canRead: .vtu or .msh
     mesh.checkConsistent(path);
     if (mesh.hexCount() == 0)
         throw Error(path + ": the mesh holds no hexahedra, so there is nothing to judge, smooth or convert; check "
@@ -133,6 +142,27 @@ HexMesh read(const std::string& path) {
                 throw Error(m.str());
             }
     return mesh;
+}
+
+const std::vector<double>* findArray(const std::vector<std::pair<std::string, std::vector<double>>>& list,
+                                     const std::string& name) {
+    for (const auto& [n, values] : list)
+        if (n == name) return &values;
+    return nullptr;
+}
+
+}  // namespace
+
+const std::vector<double>* NamedArrays::point(const std::string& name) const { return findArray(pointFields, name); }
+const std::vector<double>* NamedArrays::field(const std::string& name) const { return findArray(fieldData, name); }
+
+HexMesh read(const std::string& path) { return readChecked(path, nullptr); }
+
+HexMesh readWithArrays(const std::string& path, const std::vector<std::string>& pointNames,
+                       const std::vector<std::string>& fieldNames, NamedArrays& arrays) {
+    arrays = {};
+    const detail::ArrayRequest request{pointNames, fieldNames, arrays};
+    return readChecked(path, &request);
 }
 
 namespace detail {

@@ -16,16 +16,21 @@
 
 namespace isohex::io::detail {
 
-// `cellFields` are extra per-hex Float64 arrays (WriteOptions::cellFields).
+// Writes opt's cellFields, pointFields and fieldData as Float64 arrays.
 void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string& path,
-              const std::vector<double>& scaledJacobian,
-              const std::vector<std::pair<std::string, std::vector<double>>>& cellFields);
+              const std::vector<double>& scaledJacobian, const WriteOptions& opt);
 void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string& path);
 void writeExodus(const HexMesh& mesh, const std::string& tmpPath, const std::string& path);
 void writeAbaqus(const HexMesh& mesh, const std::string& tmpPath, const std::string& path);
 void writeMedit(const HexMesh& mesh, const std::string& tmpPath, const std::string& path);
 
-HexMesh readVtu(const std::string& path);
+// The arrays readWithArrays asks for, and where they go.
+struct ArrayRequest {
+    const std::vector<std::string>& pointNames;
+    const std::vector<std::string>& fieldNames;
+    NamedArrays& out;
+};
+HexMesh readVtu(const std::string& path, const ArrayRequest* arrays = nullptr);
 HexMesh readMsh(const std::string& path);
 
 // Throws an Error naming `path` unless it is an existing, readable regular file.

@@ -3,7 +3,8 @@
 // Written as raw binary appended data with Float64 points and 64-bit block
 // headers. Cell data: material (Int32), scaled_jacobian (Float64) and any
 // WriteOptions::cellFields (Float64). Point data:
-// node_class (Int32, NodeKind) and node_surface (Int32, NodeClass::id). Field
+// node_class (Int32, NodeKind), node_surface (Int32, NodeClass::id) and any
+// WriteOptions::pointFields (Float64); WriteOptions::fieldData as field data. Field
 // data surface_inside / surface_outside / surface_names keep HexMesh::surfaces,
 // so a .vtu written by isohex reads back into the same HexMesh.
 #include <algorithm>
@@ -123,6 +124,28 @@ vtkSmartPointer<vtkIntArray> intArray(const char* name, vtkIdType n) {
     return a;
 }
 
+vtkSmartPointer<vtkDoubleArray> doubleArray(const std::string& name, const std::vector<double>& values) {
+    auto a = vtkSmartPointer<vtkDoubleArray>::New();
+    a->SetName(name.c_str());
+    a->SetNumberOfTuples(static_cast<vtkIdType>(values.size()));
+    for (std::size_t i = 0; i < values.size(); ++i) a->SetValue(static_cast<vtkIdType>(i), values[i]);
+    return a;
+}
+
+// The single-component arrays of `data` named in `names` that it has, as doubles.
+std::vector<std::pair<std::string, std::vector<double>>> namedArrays(vtkFieldData* data,
+                                                                     const std::vector<std::string>& names) {
+    std::vector<std::pair<std::string, std::vector<double>>> out;
+    for (const auto& name : names) {
+        vtkDataArray* a = data ? data->GetArray(name.c_str()) : nullptr;
+        if (!a || a->GetNumberOfComponents() != 1) continue;
+        std::vector<double> v(static_cast<std::size_t>(a->GetNumberOfTuples()));
+        for (vtkIdType i = 0; i < a->GetNumberOfTuples(); ++i) v[static_cast<std::size_t>(i)] = a->GetComponent(i, 0);
+        out.emplace_back(name, std::move(v));
+    }
+    return out;
+}
+
 // An integer-valued array of `data`, or null when there is none. Any numeric
 // type is accepted; non-integral values are an error, not a silent rounding.
 vtkDataArray* integerArray(vtkFieldData* data, const char* name, vtkIdType expected, const std::string& path,
@@ -164,8 +187,7 @@ void requireCompleteXml(const std::string& path) {
 }  // namespace
 
 void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string& path,
-              const std::vector<double>& scaledJacobian,
-              const std::vector<std::pair<std::string, std::vector<double>>>& cellFields) {
+              const std::vector<double>& scaledJacobian, const WriteOptions& opt) {
     const auto nNodes = static_cast<vtkIdType>(mesh.nodeCount());
     const auto nHexes = static_cast<vtkIdType>(mesh.hexCount());
 
@@ -201,13 +223,9 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
     sj->SetNumberOfTuples(nHexes);
     for (vtkIdType h = 0; h < nHexes; ++h) sj->SetValue(h, scaledJacobian[h]);
     grid->GetCellData()->AddArray(sj);
-    for (const auto& [name, values] : cellFields) {
-        vtkNew<vtkDoubleArray> a;
-        a->SetName(name.c_str());
-        a->SetNumberOfTuples(nHexes);
-        for (vtkIdType h = 0; h < nHexes; ++h) a->SetValue(h, values[h]);
-        grid->GetCellData()->AddArray(a);
-    }
+    for (const auto& [name, values] : opt.cellFields) grid->GetCellData()->AddArray(doubleArray(name, values));
+    for (const auto& [name, values] : opt.pointFields) grid->GetPointData()->AddArray(doubleArray(name, values));
+    for (const auto& [name, values] : opt.fieldData) grid->GetFieldData()->AddArray(doubleArray(name, values));
 
     auto kind = intArray("node_class", nNodes);
     auto surface = intArray("node_surface", nNodes);
@@ -255,7 +273,7 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
     }
 }
 
-HexMesh readVtu(const std::string& path) {
+HexMesh readVtu(const std::string& path, const ArrayRequest* arrays) {
     requireCompleteXml(path);
     VtkMessageCapture capture;
     vtkNew<vtkXMLUnstructuredGridReader> reader;
@@ -352,6 +370,10 @@ HexMesh readVtu(const std::string& path) {
             if (static_cast<std::size_t>(s) < nameList.size()) t.name = nameList[s];
             mesh.surfaces.push_back(std::move(t));
         }
+    }
+    if (arrays) {
+        arrays->out.pointFields = namedArrays(grid->GetPointData(), arrays->pointNames);
+        arrays->out.fieldData = namedArrays(fd, arrays->fieldNames);
     }
     return mesh;
 }

@@ -58,7 +58,15 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         r.adaptive = std::move(m.adaptive);
         r.adaptive->hexLevel.clear();
     }
-    return certified({std::move(m.mesh), toJson(r), std::move(fields), {}}, input, settings, r.relaxation);
+    MeshOutcome out{std::move(m.mesh), {}, std::move(fields), {}, std::nullopt, std::nullopt};
+    if (m.prepared.part) {
+        r.part = PartFacts{*m.prepared.part, 0};
+        for (auto c : m.partNodes->onCut) r.part->cutNodes += c;
+        out.part = m.prepared.part;
+        out.partNodes = std::move(m.partNodes);
+    }
+    out.report = toJson(r);
+    return certified(std::move(out), input, settings, r.relaxation);
 }
 
 }  // namespace isohex::pipeline

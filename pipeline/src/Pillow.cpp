@@ -5,7 +5,8 @@
 
 namespace isohex::pipeline {
 
-PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink) {
+PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink,
+                            std::vector<isohex::PillowResult>* passes) {
     PillowResult r;
     r.enabled = settings.pillow;
     if (!settings.pillow) return r;
@@ -17,6 +18,7 @@ PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSi
     r.sheets = results.size();
     r.hexesAdded = mesh.hexCount() - before;
     for (const auto& s : results) r.invertedAtInsertion += s.invertedAtStart;
+    if (passes) *passes = results;
     st.finish();
     return r;
 }

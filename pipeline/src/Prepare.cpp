@@ -198,6 +198,10 @@ void chooseGrid(PrepareState& s) {
     }
     grid.stepVoxels = step;
     grid.grid = gridFor(vol, s.solid, step, pad);
+    if (s.settings.part) {  // the same whole grid in every part; this part samples its window of it
+        s.p.part = partWindow(grid.grid, *s.settings.part);
+        grid.grid = s.p.part->grid;
+    }
 }
 
 // Adds the counts of another repair round.
@@ -366,6 +370,7 @@ std::vector<octree::RegionTopology> referenceTopology(const PrepareState& s, std
 
 // Warns of every material the element size drops or whose surface topology it changes.
 void compareReferenceTopology(PrepareState& s) {
+    if (s.p.part) return;  // a slab's topology is not the scan's (the merged mesh's is)
     std::string refName;
     const std::vector<octree::RegionTopology> ref = referenceTopology(s, refName);
     const auto& topo = s.p.facts.grid.topology;
@@ -409,6 +414,7 @@ void loadAndSelect(PrepareState& s) {
         throw SettingError({Setting::Size, " and ", Setting::Level, " both given; choose one (", Setting::Size,
                             " is the element edge length in world units)"});
     checkElementSize(s.settings);
+    checkPartSettings(s.settings);
     loadInput(s);
     selectMaterials(s);
     describeInput(s);

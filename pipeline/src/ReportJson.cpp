@@ -341,7 +341,43 @@ nlohmann::json toJson(const MeshReport& r) {
     if (r.adaptive) j["adaptive"] = toJson(*r.adaptive);
     j["warnings"] = r.warnings;
     j["pipeline_seconds"] = r.seconds;
+    if (r.part) j["part"] = toJson(*r.part);
     return j;
+}
+
+nlohmann::json toJson(const PartFacts& p) {
+    const PartWindow& w = p.window;
+    return {{"index", w.spec.index},
+            {"count", w.spec.count},
+            {"axis", w.axis},
+            {"own_layers", {w.coreLo, w.coreHi}},
+            {"window_layers", {w.first, w.first + w.grid.dims[static_cast<std::size_t>(w.axis)]}},
+            {"ghost_layers", kPartGhostLayers},
+            {"whole_grid", gridGeometryJson(w.whole)},
+            {"cut_nodes", p.cutNodes}};
+}
+
+nlohmann::json toJson(const MergeResult& m) {
+    nlohmann::json cuts = nlohmann::json::array();
+    for (const auto& c : m.cuts)
+        cuts.push_back({{"parts", {c.below, c.below + 1}}, {"matched_nodes", c.nodes}, {"max_offset", c.maxOffset}});
+    nlohmann::json bands = nullptr;
+    if (m.bands)
+        bands = {{"rings", kCutBandRings},
+                 {"nodes", m.bands->nodes},
+                 {"hexes", m.bands->hexes},
+                 {"scaled_jacobian_min_before", m.bands->minBefore},
+                 {"scaled_jacobian_min_after", m.bands->minAfter},
+                 {"inverted_before", m.bands->invertedBefore},
+                 {"inverted_after", m.bands->invertedAfter},
+                 {"kept", m.bands->kept},
+                 {"seconds", m.bands->seconds}};
+    return {{"parts", m.parts},
+            {"hexes_per_part", m.hexesPerPart},
+            {"nodes_per_part", m.nodesPerPart},
+            {"cuts", cuts},
+            {"band_pass", bands},
+            {"seconds", m.seconds}};
 }
 
 nlohmann::json toJson(const SheetMethodReport& r) {

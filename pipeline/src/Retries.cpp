@@ -43,6 +43,24 @@ std::vector<Index> hexesToWorkOn(const Stuck& stuck, std::optional<std::string>&
     return work;
 }
 
+// A part's grid edits stay kPartGhostLayers / 2 + 2 layers clear of its cuts,
+// where the neighbour part, which does not see them, meshes the same nodes.
+void dropHexesNearCuts(const RetryState& s, std::vector<std::array<double, 3>>& at, std::vector<Index>& work) {
+    const auto& part = s.best.prepared.part;
+    if (!part) return;
+    const double margin = kPartGhostLayers / 2 + 2;
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < work.size(); ++i) {
+        const double layer = at[i][static_cast<std::size_t>(part->axis)] + part->first;
+        if ((part->cutBelow() && layer < part->coreLo + margin) || (part->cutAbove() && layer > part->coreHi - margin))
+            continue;
+        at[kept] = at[i];
+        work[kept++] = work[i];
+    }
+    at.resize(kept);
+    work.resize(kept);
+}
+
 // The hexes' centres in grid coordinates.
 std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std::vector<Index>& work) {
     const octree::Grid& g = s.grid;
@@ -74,13 +92,15 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     tried.attempt = n;
     tried.before = s.result.stuck.counts();
     const Stuck& stuck = s.result.stuck;
-    const std::vector<Index> work = hexesToWorkOn(stuck, tried.notMeshedBecause);
+    std::vector<Index> work = hexesToWorkOn(stuck, tried.notMeshedBecause);
     if (tried.notMeshedBecause) {
         s.result.attempts.push_back(tried);
         return false;
     }
+    std::vector<std::array<double, 3>> at = gridPositions(s, work);
+    dropHexesNearCuts(s, at, work);
     Prepared q = s.best.prepared;
-    const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, gridPositions(s, work), s.frozen);
+    const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, at, s.frozen);
     for (const auto& e : edits) {
         const auto [i, j, k] = s.grid.coords(e.point);
         tried.edits.push_back({{i, j, k}, s.grid.point(i, j, k), e.from, e.to});
@@ -137,10 +157,23 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
-    m.pillow = pillowBoundary(m.mesh, settings, sink);
-    // the sheet's hexes are appended, each on a boundary hex of the finest level
-    if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
+    if (!m.prepared.part) {
+        m.pillow = pillowBoundary(m.mesh, settings, sink);
+        // the sheet's hexes are appended, each on a boundary hex of the finest level
+        if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
+        m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
+        return m;
+    }
+    // A part: keys from the contoured cells and the sheets, then only the
+    // part's own hexes are optimised, with the nodes on its cuts frozen.
+    std::vector<NodeKey> keys = contourKeys(m.mesh, *m.prepared.part);
+    const std::vector<std::int32_t> materials = sortedMaterials(m.mesh);
+    std::vector<isohex::PillowResult> passes;
+    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes);
+    addCopyKeys(keys, passes, materials);
+    m.partNodes = keepOwnHexes(m.mesh, std::move(keys), *m.prepared.part);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
+    unfreezeCutNodes(m.mesh, *m.partNodes);
     return m;
 }
 

@@ -31,6 +31,20 @@ struct WriteOptions {
     // Further per-hex fields (name, one value per hex), written as cell data
     // where the format has a place for them (.vtu).
     std::vector<std::pair<std::string, std::vector<double>>> cellFields;
+    // Per-node fields (name, one value per node) and whole-file arrays (name,
+    // any number of values), written as point data and field data where the
+    // format has a place for them (.vtu). Whole numbers up to 2^53 keep their
+    // value exactly (Float64).
+    std::vector<std::pair<std::string, std::vector<double>>> pointFields;
+    std::vector<std::pair<std::string, std::vector<double>>> fieldData;
+};
+
+// Named arrays read back from a .vtu besides the mesh (see readWithArrays).
+struct NamedArrays {
+    std::vector<std::pair<std::string, std::vector<double>>> pointFields, fieldData;
+    // The values of `name`, or null when the file has no such array.
+    const std::vector<double>* point(const std::string& name) const;
+    const std::vector<double>* field(const std::string& name) const;
 };
 
 // Checks the mesh (HexMesh::checkConsistent; a mesh without hexes is refused),
@@ -52,5 +66,9 @@ HexMesh read(const std::string& path);
 // jobs. Returns false if it cannot be loaded or the extension is unknown; the
 // reason is left to read and write, which throw it for the file concerned.
 bool preloadFormat(const std::string& path);
+// read() of a .vtu that also returns the point-data and field-data arrays
+// named in `pointNames` and `fieldNames` that the file has (as Float64).
+HexMesh readWithArrays(const std::string& path, const std::vector<std::string>& pointNames,
+                       const std::vector<std::string>& fieldNames, NamedArrays& arrays);
 
 }  // namespace isohex::io

@@ -28,6 +28,7 @@ enum class Setting : std::uint8_t {
     SurfaceTolerance,    // how far the worst-hex pass may leave the surface
     IsosurfaceTopology,  // keep the isosurface's topology on the element grid
     AllowDataOutside,    // read data files a header names outside its folder
+    Part,                // mesh one part of a scan split into parts
 };
 
 // A plain name for `s`, for a message read outside any front end.
@@ -45,6 +46,7 @@ inline std::string_view settingName(Setting s) {
         case Setting::SurfaceTolerance: return "surface tolerance";
         case Setting::IsosurfaceTopology: return "isosurface topology";
         case Setting::AllowDataOutside: return "allow data outside";
+        case Setting::Part: return "part";
     }
     return "setting";
 }

@@ -16,6 +16,7 @@
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/MinQuality.hpp"
+#include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Pillow.hpp"
 #include "isohex/pipeline/Prepare.hpp"
@@ -38,6 +39,7 @@ struct MeshReport {
     std::optional<AdaptiveFacts> adaptive;  // settings.adaptive
     std::vector<std::string> warnings;   // preparation's first
     double seconds = 0;
+    std::optional<PartFacts> part;       // settings.part
 };
 
 struct MeshOutcome {
@@ -46,6 +48,10 @@ struct MeshOutcome {
     // Per-hex fields for the mesh file (.vtu cell data): "level" with --adaptive.
     std::vector<std::pair<std::string, std::vector<double>>> cellFields;
     QualityCertificate quality;  // of `mesh` against --min-quality
+    // With settings.part: where the part lies and its nodes' keys, for the
+    // part file (addPartArrays).
+    std::optional<PartWindow> part;
+    std::optional<PartNodes> partNodes;
 };
 
 // Meshes `input` by settings.method, with the report of every stage and the

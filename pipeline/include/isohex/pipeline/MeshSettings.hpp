@@ -20,6 +20,13 @@ std::string_view methodName(Method method);
 // The method of that name; none for any other string.
 std::optional<Method> parseMethod(std::string_view name);
 
+// Which slab of a scan split into parts to mesh: part `index` (1-based) of
+// `count` (Part.hpp, docs/SPLIT-SCANS.md).
+struct PartSpec {
+    int index = 1, count = 1;
+    bool operator==(const PartSpec&) const = default;
+};
+
 struct MeshSettings;
 // Throws isohex::SettingError when the element size is given and not a
 // positive length: the check every method makes for callers other than the
@@ -83,6 +90,8 @@ struct MeshSettings {
     // kDefaultMaxDeviation (MinQuality.hpp); at most the surface tolerance:
     // no relaxation.
     std::optional<double> maxDeviation;
+    // Mesh only this part of the scan, for `isohex merge` (unset: the whole scan).
+    std::optional<PartSpec> part;
 };
 
 }  // namespace isohex::pipeline

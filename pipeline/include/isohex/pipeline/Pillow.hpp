@@ -3,8 +3,10 @@
 // or more layers of hexes along every material's boundary, so no hex has two
 // faces on one surface.
 #include <cstddef>
+#include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Pillow.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/StageSink.hpp"
 
@@ -19,6 +21,9 @@ struct PillowResult {
 };
 
 // Pillows the mesh unless settings.pillow is off (stage "pillow").
-PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink);
+// `passes`, when given, receives each material's sheet (its copies), for a
+// part's node keys (Part.hpp).
+PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink,
+                            std::vector<isohex::PillowResult>* passes = nullptr);
 
 }  // namespace isohex::pipeline

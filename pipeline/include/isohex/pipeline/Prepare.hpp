@@ -21,6 +21,7 @@
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/TopologyMatch.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/StageSink.hpp"
 
 namespace isohex::pipeline {
@@ -117,6 +118,9 @@ struct Prepared {
     const octree::Domain& extractionDomain() const { return repairedDomain ? *repairedDomain : *domain; }
     PreparedFacts facts;
     std::vector<std::string> warnings;
+    // With settings.part: the part's window of the whole grid; labels (and
+    // facts.grid.grid) are then the window's.
+    std::optional<PartWindow> part;
 };
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink);

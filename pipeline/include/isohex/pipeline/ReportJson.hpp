@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "isohex/pipeline/Fidelity.hpp"
+#include "isohex/pipeline/Merge.hpp"
 #include "isohex/pipeline/MeshPipeline.hpp"
 #include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Optimize.hpp"
@@ -26,6 +27,8 @@ nlohmann::json toJson(const RetryResult& retries);       // "retries"
 nlohmann::json toJson(const FidelityResult& fidelity);   // "fidelity"
 nlohmann::json toJson(const AdaptiveFacts& adaptive);    // "adaptive"
 nlohmann::json toJson(const QualityCertificate& quality);  // "quality"
+nlohmann::json toJson(const PartFacts& part);            // "part"
+nlohmann::json toJson(const MergeResult& merge);         // merge's "merge"
 // The whole report of a run on a scan, and of the sheet method.
 nlohmann::json toJson(const MeshReport& report);
 nlohmann::json toJson(const SheetMethodReport& report);

@@ -36,6 +36,7 @@ struct Meshing {
     PillowResult pillow;
     OptimizeResult optimization;
     std::optional<AdaptiveFacts> adaptive;  // settings.adaptive: the tree's facts, a level per hex
+    std::optional<PartNodes> partNodes;  // with prepared.part: the keys of the part's nodes
 };
 
 struct RetryEdit {

@@ -1,0 +1,32 @@
+#pragma once
+// The second pass of a split scan's optimisation (docs/SPLIT-SCANS.md): each
+// part froze the nodes on its cuts while it optimised, so the hexes around a
+// cut were optimised against nodes that never moved. After the merge, the
+// nodes within a few rings of the cuts are optimised again, everything else
+// fixed, with the boundary nodes kept on the mesh's own boundary surface
+// (triangle trees of its quads: the merge has no scan to project onto).
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+
+namespace isohex::pipeline {
+
+// Rings of hexes around the cut nodes whose nodes move in the second pass.
+inline constexpr int kCutBandRings = 4;
+
+struct CutBandResult {
+    std::size_t nodes = 0, hexes = 0;  // nodes free to move; hexes around them (the band)
+    double minBefore = 0, minAfter = 0;  // lowest scaled Jacobian in the band
+    std::size_t invertedBefore = 0, invertedAfter = 0;
+    bool kept = false;                 // false: the pass made the band worse and was undone
+    double seconds = 0;
+};
+
+// Optimises the band of `rings` rings around the nodes flagged in `onCut`
+// (one flag per node) in place; keeps the result only if the band has no
+// more inverted hexes and no lower minimum than before.
+CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings = kCutBandRings);
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,88 @@
+#include "isohex/pipeline/CutBands.hpp"
+
+#include <algorithm>
+
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/insertion/SheetGeometry.hpp"
+#include "isohex/smoothing/Optimize.hpp"
+#include "isohex/smoothing/WorstHexes.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// The band: which nodes move (within `rings` hex rings of a cut node).
+std::vector<std::uint8_t> bandNodes(const HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings) {
+    std::vector<std::uint8_t> in = onCut;
+    for (int r = 0; r < rings; ++r) {
+        std::vector<std::uint8_t> next = in;
+        for (const Hex& h : mesh.hexes)
+            if (std::any_of(h.begin(), h.end(), [&](Index v) { return in[static_cast<std::size_t>(v)] != 0; }))
+                for (Index v : h) next[static_cast<std::size_t>(v)] = 1;
+        in = std::move(next);
+    }
+    return in;
+}
+
+// The hexes touching a band node as a mesh of their own; `from` gives each
+// of its nodes' index in `mesh`.
+HexMesh bandMesh(const HexMesh& mesh, const std::vector<std::uint8_t>& band, std::vector<Index>& from) {
+    HexMesh sub;
+    sub.surfaces = mesh.surfaces;
+    sub.curves = mesh.curves;
+    std::vector<Index> to(mesh.nodeCount(), kNone);
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+        const Hex& hex = mesh.hexes[h];
+        if (std::none_of(hex.begin(), hex.end(), [&](Index v) { return band[static_cast<std::size_t>(v)] != 0; }))
+            continue;
+        Hex local{};
+        for (int k = 0; k < 8; ++k) {
+            const auto v = static_cast<std::size_t>(hex[k]);
+            if (to[v] == kNone) {
+                to[v] = sub.addNode(mesh.nodes[v], mesh.nodeClass[v]);
+                from.push_back(hex[k]);
+            }
+            local[k] = to[v];
+        }
+        sub.addHex(local, mesh.material[h]);
+    }
+    return sub;
+}
+
+}  // namespace
+
+CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings) {
+    const Stopwatch clock;
+    CutBandResult r;
+    const std::vector<std::uint8_t> band = bandNodes(mesh, onCut, rings);
+    std::vector<Index> from;
+    HexMesh sub = bandMesh(mesh, band, from);
+    r.hexes = sub.hexCount();
+    if (sub.hexCount() == 0) return r;
+    const QualitySummary before = summarize(sub, computeQuality(sub));
+    r.minBefore = before.scaledJacobian.min;
+    r.invertedBefore = before.inverted;
+    // The band's surfaces: its boundary quads in triangle trees (the band's
+    // own edge, inside the merged mesh, is fixed below).
+    insertion::SheetGeometry geometry;
+    insertion::adoptBoundary(sub, geometry);
+    for (std::size_t v = 0; v < sub.nodeCount(); ++v) {
+        if (!band[static_cast<std::size_t>(from[v])]) sub.nodeClass[v] = {NodeKind::Fixed, -1};
+        else ++r.nodes;
+    }
+    smoothing::optimizeMesh(sub, &geometry, smoothing::SmoothingOptions{});
+    smoothing::raiseWorstHexes(sub, &geometry, smoothing::WorstHexOptions{});
+    const QualitySummary after = summarize(sub, computeQuality(sub));
+    r.minAfter = after.scaledJacobian.min;
+    r.invertedAfter = after.inverted;
+    r.kept = after.inverted < before.inverted ||
+             (after.inverted == before.inverted && after.scaledJacobian.min >= before.scaledJacobian.min);
+    if (r.kept)
+        for (std::size_t v = 0; v < sub.nodeCount(); ++v)
+            if (band[static_cast<std::size_t>(from[v])]) mesh.nodes[static_cast<std::size_t>(from[v])] = sub.nodes[v];
+    r.seconds = clock.seconds();
+    return r;
+}
+
+}  // namespace isohex::pipeline

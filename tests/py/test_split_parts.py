@@ -1,0 +1,119 @@
+"""isohex mesh --part K/N and isohex merge (docs/SPLIT-SCANS.md): a phantom
+meshed in 2 and 3 parts and merged must be one conformal mesh (VTK: no two
+points at one place, every interior face in exactly two hexes, the boundary
+faces of the single run) with the single run's hex count, quality (VTK's
+vtkMeshQuality) and volume; the merge refuses incomplete or mixed splits and
+the options that need the whole scan are refused with --part."""
+import os
+import subprocess
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import SOURCE, run, workdir  # noqa: E402
+from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
+from vtk.util import numpy_support as ns  # noqa: E402
+
+FACES = np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
+
+
+def face_counts(grid):
+    """How many hexes hold each face (faces as sorted node ids)."""
+    conn = ns.vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 8)
+    faces = np.sort(conn[:, FACES].reshape(-1, 4), axis=1)
+    _, counts = np.unique(faces, axis=0, return_counts=True)
+    return counts
+
+
+def repeated_points(grid):
+    pts = ns.vtk_to_numpy(grid.GetPoints().GetData())
+    return len(pts) - len(np.unique(pts, axis=0))
+
+
+class SplitParts(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("split")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
+                       check=True, capture_output=True)
+        cls.torus = os.path.join(cls.dir, "torus.nii.gz")
+        cls.opts = ["--iso", "50", "--size", "1"]
+        cls.single = os.path.join(cls.dir, "single.vtu")
+        run(["mesh", cls.torus, *cls.opts, "-o", cls.single, "-q"])
+
+    def parts(self, n, tag=""):
+        files = []
+        for k in range(1, n + 1):
+            f = os.path.join(self.dir, f"part{tag}_{k}of{n}.vtu")
+            run(["mesh", self.torus, *self.opts, "--part", f"{k}/{n}", "-o", f, "-q", "--force"])
+            files.append(f)
+        return files
+
+    def check_merged(self, n):
+        files = self.parts(n)
+        merged = os.path.join(self.dir, f"merged{n}.vtu")
+        p = run(["merge", *reversed(files), "-o", merged, "--force"])  # any order
+        self.assertIn(f"merged {n} parts", p.stdout)
+        single, m = read_vtu(self.single), read_vtu(merged)
+        # one mesh: no point twice, no face in three hexes, every interior face
+        # in two, and the boundary the single run has (no face left open on a cut)
+        self.assertEqual(repeated_points(m), 0)
+        counts, single_counts = face_counts(m), face_counts(single)
+        self.assertEqual(int((counts > 2).sum()), 0)
+        self.assertEqual(int((counts == 1).sum()), int((single_counts == 1).sum()))
+        self.assertEqual(m.GetNumberOfCells(), single.GetNumberOfCells())
+        self.assertEqual(m.GetNumberOfPoints(), single.GetNumberOfPoints())
+        # every part's hexes are there once: the parts' counts add up
+        self.assertEqual(sum(read_vtu(f).GetNumberOfCells() for f in files), m.GetNumberOfCells())
+        sj, sj1 = vtk_sj(m), vtk_sj(single)
+        self.assertGreater(sj.min(), 0.0)
+        self.assertLessEqual(abs(sj.min() - sj1.min()), 0.02)
+        self.assertLessEqual(abs(sj.mean() - sj1.mean()), 0.02)
+        v, v1 = vtk_volumes(m).sum(), vtk_volumes(single).sum()
+        self.assertLess(abs(v - v1) / v1, 0.002)
+        q = run(["quality", merged, "--strict"], check=False)
+        self.assertEqual(q.returncode, 0, q.stdout + q.stderr)
+
+    def test_two_parts_merge_into_the_single_runs_mesh(self):
+        self.check_merged(2)
+
+    def test_three_parts_merge_into_the_single_runs_mesh(self):
+        self.check_merged(3)
+
+    def test_merge_refuses_a_missing_part_and_a_part_given_twice(self):
+        files = self.parts(3, "r")
+        out = os.path.join(self.dir, "incomplete.vtu")
+        p = run(["merge", files[0], files[2], "-o", out], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("part 2/3 is missing", p.stderr)
+        p = run(["merge", files[0], files[1], files[1], files[2], "-o", out], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("both part 2", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        # a mesh that is not a part
+        p = run(["merge", self.single, files[1], "-o", out], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("not a part file", p.stderr)
+        self.assertFalse(os.path.exists(out))
+
+    def test_whole_scan_options_are_refused_with_part(self):
+        out = os.path.join(self.dir, "refused.vtu")
+        p = run(["mesh", self.torus, *self.opts, "--part", "1/2", "--keep-largest", "-o", out], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("keep-largest", p.stderr)
+        self.assertIn("--part", p.stderr)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        p = run(["mesh", self.torus, *self.opts, "--part", "3/2", "-o", out], check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--part", p.stderr)
+        p = run(["mesh", self.torus, *self.opts, "--part", "1/2", "-o", os.path.join(self.dir, "part.msh")],
+                check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn(".vtu", p.stderr)
+        self.assertFalse(os.path.exists(out))
+
+
+if __name__ == "__main__":
+    unittest.main()
