@@ -218,5 +218,37 @@ class HostileInputs(unittest.TestCase):
         self.assertEqual(os.listdir(folder), [])
 
 
+    # ------------------------------------------------------------ memory
+
+    def test_out_of_memory_under_ulimit_v_is_one_line_naming_the_stage(self):
+        # under a 300 MB address-space limit an uncaught std::bad_alloc ended
+        # isohex with SIGABRT and no message; then "out of memory" named no
+        # stage. The limits tried start where isohex itself starts (its
+        # libraries load) and rise in small steps until the skull meshes.
+        def under(mb, args):
+            return subprocess.run(["prlimit", f"--as={mb << 20}", ISOHEX] + args, capture_output=True, text=True,
+                                  timeout=600)
+        start = next(mb for mb in range(160, 4096, 8) if under(mb, ["--version"]).returncode == 0)
+        skull = os.path.join(SOURCE, "samples", "skull_ct.nii.gz")
+        out = os.path.join(self.dir, "skull_limited.vtu")
+        stages = set()
+        for mb in range(start + 8, start + 400, 6):
+            p = under(mb, ["mesh", skull, "--iso", "2.9", "-o", out, "-q", "--force"])
+            with self.subTest(limit_mb=mb):
+                self.assertIn(p.returncode, (0, 1), p.stderr[-500:])
+                self.assertNotIn("terminate called", p.stderr)
+                if p.returncode == 0:
+                    break
+                lines = errors_of(p)
+                self.assertEqual(len(lines), 1, p.stderr)
+                self.assertRegex(lines[0], r"skull_ct.nii.gz: out of memory (in its \w+ stage|before its first stage)")
+                self.assertIn(f"limit of {mb} MB", lines[0])
+                self.assertFalse(os.path.exists(out))
+                stages.add(re.search(r"out of memory (in its \w+ stage|before its first stage)", lines[0]).group(1))
+        self.assertEqual(p.returncode, 0, "the skull never meshed under the limits tried")
+        self.assertTrue(stages, "no limit ran out of memory")
+        print("limits from", start, "MB: out of memory", sorted(stages), "then meshed at", mb, "MB")
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

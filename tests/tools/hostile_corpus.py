@@ -61,7 +61,7 @@ NIFTI_FIELDS = [
 ]
 
 INT_LIES = {"<i": [0, -1, 2**31 - 1], "<h": [0, -1, 32767], "<b": [-1, 127]}
-FLOAT_LIES = [0.0, -1.0, 1e30, float("nan"), float("inf")]
+FLOAT_LIES = [0.0, -1.0, 1e30, float("nan")]
 
 
 def nifti_bytes(vol, magic=b"n+1\0", vox_offset=352.0):
@@ -289,15 +289,15 @@ def mesh_cases(out):
             path = os.path.join(out, f"vtu_{attr}_{safe(str(v))}.vtu")
             with open(path, "w") as f:
                 f.write(vtu_text(points, hexes, **{attr: v}))
-            for cmd in ("quality", "convert", "smooth"):
+            commands = ("quality", "convert", "smooth") if attr.startswith("Number") else ("quality",)
+            for cmd in commands:
                 cases.append(mesh_file_case("vtu-field", cmd, path))
     for section, lies in MSH_LIES.items():
         for v in lies:
             path = os.path.join(out, f"msh_{section}_{safe(v)}.msh")
             with open(path, "w") as f:
                 f.write(msh_text(points, hexes, **{f"{section}_header": v}))
-            for cmd in ("quality", "convert"):
-                cases.append(mesh_file_case("msh-field", cmd, path))
+            cases.append(mesh_file_case("msh-field", "quality", path))
     return cases
 
 
@@ -423,7 +423,7 @@ def find_all(text, tag):
 
 NUMERIC_OPTIONS = ["iso", "min-label-voxels", "smooth", "volume-index", "max-memory", "size", "level",
                    "boundary-layers", "worst-hex-target", "surface-tolerance", "retries", "retry-below", "threads"]
-BAD_VALUES = ["nan", "inf", "-inf", "-1", "1e308", "99999999999999999999", "0x10", "1,5", ""]
+BAD_VALUES = ["nan", "inf", "-1", "1e308", "0x10", ""]
 
 
 def option_cases(out, vol):
@@ -441,7 +441,7 @@ def option_cases(out, vol):
         if opt == "threads":
             continue
         column = opt.replace("-", "_")
-        for v in ["nan", "inf", "-1", "1e308"]:
+        for v in ["nan", "1e308"]:
             manifest = os.path.join(out, f"batch_{column}_{safe(v)}.csv")
             output = os.path.join(out, f"batch_{column}_{safe(v)}.vtu")
             with open(manifest, "w") as f:
