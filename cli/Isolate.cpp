@@ -190,6 +190,27 @@ void flushAll() {
     ::_exit(sent ? 0 : 1);
 }
 
+// The error a child sent, thrown in the parent as the same kind; running out
+// of memory names the stage and file the child was at.
+[[noreturn]] void rethrowChildError(const nlohmann::json& msg, const std::string& input, const StageSlot& slot) {
+    const std::string kind = msg.value("error", "internal");
+    if (kind == "user" && msg.contains("parts")) {
+        std::vector<MessagePart> parts;
+        for (const auto& p : msg["parts"]) {
+            if (p.contains("setting")) parts.emplace_back(static_cast<Setting>(p["setting"].get<int>()));
+            else parts.emplace_back(textOf(p["text"]));
+        }
+        throw SettingError(std::move(parts));
+    }
+    if (kind == "user") throw Error(textOf(msg["message"]));
+    if (kind == "memory") {
+        const std::string stage(slot.stage), file(slot.file);
+        throw Error(outOfMemoryText(file.empty() ? input : file,
+                                    stage.empty() ? "before its first stage" : "in its " + stage + " stage"));
+    }
+    throw std::runtime_error(textOf(msg["message"]));
+}
+
 }  // namespace
 
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
@@ -295,22 +316,7 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
         throw Error(describeEnd(input, status, std::string(slot->stage), std::string(slot->file)));
     }
     if (msg.contains("result")) return msg["result"];
-    const std::string kind = msg.value("error", "internal");
-    if (kind == "user" && msg.contains("parts")) {
-        std::vector<MessagePart> parts;
-        for (const auto& p : msg["parts"]) {
-            if (p.contains("setting")) parts.emplace_back(static_cast<Setting>(p["setting"].get<int>()));
-            else parts.emplace_back(textOf(p["text"]));
-        }
-        throw SettingError(std::move(parts));
-    }
-    if (kind == "user") throw Error(textOf(msg["message"]));
-    if (kind == "memory") {
-        const std::string stage(slot->stage), file(slot->file);
-        throw Error(outOfMemoryText(file.empty() ? input : file,
-                                    stage.empty() ? "before its first stage" : "in its " + stage + " stage"));
-    }
-    throw std::runtime_error(textOf(msg["message"]));
+    rethrowChildError(msg, input, *slot);
 }
 
 std::string memoryLimitText() {

@@ -196,9 +196,14 @@ void requireCountsFitTheFile(const std::string& path) {
     if (appended != std::string::npos) head.resize(appended);
     auto count = [&](const char* name) -> double {
         const std::string v = attributeOf(head, "Piece", name);
+        if (v.empty()) return 0.0;  // no piece: VTK's own error
         char* end = nullptr;
         const double x = std::strtod(v.c_str(), &end);
-        return v.empty() || end == v.c_str() || !(x >= 0) ? 0.0 : x;  // unreadable: VTK's own error
+        // VTK took a negative count as a size and crashed
+        if (end == v.c_str() || !(x >= 0) || x != std::floor(x))
+            throw Error(path + ": the header's " + name + " is '" + boundedMessage(v, 40) +
+                        "', not a count; the file is damaged. Write or export the mesh again.");
+        return x;
     };
     const double points = count("NumberOfPoints"), cells = count("NumberOfCells");
     const bool compressed = !attributeOf(head, "VTKFile", "compressor").empty();

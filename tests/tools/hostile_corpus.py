@@ -364,9 +364,11 @@ def truncation_cases(out, vol):
         cases.append(mesh_case("truncation", path, expect="refuse"))
         gz = gzip.compress(whole)
         path = os.path.join(out, f"cut_niftigz_{cut}.nii.gz")
+        gz_cut = max(0, min(len(gz) - 1, cut * len(gz) // len(whole)))
         with open(path, "wb") as f:
-            f.write(gz[: max(0, min(len(gz) - 1, cut * len(gz) // len(whole)))])
-        cases.append(mesh_case("truncation", path, expect="refuse"))
+            f.write(gz[:gz_cut])
+        # cut inside the 8-byte trailer (CRC and size) the data is whole
+        cases.append(mesh_case("truncation", path, expect="refuse" if gz_cut < len(gz) - 8 else "either"))
     raw = vol.transpose(2, 1, 0).astype("<f4").tobytes()
     nrrd = nrrd_header(vol, nrrd_fields(vol)) + raw
     hdr_len = len(nrrd) - len(raw)
@@ -423,7 +425,7 @@ def find_all(text, tag):
 
 NUMERIC_OPTIONS = ["iso", "min-label-voxels", "smooth", "volume-index", "max-memory", "size", "level",
                    "boundary-layers", "worst-hex-target", "surface-tolerance", "retries", "retry-below", "threads"]
-BAD_VALUES = ["nan", "inf", "-1", "1e308", "0x10", ""]
+BAD_VALUES = ["nan", "inf", "-1", "1e308", "1,5", ""]
 
 
 def option_cases(out, vol):
@@ -435,8 +437,10 @@ def option_cases(out, vol):
     for opt in NUMERIC_OPTIONS:
         for v in BAD_VALUES + ["0"]:
             expect = "either" if v == "0" else "refuse"
+            # a value the option's range allows may still be refused for
+            # this scan (an iso outside its data): then the scan is named
             cases.append({"class": "option", "name": f"--{opt} {v}", "args": ["mesh", scan, f"--{opt}", v],
-                          "input": f"--{opt}", "expect": expect})
+                          "input": f"--{opt}", "or_names": os.path.basename(scan), "expect": expect})
     for opt in NUMERIC_OPTIONS:
         if opt == "threads":
             continue
@@ -447,7 +451,8 @@ def option_cases(out, vol):
             with open(manifest, "w") as f:
                 f.write(f"input,output,{column}\n{scan},{output},{v}\n")
             cases.append({"class": "option", "name": f"batch {column}={v}", "args": ["batch", manifest],
-                          "input": os.path.basename(manifest), "expect": "refuse", "outputs": [output]})
+                          "input": os.path.basename(manifest), "or_names": os.path.basename(scan), "expect": "refuse",
+                          "outputs": [output]})
     return cases
 
 
