@@ -254,7 +254,7 @@ void addInputRows(std::vector<MeshOption>& t) {
         "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need "
         "more (default: 80% of the machine's memory)",
         "MB", [](MeshArgs& a) -> auto& { return a.settings.load.maxMemoryMB; },
-        above0(1e9, "must be a number of megabytes above 0 and at most 1000000000")));
+        above0(1e9, "must be a number of megabytes up to 1000000000 and above 0")));
     t.back().setting = Setting::MaxMemory;
     t.push_back(sliceSpacing());
     t.back().setting = Setting::SliceSpacing;
