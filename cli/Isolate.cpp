@@ -10,12 +10,14 @@
 #include <iostream>
 #include <new>
 #include <stdexcept>
+#include <system_error>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include <fcntl.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -72,6 +74,12 @@ std::string signalName(int sig) {
     }
 }
 
+// A failed allocation, said with the stage and the limit that caused it.
+std::string outOfMemoryText(const std::string& input, const std::string& where) {
+    return input + ": out of memory " + where + memoryLimitText() +
+           "; try a coarser --size or a lower --max-memory, raise the limit, or use a machine with more memory";
+}
+
 // What the parent says about a child that ended without a result.
 std::string describeEnd(const std::string& job, int status, const std::string& stage, const std::string& file) {
     const std::string& input = file.empty() ? job : file;
@@ -92,6 +100,10 @@ std::string describeEnd(const std::string& job, int status, const std::string& s
         const bool crash = sig == SIGSEGV || sig == SIGABRT || sig == SIGBUS || sig == SIGFPE || sig == SIGILL ||
                            sig == SIGSYS || sig == SIGTRAP;
         if (!crash) return input + ": the meshing process was stopped (" + name + ") " + where + ".";
+        // Under ulimit -v a library that cannot allocate where it cannot
+        // throw (a constructor of a static, a thread start) aborts.
+        if (sig == SIGABRT && !memoryLimitText().empty())
+            return outOfMemoryText(input, where) + " (a library aborted when an allocation failed)";
         if (stage == "load")
             return input + ": a library crashed reading it (" + name +
                    "); the file is probably damaged (OpenVDB, for one, does not check a .vdb's grid data). "
@@ -145,9 +157,23 @@ void flushAll() {
     } catch (const Error& e) {
         msg = {{"error", "user"}, {"message", bytesOf(e.what())}};
     } catch (const std::bad_alloc&) {
-        msg = {{"error", "memory"}};
+        msg = nullptr;
+    } catch (const std::system_error& e) {
+        // a thread that could not start (TBB, std::thread) for want of memory
+        if (e.code() == std::errc::resource_unavailable_try_again || e.code() == std::errc::not_enough_memory)
+            msg = nullptr;
+        else
+            msg = {{"error", "internal"}, {"message", bytesOf(e.what())}};
     } catch (const std::exception& e) {
         msg = {{"error", "internal"}, {"message", bytesOf(e.what())}};
+    }
+    // Out of memory (null above), or no memory left to say otherwise: a
+    // message that needs no allocation.
+    std::string text;
+    try {
+        if (!msg.is_null()) text = msg.dump();
+    } catch (...) {
+        text.clear();
     }
     // The work is done (its outputs in place) or has failed cleanly: from
     // here no forwarded signal or closed stdout may turn that into a death
@@ -159,9 +185,30 @@ void flushAll() {
     ::sigprocmask(SIG_BLOCK, &quiet, nullptr);
     std::signal(SIGPIPE, SIG_IGN);
     flushAll();
-    const bool sent = writeAll(fd, msg.dump());
+    const bool sent = text.empty() ? writeAll(fd, R"({"error":"memory"})") : writeAll(fd, text);
     ::close(fd);
     ::_exit(sent ? 0 : 1);
+}
+
+// The error a child sent, thrown in the parent as the same kind; running out
+// of memory names the stage and file the child was at.
+[[noreturn]] void rethrowChildError(const nlohmann::json& msg, const std::string& input, const StageSlot& slot) {
+    const std::string kind = msg.value("error", "internal");
+    if (kind == "user" && msg.contains("parts")) {
+        std::vector<MessagePart> parts;
+        for (const auto& p : msg["parts"]) {
+            if (p.contains("setting")) parts.emplace_back(static_cast<Setting>(p["setting"].get<int>()));
+            else parts.emplace_back(textOf(p["text"]));
+        }
+        throw SettingError(std::move(parts));
+    }
+    if (kind == "user") throw Error(textOf(msg["message"]));
+    if (kind == "memory") {
+        const std::string stage(slot.stage), file(slot.file);
+        throw Error(outOfMemoryText(file.empty() ? input : file,
+                                    stage.empty() ? "before its first stage" : "in its " + stage + " stage"));
+    }
+    throw std::runtime_error(textOf(msg["message"]));
 }
 
 }  // namespace
@@ -269,18 +316,13 @@ nlohmann::json runIsolated(const std::string& input, const std::vector<std::stri
         throw Error(describeEnd(input, status, std::string(slot->stage), std::string(slot->file)));
     }
     if (msg.contains("result")) return msg["result"];
-    const std::string kind = msg.value("error", "internal");
-    if (kind == "user" && msg.contains("parts")) {
-        std::vector<MessagePart> parts;
-        for (const auto& p : msg["parts"]) {
-            if (p.contains("setting")) parts.emplace_back(static_cast<Setting>(p["setting"].get<int>()));
-            else parts.emplace_back(textOf(p["text"]));
-        }
-        throw SettingError(std::move(parts));
-    }
-    if (kind == "user") throw Error(textOf(msg["message"]));
-    if (kind == "memory") throw std::bad_alloc();
-    throw std::runtime_error(textOf(msg["message"]));
+    rethrowChildError(msg, input, *slot);
+}
+
+std::string memoryLimitText() {
+    rlimit r{};
+    if (::getrlimit(RLIMIT_AS, &r) != 0 || r.rlim_cur == RLIM_INFINITY) return {};
+    return " (under an address-space limit of " + std::to_string(r.rlim_cur >> 20) + " MB, ulimit -v)";
 }
 
 nlohmann::json bytesOf(const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); }

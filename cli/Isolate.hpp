@@ -37,6 +37,10 @@ namespace isohex::cli {
 nlohmann::json runIsolated(const std::string& input, const std::vector<std::string>& files,
                            const std::function<nlohmann::json()>& work);
 
+// " (under an address-space limit of N MB, ulimit -v)" when the process
+// has such a limit, else "": what out-of-memory messages add.
+std::string memoryLimitText();
+
 // Messages travel between the processes as byte arrays: a file name need
 // not be UTF-8, and JSON strings would replace such bytes.
 nlohmann::json bytesOf(const std::string& s);

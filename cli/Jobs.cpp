@@ -1,9 +1,14 @@
 #include "Jobs.hpp"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <set>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -35,6 +40,25 @@ std::string stemOf(const std::string& input) {
     return name;
 }
 
+namespace {
+
+// Creates and removes a file in `dir` as the writers will (a temporary
+// beside the target): a read-only folder or file system, missing permission
+// or a full inode table shows now rather than after the meshing.
+void requireWritableFolder(const std::string& output, const fs::path& dir) {
+    const fs::path probe = dir / (io::temporaryPrefix(output, ::getpid()) + "probe");
+    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0) {
+        if (errno == EEXIST) return;  // a leftover of this process id: the folder takes files
+        throw Error(output + ": cannot write in the folder " + dir.string() + " (" + std::strerror(errno) +
+                    "); choose another output folder or fix its permissions");
+    }
+    ::close(fd);
+    ::unlink(probe.c_str());
+}
+
+}  // namespace
+
 std::vector<bool> checkOutputPaths(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
                                    bool force) {
     std::vector<bool> existed;
@@ -51,6 +75,7 @@ std::vector<bool> checkOutputPaths(const std::vector<std::string>& outputs, cons
         const fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
         if (!fs::is_directory(dir, ec))
             throw Error(o + ": the folder " + dir.string() + " does not exist; create it or choose another output path");
+        requireWritableFolder(o, dir);
         existed.push_back(fs::exists(path, ec));
         if (existed.back() && !force)
             throw Error(o + ": file exists; refusing to overwrite it (use --force to replace it)");

@@ -20,21 +20,21 @@ template <class T>
 using Access = T& (*)(MeshArgs&);
 
 // The check of one value, made into the flag's validator and the column's
-// message alike.
+// message alike. Every number must be finite, and every option has a range:
+// NaN, infinities and values no scan or mesh could mean (a sigma of 1e308,
+// a budget of 1e300 MB) are refused the same way on the command line and in
+// a manifest, before any work.
 struct Check {
-    enum class Kind { None, Between, NotNegative, Positive };
-    Kind kind = Kind::None;
+    enum class Kind { Finite, Range };
+    Kind kind = Kind::Finite;
     double lo = 0, hi = 0;
-    std::string says;  // what a bad value must be, e.g. "must be between 1 and 16"
+    bool aboveLo = false;  // lo itself excluded
+    std::string says;      // what a bad value must be, e.g. "must be between 1 and 16"
 
     bool passes(double v) const {
-        switch (kind) {
-            case Kind::None: return true;
-            case Kind::Between: return v >= lo && v <= hi;
-            case Kind::NotNegative: return v >= 0;
-            case Kind::Positive: return v > 0 && std::isfinite(v);
-        }
-        return true;
+        if (!std::isfinite(v)) return false;
+        if (kind == Kind::Finite) return true;
+        return (aboveLo ? v > lo : v >= lo) && v <= hi;
     }
 };
 
@@ -45,36 +45,31 @@ std::string numberText(double v) {
     return s.str();
 }
 
-Check none() { return {}; }
-// lo <= value <= hi; `unit` ends the column's message, e.g. "(voxels)".
-Check between(double lo, double hi, const std::string& unit = "") {
-    return {Check::Kind::Between, lo, hi,
-            "must be between " + numberText(lo) + " and " + numberText(hi) + (unit.empty() ? "" : " " + unit)};
-}
-Check notNegative() { return {Check::Kind::NotNegative, 0, 0, "must not be negative"}; }
-Check positive(const std::string& says) { return {Check::Kind::Positive, 0, 0, says}; }
+std::string withUnit(const std::string& says, const std::string& unit) { return unit.empty() ? says : says + " " + unit; }
 
-// The flag's validator for `check` on values of type V. A range keeps
-// CLI11's own (its help shows the range) plus a refusal of NaN, which
-// CLI11's range lets through; the other checks say what the column says,
-// with the flag and the value.
+Check finite() { return {Check::Kind::Finite, 0, 0, false, "must be a finite number"}; }
+// lo <= value <= hi; `unit` ends the message, e.g. "(voxels)".
+Check between(double lo, double hi, const std::string& unit = "") {
+    return {Check::Kind::Range, lo, hi, false,
+            withUnit("must be between " + numberText(lo) + " and " + numberText(hi), unit)};
+}
+// 0 < value <= hi; `says` is the message.
+Check above0(double hi, const std::string& says) { return {Check::Kind::Range, 0, hi, true, says}; }
+
+// The flag's validator for `check` on values of type V: the value must be a
+// number (a whole one for an integer type) that passes the check; otherwise
+// it says what the column says, with the flag and the value.
 template <class V>
 CLI::Validator validator(const Check& check, const std::string& flag) {
-    if (check.kind == Check::Kind::Between) {
-        const CLI::Validator notNaN(
-            [check, flag](const std::string& v) {
-                return std::isnan(std::strtod(v.c_str(), nullptr)) ? flag + " " + check.says + " (got '" + v + "')"
-                                                                  : std::string();
-            },
-            "");
-        return CLI::Range(static_cast<V>(check.lo), static_cast<V>(check.hi)) & notNaN;
-    }
     return CLI::Validator(
         [check, flag](const std::string& v) {
             char* end = nullptr;
             const double x = std::strtod(v.c_str(), &end);
-            const bool number = end != v.c_str() && *end == '\0' && std::isfinite(x);
-            return number && check.passes(x) ? std::string() : flag + " " + check.says + " (got '" + v + "')";
+            const bool number = !v.empty() && end == v.c_str() + v.size();
+            const bool whole = std::is_floating_point_v<V> || x == std::floor(x);
+            if (number && check.passes(x) && whole) return std::string();
+            if (number && check.passes(x)) return flag + " must be a whole number (got '" + v + "')";
+            return flag + " " + check.says + " (got '" + v + "')";
         },
         "", check.says);
 }
@@ -112,9 +107,7 @@ MeshOption number(const std::string& name, const char* group, const char* help, 
     using V = typename Unwrapped<T>::type;
     MeshOption o = row(name, group, help, columnHelp);
     o.addFlag = [name, help, at, check](CLI::App& cmd, MeshArgs& a) {
-        CLI::Option* opt = cmd.add_option("--" + name, at(a), help);
-        if (check.kind != Check::Kind::None) opt->check(validator<V>(check, "--" + name));
-        return opt;
+        return cmd.add_option("--" + name, at(a), help)->check(validator<V>(check, "--" + name));
     };
     o.setColumn = [at, check](const Field& f, MeshArgs& a) {
         const auto v = parseValue<V>(f.scalar());
@@ -183,7 +176,7 @@ MeshOption labelList() {
 MeshOption sliceSpacing() {
     static const char* help = "Folder of 2-D slices: voxel spacing X Y Z in mm";
     MeshOption o = row("slice-spacing", "Input", help, "three numbers \"X Y Z\"");
-    const Check check = positive("must be positive");
+    const Check check = above0(1e6, "must be positive and at most 1000000 (mm)");
     o.addFlag = [check](CLI::App& cmd, MeshArgs& a) {
         return cmd.add_option("--slice-spacing", a.sliceSpacing, help)
             ->expected(3)
@@ -246,7 +239,7 @@ void addSelectionRows(std::vector<MeshOption>& t) {
     const char* g = "Selection";
     t.push_back(number<std::optional<double>>(
         "iso", g, "Intensity of the surface (default: Otsu's threshold, reported)", "surface intensity",
-        [](MeshArgs& a) -> auto& { return a.settings.select.iso; }, none()));
+        [](MeshArgs& a) -> auto& { return a.settings.select.iso; }, finite()));
     t.back().setting = Setting::Iso;
     t.push_back(choice<bool>("inside", g, "Which side of --iso is solid: above (bone in CT) or below (pores, air)",
                              "above or below", {{"above", false}, {"below", true}},
@@ -272,10 +265,11 @@ void addSelectionRows(std::vector<MeshOption>& t) {
     t.push_back(number<std::int64_t>("min-label-voxels", g, "Drop (and report) labels with fewer voxels",
                                      "whole number",
                                      [](MeshArgs& a) -> auto& { return a.settings.select.minLabelVoxels; },
-                                     notNegative()));
+                                     between(0, 1e15, "(voxels)")));
     t.push_back(number<double>("smooth", g, "Gaussian pre-smoothing, standard deviation in mm",
                                "Gaussian sigma in mm",
-                               [](MeshArgs& a) -> auto& { return a.settings.select.smoothSigma; }, notNegative()));
+                               [](MeshArgs& a) -> auto& { return a.settings.select.smoothSigma; },
+                               between(0, 1e4, "(mm)")));
     t.push_back(choice<imaging::Interpolation>(
         "interpolation", g, "Field interpolation: trilinear or quadratic", "trilinear or quadratic",
         {{"trilinear", imaging::Interpolation::Trilinear}, {"quadratic", imaging::Interpolation::Quadratic}},
@@ -304,7 +298,7 @@ void addInputRows(std::vector<MeshOption>& t) {
         "Refuse volumes needing more than this many MB to load, and element sizes whose mesh is estimated to need "
         "more (default: 80% of the machine's memory)",
         "MB", [](MeshArgs& a) -> auto& { return a.settings.load.maxMemoryMB; },
-        positive("must be a number of megabytes above 0")));
+        above0(1e9, "must be a number of megabytes up to 1000000000 and above 0")));
     t.back().setting = Setting::MaxMemory;
     t.push_back(sliceSpacing());
     t.back().setting = Setting::SliceSpacing;
@@ -318,7 +312,7 @@ void addMeshRows(std::vector<MeshOption>& t) {
         "Element edge length in world units (mm); default: the coarsest grid level that keeps the surface's "
         "topology",
         "element edge length (mm)", [](MeshArgs& a) -> auto& { return a.settings.size; },
-        positive("must be a positive length")));
+        above0(1e15, "must be a positive length, at most 1e15")));
     t.back().setting = Setting::Size;
     t.push_back(number<std::optional<int>>("level", g,
                                            "Grid level: elements 2^level voxels wide (instead of --size)",

@@ -1,6 +1,8 @@
 #include "RunOptions.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 
 namespace isohex::cli {
 
@@ -20,6 +22,19 @@ const RunOptionRow kRows[] = {
     {RunOption::Force, "force", "", "Overwrite existing output files"},
 };
 
+// --threads: a whole number from 1 to 1024, said as the mesh options say
+// their ranges (NaN and infinities too).
+CLI::Validator threadCount() {
+    return CLI::Validator(
+        [](const std::string& v) {
+            char* end = nullptr;
+            const double x = std::strtod(v.c_str(), &end);
+            const bool ok = !v.empty() && end == v.c_str() + v.size() && x >= 1 && x <= 1024 && x == std::floor(x);
+            return ok ? std::string() : "--threads must be a whole number between 1 and 1024 (got '" + v + "')";
+        },
+        "", "1..1024");
+}
+
 const RunOptionRow& row(RunOption id) {
     return *std::find_if(std::begin(kRows), std::end(kRows), [&](const RunOptionRow& r) { return r.id == id; });
 }
@@ -37,7 +52,7 @@ void addRunOptions(CLI::App* cmd, RunArgs& a, std::initializer_list<RunOption> w
         const RunOptionRow& r = row(id);
         switch (id) {
             case RunOption::Threads:
-                cmd->add_option(flagNames(r), a.threads, r.help)->check(CLI::Range(1, 1024));
+                cmd->add_option(flagNames(r), a.threads, r.help)->check(threadCount());
                 break;
             case RunOption::Quiet: cmd->add_flag(flagNames(r), a.quiet, r.help); break;
             case RunOption::LogJson: cmd->add_flag(flagNames(r), a.logJson, r.help); break;

@@ -2,6 +2,7 @@
 // the seed's sheet insertion along triangle surfaces into an existing hex mesh
 // (section 5.4), several surfaces in turn (chapter 6), then smoothing with
 // surface nodes on their triangles and curve nodes on their curves.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -111,6 +112,13 @@ void addInsertSheetCommand(CLI::App& app) {
             }
             nowReading(a->mesh);
             HexMesh mesh = io::read(a->mesh);
+            stageBegins("check");
+            {
+                const std::vector<double> sj = scaledJacobians(mesh);
+                const auto inverted = static_cast<std::size_t>(std::count_if(sj.begin(), sj.end(), [](double v) { return v < 0; }));
+                refuseMirroredCornerOrder(a->mesh, inverted, mesh.hexCount(),
+                                          "the sheets would be inserted between inverted hexes and the result scrambled");
+            }
             stageBegins("insert");
             insertion::SheetGeometry geometry;
             insertion::adoptBoundary(mesh, geometry);

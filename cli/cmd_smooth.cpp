@@ -46,11 +46,7 @@ void addSmoothCommand(CLI::App& app) {
             classifyBoundaryNodes(mesh);
             const HexQuality qBefore = computeQuality(mesh);
             const QualitySummary before = summarize(mesh, qBefore);
-            if (2 * before.inverted > mesh.hexCount())
-                throw Error(a->input + ": " + std::to_string(before.inverted) + " of " + std::to_string(mesh.hexCount()) +
-                            " hexes are inverted, so the corner order is probably mirrored: isohex reads VTK's hexahedron "
-                            "order (bottom face counter-clockwise seen from the top face, then the top face). Reorder the "
-                            "corners and retry; smoothing would only scramble the mesh");
+            refuseMirroredCornerOrder(a->input, before.inverted, mesh.hexCount(), "smoothing would only scramble the mesh");
             const std::vector<Vec3> original = mesh.nodes;
             smoothing::SmoothingOptions opt;
             opt.fixBoundary = true;

@@ -8,6 +8,7 @@
 
 #include "Commands.hpp"
 #include "ErrorText.hpp"
+#include "Isolate.hpp"
 #include "isohex/core/AtomicFile.hpp"
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
@@ -18,6 +19,25 @@ int& pendingExitCode() {
     return code;
 }
 }  // namespace isohex::cli
+
+namespace {
+
+// A first word that is not an option and not a command: CLI11 would say "A
+// subcommand is required", which reads as if none had been given.
+bool refuseUnknownCommand(const CLI::App& app, int argc, char** argv) {
+    if (argc < 2 || argv[1][0] == '-') return false;
+    const std::string word = argv[1];
+    std::string names;
+    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
+        if (sub->check_name(word)) return false;
+        names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    std::cerr << "isohex: error: unknown command '" << isohex::boundedMessage(word, 200) << "'; the commands are "
+              << names << " (isohex --help describes them)\n";
+    return true;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     using namespace isohex::cli;
@@ -36,6 +56,7 @@ int main(int argc, char** argv) {
     addInsertSheetCommand(app);
     addEstimateCommand(app);
     addMergeCommand(app);
+    if (refuseUnknownCommand(app, argc, argv)) return kExitUsage;
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -51,7 +72,8 @@ int main(int argc, char** argv) {
         std::cerr << "isohex: error: " << isohex::boundedMessage(userMessage(e, SettingNames::Flags), 65536) << "\n";
         return kExitError;
     } catch (const std::bad_alloc&) {
-        std::cerr << "isohex: error: out of memory; try a coarser --size or a machine with more memory\n";
+        std::cerr << "isohex: error: out of memory" << memoryLimitText()
+                  << "; try a coarser --size, raise the limit or use a machine with more memory\n";
         return kExitError;
     } catch (const std::exception& e) {
         std::cerr << "isohex: internal error: " << isohex::boundedMessage(e.what())

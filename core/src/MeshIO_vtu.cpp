@@ -10,7 +10,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <mutex>
 #include <string>
 
@@ -184,6 +187,61 @@ void requireCompleteXml(const std::string& path) {
         throw Error(path + ": truncated or not a VTK XML file (it does not end with " + closing + ")");
 }
 
+// The value of attribute `name` in the first element `tag` of `xml`, or "".
+std::string attributeOf(const std::string& xml, const std::string& tag, const std::string& name) {
+    const std::size_t at = xml.find("<" + tag);
+    if (at == std::string::npos) return {};
+    const std::size_t end = xml.find('>', at);
+    const std::string element = xml.substr(at, end == std::string::npos ? std::string::npos : end - at);
+    const std::size_t a = element.find(" " + name + "=");
+    if (a == std::string::npos) return {};
+    const std::size_t open = a + name.size() + 2;
+    if (open >= element.size()) return {};
+    const char quote = element[open];
+    const std::size_t close = element.find(quote, open + 1);
+    return close == std::string::npos ? std::string() : element.substr(open + 1, close - open - 1);
+}
+
+// VTK sizes its arrays from a piece's NumberOfPoints and NumberOfCells
+// before it reads a value, so a header claiming 2e9 cells allocated gigabytes
+// and then failed as "out of memory". Each point takes at least 6 bytes of
+// the file (three ASCII digits with their blanks) and each hexahedron at least
+// 10 (eight connectivity entries, an offset and a type); compressed data
+// (VTK's blocks, at most 32 KiB each with a 4-byte size apiece) at least
+// 1/8192 of that. A header whose counts need more than the file has is
+// refused before VTK reads it.
+void requireCountsFitTheFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::string head(65536, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    const std::size_t appended = head.find("<AppendedData");
+    if (appended != std::string::npos) head.resize(appended);
+    auto count = [&](const char* name) -> double {
+        const std::string v = attributeOf(head, "Piece", name);
+        if (v.empty()) return 0.0;  // no piece: VTK's own error
+        char* end = nullptr;
+        const double x = std::strtod(v.c_str(), &end);
+        // VTK took a negative count as a size and crashed
+        if (end == v.c_str() || !(x >= 0) || x != std::floor(x))
+            throw Error(path + ": the header's " + name + " is '" + boundedMessage(v, 40) +
+                        "', not a count; the file is damaged. Write or export the mesh again.");
+        return x;
+    };
+    const double points = count("NumberOfPoints"), cells = count("NumberOfCells");
+    const bool compressed = !attributeOf(head, "VTKFile", "compressor").empty();
+    const double need = (6.0 * points + 10.0 * cells) / (compressed ? 8192.0 : 1.0);
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(path, ec);
+    if (ec || need <= static_cast<double>(size)) return;
+    std::ostringstream m;
+    m.precision(15);
+    m << path << ": the header declares " << points << " points and " << cells << " cells, which need at least "
+      << static_cast<long long>(need) << " bytes" << (compressed ? " even compressed" : "") << ", but the file has "
+      << size << "; the header is damaged or the file truncated. Write or export the mesh again.";
+    throw Error(m.str());
+}
+
 }  // namespace
 
 void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string& path,
@@ -275,6 +333,7 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
 
 HexMesh readVtu(const std::string& path, const ArrayRequest* arrays) {
     requireCompleteXml(path);
+    requireCountsFitTheFile(path);
     VtkMessageCapture capture;
     vtkNew<vtkXMLUnstructuredGridReader> reader;
     if (!reader->CanReadFile(path.c_str()))

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 
 namespace isohex {
@@ -296,6 +297,15 @@ nlohmann::json toJson(const QualitySummary& s) {
             {"condition", statsJson(s.condition)},
             {"edge_ratio", statsJson(s.edgeRatio)},
             {"volume", vol}};
+}
+
+void refuseMirroredCornerOrder(const std::string& path, std::size_t inverted, std::size_t hexes,
+                               const std::string& consequence) {
+    if (2 * inverted <= hexes) return;
+    throw Error(path + ": " + std::to_string(inverted) + " of " + std::to_string(hexes) +
+                " hexes are inverted, so the corner order is probably mirrored: isohex reads VTK's hexahedron "
+                "order (bottom face counter-clockwise seen from the top face, then the top face). Reorder the "
+                "corners and retry; " + consequence);
 }
 
 }  // namespace isohex

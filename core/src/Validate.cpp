@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -331,6 +333,57 @@ Found checkQuadDoublets(const Topology& topo, const SurfaceIndex& s) {
     });
 }
 
+// ---------------------------------------------------------------- coincident nodes
+
+// Boundary nodes at the same place as another boundary node: a mesh whose
+// hexes were written with their own copies of shared corners (unmerged
+// nodes) has every hex on its own, each face a boundary face, and is no
+// mesh of the solid. Positions count as equal when they fall in the same
+// cell of a grid a millionth of the boundary's bounding box wide (exact
+// copies always do; copies that differ in the last bits nearly always).
+// Only boundary nodes are looked at: two distinct nodes at one place inside
+// the solid would also leave their hexes with boundary faces there.
+Found checkCoincidentNodes(const HexMesh& mesh, const Topology& topo) {
+    std::vector<std::uint8_t> onBoundary(mesh.nodes.size(), 0);
+    for (Index q : topo.boundaryQuads)
+        for (Index v : topo.quads[q].nodes) onBoundary[v] = 1;
+    std::vector<Index> nodes;
+    Vec3 lo{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+    Vec3 hi{-lo[0], -lo[1], -lo[2]};
+    for (std::size_t v = 0; v < onBoundary.size(); ++v) {
+        if (!onBoundary[v]) continue;
+        nodes.push_back(static_cast<Index>(v));
+        for (int d = 0; d < 3; ++d) {
+            lo[d] = std::min(lo[d], mesh.nodes[v][d]);
+            hi[d] = std::max(hi[d], mesh.nodes[v][d]);
+        }
+    }
+    Found found;
+    if (nodes.size() < 2) return found;
+    const double diagonal = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    if (!(diagonal > 0) || !std::isfinite(diagonal)) return found;
+    const double cell = 1e-6 * diagonal;
+    using Key = std::array<std::int64_t, 3>;
+    std::vector<std::pair<Key, Index>> keyed(nodes.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const Vec3& p = mesh.nodes[nodes[i]];
+        keyed[i] = {{static_cast<std::int64_t>(std::floor((p[0] - lo[0]) / cell)),
+                     static_cast<std::int64_t>(std::floor((p[1] - lo[1]) / cell)),
+                     static_cast<std::int64_t>(std::floor((p[2] - lo[2]) / cell))},
+                    nodes[i]};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    for (std::size_t a = 0; a < keyed.size();) {
+        std::size_t b = a + 1;
+        while (b < keyed.size() && keyed[b].first == keyed[a].first) ++b;
+        if (b - a > 1)
+            for (std::size_t i = a; i < b; ++i) found.add(keyed[i].second);
+        a = b;
+    }
+    return found;
+}
+
 // ---------------------------------------------------------------- report
 
 void put(ValidityReport& report, const char* key, const char* constraint, const char* entity,
@@ -390,6 +443,7 @@ ValidityReport validate(const HexMesh& mesh, const Topology& topo) {
     const SurfaceIndex surfaces = indexSurfaces(mesh, topo);
     const SurfaceAcc fans = checkSurfaceFans(mesh, topo, surfaces);
     const Found quadDoublets = checkQuadDoublets(topo, surfaces);
+    const Found coincident = checkCoincidentNodes(mesh, topo);
 
     ValidityReport rep;
     put(rep, "repeated_node", "B,D,G", "hex", "hex uses the same node more than once (collapsed edge or face)",
@@ -415,6 +469,10 @@ ValidityReport validate(const HexMesh& mesh, const Topology& topo) {
     put(rep, "inverted_hex", "N", "hex", "hex with a corner or centre Jacobian determinant <= 0", hexes.inverted,
         hexWhere(mesh, hexes.inverted));
     put(rep, "unused_node", "A", "node", "node used by no hex", unused, nodeWhere(mesh, unused));
+    put(rep, "coincident_node", "-", "node",
+        "boundary node at the same place as another node it is not merged with: the hexes there are disconnected "
+        "(duplicated, unmerged nodes; merge coincident nodes in the tool that wrote the mesh)",
+        coincident, nodeWhere(mesh, coincident));
     return rep;
 }
 

@@ -222,14 +222,36 @@ std::string presentLabels(const LabelStatMap& stats) {
     return shown ? m.str() : std::string("none");
 }
 
+// Each label meshed becomes the material id of its hexes, and a negative
+// material id means the outside (surfaces are named by material pairs): a
+// negative label would be written as ids isohex's own readers refuse. So
+// negative labels are refused when they would be meshed; voxels of a
+// negative label not selected are background like any other unselected one.
+void refuseNegativeLabels(const std::string& src, const LabelStatMap& stats, const std::vector<std::int32_t>& wanted,
+                          bool listed) {
+    std::ostringstream m;
+    int shown = 0;
+    for (std::int32_t l : wanted) {
+        if (l >= 0) break;  // ascending
+        m << (shown++ ? ", " : "") << l << " (" << stats.at(l).voxels << " voxels)";
+    }
+    if (shown == 0) return;
+    throw SettingError({src + ": label" + (shown > 1 ? "s " : " ") + m.str() + (shown > 1 ? " are" : " is") +
+                            " negative, and each meshed label becomes a material id, which must be 0 or more "
+                            "(negative ids mean the outside). " +
+                            (listed ? std::string("Remove the negative labels from ") : std::string("Select the labels to mesh with ")),
+                        Setting::Label, listed ? std::string(", or renumber the label map.") : std::string(" (positive ones), or renumber the label map.")});
+}
+
 // The labels to mesh, ascending and each once: those asked for, or every
-// non-zero label present. Throws on label 0, on labels not present, and when
-// there is nothing to mesh.
+// non-zero label present. Throws on label 0, on negative labels, on labels
+// not present, and when there is nothing to mesh.
 std::vector<std::int32_t> wantedLabels(const std::string& src, const LabelStatMap& stats, const SelectOptions& o) {
     std::vector<std::int32_t> wanted;
     if (o.labels.empty()) {
         for (const auto& [label, s] : stats)
             if (label != 0) wanted.push_back(label);
+        refuseNegativeLabels(src, stats, wanted, false);
         if (wanted.empty()) {
             throw Error(src + ": every voxel is label 0 (background), so there is nothing to mesh. "
                         "Check that this is the right label map.");
@@ -257,6 +279,7 @@ std::vector<std::int32_t> wantedLabels(const std::string& src, const LabelStatMa
         throw Error(m.str());
     }
     std::sort(wanted.begin(), wanted.end());
+    refuseNegativeLabels(src, stats, wanted, true);
     return wanted;
 }
 

@@ -448,10 +448,14 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
     }
     Assimp::Importer importer;
     // Normals and texture coordinates would keep coincident corners apart.
+    // Corners are welded by appendNode where their coordinates are equal;
+    // Assimp's own aiProcess_JoinIdenticalVertices also joins corners closer
+    // than an absolute 1e-5, which welded a sphere of radius 1e-9 into a
+    // non-manifold knot of triangles.
     importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS,
                                 aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
                                     aiComponent_COLORS | aiComponent_TEXCOORDS);
-    const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_JoinIdenticalVertices;
+    const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate;
     const aiScene* scene = nullptr;
     std::string ext = path.extension().string();
     for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

@@ -8,6 +8,7 @@
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -62,6 +63,22 @@ TriangleTree::TriangleTree(std::vector<Vec3> vertices, std::vector<std::array<st
 }
 
 TriangleTree::~TriangleTree() = default;
+
+std::optional<Vec3> TriangleTree::selfIntersection() const {
+    using Face = SurfaceMesh::Face_index;
+    std::vector<std::pair<Face, Face>> pairs;
+    CGAL::Polygon_mesh_processing::self_intersections(impl_->mesh, std::back_inserter(pairs),
+                                                      CGAL::parameters::maximum_number(1));
+    if (pairs.empty()) return std::nullopt;
+    Vec3 c{0, 0, 0};
+    for (const auto v : CGAL::vertices_around_face(impl_->mesh.halfedge(pairs.front().first), impl_->mesh)) {
+        const Point& p = impl_->mesh.point(v);
+        c[0] += p.x() / 3;
+        c[1] += p.y() / 3;
+        c[2] += p.z() / 3;
+    }
+    return c;
+}
 
 Vec3 TriangleTree::closestPoint(const Vec3& x) const {
     const Point p = impl_->tree.closest_point(toPoint(x));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
@@ -81,7 +82,18 @@ std::shared_ptr<const insertion::TriangleTree> loadTriangleTree(const std::strin
         throw Error(path + ": not a triangle surface; give a closed .stl, .obj, .ply or .off file");
     if (!std::filesystem::exists(path)) throw Error(path + ": no such file; check the path");
     imaging::TriangleSurface s = imaging::loadSurface(path);
-    return std::make_shared<insertion::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+    auto tree = std::make_shared<insertion::TriangleTree>(std::move(s.vertices), std::move(s.triangles), path);
+    // Crossing triangles have no inside: the sides of the sheets are decided
+    // by an inside test, and hexes there came out inverted or on the wrong side.
+    if (const auto at = tree->selfIntersection()) {
+        std::ostringstream m;
+        m.precision(6);
+        m << path << ": the surface intersects itself (triangles cross near (" << (*at)[0] << ", " << (*at)[1] << ", "
+          << (*at)[2] << ")), so it has no well-defined inside; repair it (e.g. MeshLab's 'Select Self Intersecting "
+          << "Faces', or remeshing the union of its parts) and retry.";
+        throw Error(m.str());
+    }
+    return tree;
 }
 
 SheetMeshing runSheetMethod(const std::string& input, const MeshSettings& settings, StageSink& sink) {

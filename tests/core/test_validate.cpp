@@ -183,8 +183,10 @@ TEST(Validate, QuadDoubletOnTheBoundaryIsReported) {
     ASSERT_EQ(m.hexes[1][0], corner);
     m.hexes[1][0] = copy;
     const ValidityReport r = validate(m);
-    EXPECT_EQ(keys(r), std::set<std::string>{"quad_doublet"}) << toJson(r).dump();
+    // the copy sits where the corner is: the crack is an unmerged node too
+    EXPECT_EQ(keys(r), (std::set<std::string>{"quad_doublet", "coincident_node"})) << toJson(r).dump();
     EXPECT_EQ(r.count("quad_doublet"), 2u);
+    EXPECT_EQ(r.count("coincident_node"), 2u);
     EXPECT_EQ(defect(r, "quad_doublet").entity, "quad");
 }
 
@@ -283,6 +285,24 @@ TEST(Validate, UnusedNodeIsReported) {
     EXPECT_EQ(keys(r), std::set<std::string>{"unused_node"});
     EXPECT_EQ(defect(r, "unused_node").examples, Ids{8});
     EXPECT_EQ(defect(r, "unused_node").where, std::vector<Vec3>{(Vec3{5, 5, 5})});
+}
+
+TEST(Validate, CubesWithTheirOwnCopiesOfSharedNodesAreDisconnected) {
+    // Two cubes side by side, each with its own 8 nodes (an exporter that did
+    // not merge nodes): every face is a boundary face and nothing else is wrong.
+    HexMesh m = unitCube();
+    const HexMesh right = unitCube({1, 0, 0});
+    Hex h = right.hexes[0];
+    for (Index& v : h) v += static_cast<Index>(m.nodes.size());
+    for (const Vec3& p : right.nodes) m.addNode(p);
+    m.addHex(h);
+    m.nodes[h[0]][1] += 1e-12;  // a copy that differs in its last bits counts too
+    const ValidityReport r = validate(m);
+    EXPECT_EQ(keys(r), std::set<std::string>{"coincident_node"}) << toJson(r).dump();
+    EXPECT_EQ(r.count("coincident_node"), 8u);
+    EXPECT_NE(defect(r, "coincident_node").description.find("disconnected"), std::string::npos);
+    // merged, the same two cubes are valid
+    EXPECT_TRUE(validate(makeBlock(2, 1, 1)).ok());
 }
 
 // ------------------------------------------------------------ the report

@@ -677,7 +677,7 @@ class FailurePaths(unittest.TestCase):
         src = os.path.join(self.dir, "sphere.nii.gz")
         for args, message in ((["--max-memory", "0"], "above 0 (got '0')"),
                               (["--max-memory", "nan"], "above 0 (got 'nan')"),
-                              (["--volume-index", "-1"], "not in range 0")):
+                              (["--volume-index", "-1"], "between 0 and")):
             p = run(["mesh", src, *args, "-o", out, "-q"], check=False)
             self.assertEqual(p.returncode, 2, (args, p.stderr))
             self.assertIn(message, p.stderr)

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json_fwd.hpp>
@@ -104,6 +105,14 @@ struct QualitySummary {
     double totalVolume = 0;
 };
 QualitySummary summarize(const HexMesh& mesh, const HexQuality& q);
+
+// A mesh read from `path` with more than half of its `hexes` inverted has, in
+// all likelihood, its corners in mirrored order (another tool's hexahedron
+// convention): throws isohex::Error naming the file, the count, VTK's order
+// and `consequence` (what working on it would do), e.g. "smoothing would only
+// scramble the mesh".
+void refuseMirroredCornerOrder(const std::string& path, std::size_t inverted, std::size_t hexes,
+                               const std::string& consequence);
 nlohmann::json toJson(const QualitySummary& s);
 
 }  // namespace isohex

@@ -53,6 +53,11 @@ inline constexpr std::size_t kMaxExamples = 10;
 //                               direction: one is folded onto the other (N)
 //   inverted_hex         hex    a corner or the centre Jacobian determinant <= 0 (N)
 //   unused_node          node   node in no hex (A)
+//   coincident_node      node   a boundary node at the same place as another
+//                               (within a millionth of the boundary's box):
+//                               duplicated, unmerged nodes leave the hexes
+//                               there disconnected (no letter: the seed's
+//                               constraints take connectivity as given)
 //
 // "Surface" means a patch of surfacePatches(): boundary quads grouped by
 // (material inside, exterior) and interface quads by their two materials. A

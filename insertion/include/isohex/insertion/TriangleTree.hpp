@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,11 @@ public:
     // Whether x lies inside the surface (meaningful for closed surfaces).
     // Not thread-safe (CGAL's ray caster keeps state); call from one thread.
     bool inside(const Vec3& x) const;
+
+    // A place where two triangles that share no vertex or edge intersect
+    // (the centroid of the first such pair CGAL finds), or nothing when the
+    // surface does not cross itself. O(n log n) in the triangles.
+    std::optional<Vec3> selfIntersection() const;
 
     const std::string& name() const { return name_; }
     const std::vector<Vec3>& vertices() const { return vertices_; }
