@@ -27,6 +27,7 @@ struct MergeArgs {
     std::vector<std::string> outputs;
     std::string report;
     bool noBandPass = false;
+    bool allowBelow = false;
     RunArgs run;
 };
 
@@ -42,6 +43,13 @@ nlohmann::json mergeAndWrite(const MergeArgs& a) {
     for (const auto& [k, val] : quality.items()) report[k] = val;
     report["validity"] = toJson(v);
     report["outputs"] = a.outputs;
+    // No mesh with inverted hexes or defects is written without a word (as
+    // `mesh` does below its minimum quality): refused unless --allow-below.
+    if ((s.inverted > 0 || !v.ok()) && !a.allowBelow)
+        throw Error(a.parts.front() + " (and the other parts): the merged mesh has " + std::to_string(s.inverted) +
+                    " inverted hexes" + (v.ok() ? std::string() : " and " + describeDefects(v)) +
+                    ", at the cuts; nothing was written. Mesh the scan whole or in fewer parts, or give --allow-below "
+                    "to write it anyway");
     io::WriteOptions w;
     w.overwrite = a.run.force;
     w.scaledJacobian = q.scaledJacobian;
@@ -71,6 +79,8 @@ void addMergeCommand(CLI::App& app) {
                     "Merged mesh file(s); the format follows the extension (.vtu .msh .exo .e .inp .mesh)")
         ->required();
     cmd->add_option("--report", a->report, "Write the JSON report (cuts, matched nodes, quality, validity) here");
+    cmd->add_flag("--allow-below", a->allowBelow,
+                  "Write the merged mesh even when it has inverted hexes or defects (a warning says so)");
     cmd->add_flag("--no-band-pass", a->noBandPass,
                   "Do not optimise the nodes around the cuts again (each part froze its cut nodes)");
     addRunOptions(cmd, a->run, {RunOption::Threads, RunOption::Force});
