@@ -3,6 +3,8 @@
 #include <cstdlib>
 #include <map>
 #include <mutex>
+#include <new>
+#include <string>
 #include <system_error>
 
 #include <dlfcn.h>
@@ -39,6 +41,13 @@ const void* loadApi(const std::string& name, const std::string& purpose) {
     void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
         const char* reason = dlerror();
+        // The loader cannot map a library into an exhausted address space
+        // (ulimit -v): that is running out of memory, reported as such by
+        // the job's stage, not a broken installation.
+        const std::string text = reason ? reason : "";
+        if (text.find("failed to map segment") != std::string::npos ||
+            text.find("Cannot allocate memory") != std::string::npos)
+            throw std::bad_alloc();
         throw Error(what + " could not be loaded: " + boundedMessage(reason ? reason : "unknown reason") +
                     ". Install the Debian packages it needs (./setup.sh) or rebuild isohex");
     }
