@@ -36,9 +36,16 @@ bool isIntegerComponent(itk::IOComponentEnum c) {
            c != itk::IOComponentEnum::UNKNOWNCOMPONENTTYPE;
 }
 
+// ITK's text on one line: it goes into isohex's one-line error, and teem's and
+// MetaIO's descriptions run over several lines.
 std::string describe(const itk::ExceptionObject& e) {
-    std::string d = e.GetDescription();
-    while (!d.empty() && (d.back() == '\n' || d.back() == ' ')) d.pop_back();
+    std::string d;
+    for (char c : std::string(e.GetDescription())) {
+        if (c == '\n' || c == '\r') c = ' ';
+        if (c == ' ' && !d.empty() && d.back() == ' ') continue;
+        d += c;
+    }
+    while (!d.empty() && d.back() == ' ') d.pop_back();
     return d;
 }
 
