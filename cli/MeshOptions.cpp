@@ -252,6 +252,7 @@ void addSelectionRows(std::vector<MeshOption>& t) {
     t.push_back(onOff("keep-largest", g,
                       "Keep only the largest connected region of each material (drops noise specks)", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.keepLargest; }));
+    t.back().setting = Setting::KeepLargest;
     t.push_back(onOff("fill-pits", g,
                       "Fill background pits and wells one element wide before meshing (the boundary sheet cannot "
                       "give their floor a good hex; topology is kept)",
@@ -331,14 +332,17 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       [](MeshArgs& a) -> auto& { return a.settings.pillow; }, true));
     t.push_back(number<int>("boundary-layers", g, "Layers of hexes in the boundary sheet (default 1)", "1..16",
                             [](MeshArgs& a) -> auto& { return a.settings.boundaryLayers; }, between(1, 16)));
+    t.back().setting = Setting::BoundaryLayers;
     t.push_back(onOff("adaptive", g,
                       "Coarse hexes where the labels do not change (a 27-tree with transition templates); the "
                       "boundary keeps the element size",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }));
+    t.back().setting = Setting::Adaptive;
     t.push_back(onOff("uniform", g, "One hex per grid point everywhere (the default; the opposite of --adaptive)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }, true));
     t.push_back(onOff("mesh-exterior", g, "Also mesh the background out to a box around the object", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.meshExterior; }));
+    t.back().setting = Setting::MeshExterior;
     t.push_back(partRow());
     t.back().setting = Setting::Part;
     t.push_back(onOff("fix-boundary", g, "Optimise interior nodes only; surface nodes stay where extracted",

@@ -27,22 +27,23 @@ void checkPartSettings(const MeshSettings& s) {
         throw SettingError(std::move(why));
     };
     if (s.keepLargest)
-        refuse({"keep-largest: which region is largest is a question about the whole scan (mesh it whole, or select "
-                "the region first, e.g. as a label map); leave out ", Setting::Part, " or keep-largest"});
+        refuse({Setting::KeepLargest, ": which region is largest is a question about the whole scan (mesh it whole, "
+                "or select the region first, e.g. as a label map); leave out ", Setting::Part, " or ",
+                Setting::KeepLargest});
     if (s.isosurfaceTopology)
         refuse({Setting::IsosurfaceTopology, ": its search spends one budget over the whole grid in grid order; "
                 "leave out ", Setting::Part, " or ", Setting::IsosurfaceTopology});
     if (s.method == Method::Sheets)
         refuse({Setting::Method, " sheets: the sheets follow the whole surface; use ", Setting::Method, " dual"});
     if (s.meshExterior)
-        refuse({"mesh-exterior: the box around the object is the whole scan's; leave out ", Setting::Part,
-                " or mesh-exterior"});
+        refuse({Setting::MeshExterior, ": the box around the object is the whole scan's; leave out ", Setting::Part,
+                " or ", Setting::MeshExterior});
     if (s.adaptive)
-        refuse({"adaptive: the 27-tree's cuts must lie on its coarsest cells, which parts do not do yet; leave out ",
-                Setting::Part, " or adaptive"});
+        refuse({Setting::Adaptive, ": the 27-tree's cuts must lie on its coarsest cells, which parts do not do yet; "
+                "leave out ", Setting::Part, " or ", Setting::Adaptive});
     if (s.boundaryLayers != 1)
-        refuse({"boundary-layers above 1: the layers are diced sheets of the whole mesh; leave out ", Setting::Part,
-                " or boundary-layers"});
+        refuse({Setting::BoundaryLayers, " above 1: the layers are diced sheets of the whole mesh; leave out ",
+                Setting::Part, " or ", Setting::BoundaryLayers});
 }
 
 std::vector<std::int32_t> sortedMaterials(const HexMesh& mesh) {

@@ -81,7 +81,7 @@ def nifti_bytes(vol, magic=b"n+1\0", vox_offset=352.0):
 
 
 def lies_for(fmt):
-    if fmt == "4s":
+    if fmt == "4s":  # the magic: NIfTI-2's, a .hdr/.img pair's inside a .nii, none, not NIfTI at all
         return [b"n+2\0", b"ni1\0", b"\0\0\0\0", b"XXXX"]
     return INT_LIES.get(fmt, FLOAT_LIES)
 

@@ -29,6 +29,10 @@ enum class Setting : std::uint8_t {
     IsosurfaceTopology,  // keep the isosurface's topology on the element grid
     AllowDataOutside,    // read data files a header names outside its folder
     Part,                // mesh one part of a scan split into parts
+    KeepLargest,         // keep only the largest region of each material
+    MeshExterior,        // mesh the background out to a box too
+    BoundaryLayers,      // layers of hexes in the boundary sheet
+    Adaptive,            // the adaptive 27-tree instead of the uniform grid
 };
 
 // A plain name for `s`, for a message read outside any front end.
@@ -47,6 +51,10 @@ inline std::string_view settingName(Setting s) {
         case Setting::IsosurfaceTopology: return "isosurface topology";
         case Setting::AllowDataOutside: return "allow data outside";
         case Setting::Part: return "part";
+        case Setting::KeepLargest: return "keep-largest";
+        case Setting::MeshExterior: return "mesh-exterior";
+        case Setting::BoundaryLayers: return "boundary layers";
+        case Setting::Adaptive: return "adaptive";
     }
     return "setting";
 }
