@@ -21,29 +21,43 @@ namespace {
 // makes one hex per labelled point; each sheet layer adds one hex per face
 // between a labelled point and background, and two per face between two
 // materials (every material gets its own sheet).
-double sampledHexes(const Prepared& p, const MeshSettings& settings) {
+struct SampledHexes {
+    double all = 0;  // on the whole grid (a part's: its window)
+    double own = 0;  // of the points of a part's own slab (all, without a part)
+};
+
+// Whether the grid point (i, j, k) of the sampled grid lies in the part's own slab.
+bool ownPoint(const std::optional<PartWindow>& w, int i, int j, int k) {
+    if (!w) return true;
+    const int layer = w->first + (w->axis == 0 ? i : w->axis == 1 ? j : k);
+    return w->coreLo <= layer && layer < w->coreHi;
+}
+
+SampledHexes sampledHexes(const Prepared& p, const MeshSettings& settings) {
     octree::Labels labels = octree::sampleLabels(*p.domain, p.facts.grid.grid);
     if (settings.keepLargest) octree::keepLargestComponents(labels);
     const octree::Grid& g = labels.grid;
     const std::array<int, 3> d = g.dims;
-    std::vector<double> inside(std::size_t(d[2]), 0.0), faces(std::size_t(d[2]), 0.0);
+    const double layers = settings.pillow ? double(std::max(settings.boundaryLayers, 1)) : 0.0;
+    std::vector<SampledHexes> perSlice(static_cast<std::size_t>(d[2]));
     tbb::parallel_for(0, d[2], [&](int k) {
         for (int j = 0; j < d[1]; ++j)
             for (int i = 0; i < d[0]; ++i) {
                 const std::int32_t m = labels.at(i, j, k);
                 if (m == 0) continue;
-                inside[k] += 1;
+                double hexes = 1;
                 for (const auto& n : {std::array{i + 1, j, k}, std::array{i - 1, j, k}, std::array{i, j + 1, k},
                                       std::array{i, j - 1, k}, std::array{i, j, k + 1}, std::array{i, j, k - 1}}) {
                     const std::int32_t o = labels.at(n[0], n[1], n[2]);
-                    if (o != m) faces[k] += 1;  // each face once per material on its sides
+                    if (o != m) hexes += layers;  // each face once per material on its sides
                 }
+                perSlice[std::size_t(k)].all += hexes;
+                if (ownPoint(p.part, i, j, k)) perSlice[std::size_t(k)].own += hexes;
             }
     });
-    double hexes = 0, sheet = 0;
-    for (int k = 0; k < d[2]; ++k) hexes += inside[k], sheet += faces[k];
-    if (settings.pillow) hexes += sheet * double(std::max(settings.boundaryLayers, 1));
-    return hexes;
+    SampledHexes total;
+    for (const SampledHexes& s : perSlice) total.all += s.all, total.own += s.own;
+    return total;
 }
 
 }  // namespace
@@ -74,7 +88,14 @@ MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings
     const Prepared p = prepareGrid(input, settings, sink);
     const MeshMemoryEstimate mem = estimateMeshMemory(*p.volume, *p.selection, p.facts.grid.grid, settings);
     MeshEstimate e;
-    e.hexes = settings.meshExterior ? mem.hexes : sampledHexes(p, settings);
+    if (settings.meshExterior) {
+        e.hexes = e.ownHexes = mem.hexes;
+    } else {
+        const SampledHexes sampled = sampledHexes(p, settings);
+        e.hexes = sampled.all;
+        e.ownHexes = sampled.own;
+    }
+    e.part = p.part;
     e.gridPoints = p.facts.grid.grid.size();
     e.loadedBytes = mem.already;
     e.peakBytes = meshPeakBytes(mem.already, e.hexes, double(e.gridPoints));
@@ -106,6 +127,13 @@ nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts) {
     j["wall_seconds"] = std::round(e.wallSeconds * 10) / 10;
     j["threads"] = e.threads;
     j["threads_chosen"] = e.threadsChosen;
+    if (e.part)
+        j["part"] = {{"index", e.part->spec.index},
+                     {"count", e.part->spec.count},
+                     {"axis", e.part->axis},
+                     {"own_layers", {e.part->coreLo, e.part->coreHi}},
+                     {"window_layers", {e.part->first, e.part->first + e.part->grid.dims[std::size_t(e.part->axis)]}},
+                     {"own_hexes", std::llround(e.ownHexes)}};
     j["model"] = {{"hexes", "labels sampled on the grid: a hex per labelled point, + one per boundary face per sheet layer"},
                   {"memory", "peak after loading + 450 bytes per hex + 8 bytes per grid point"},
                   {"time", "fitted to bench/RESULTS.md: CPU s = 0.00146 hexes^0.773, within a factor 2.4 with the sheet "

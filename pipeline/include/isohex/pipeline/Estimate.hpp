@@ -4,18 +4,23 @@
 // repair, contouring or optimisation), so a scheduler can ask for the CPUs,
 // memory and time a job needs.
 #include <cstddef>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/StageSink.hpp"
 
 namespace isohex::pipeline {
 
+// With settings.part (--part K/N) the estimate is of that part's job: the
+// hexes, memory and time of its window (its slab and the ghost layers, which
+// it builds before keeping its own hexes), and the hexes it keeps.
 struct MeshEstimate {
-    double hexes = 0;             // expected hexes of the finished mesh (estimateMeshMemory)
+    double hexes = 0;             // expected hexes the run builds (the finished mesh; a part's window)
     std::size_t gridPoints = 0;   // points of the element grid
     double loadedBytes = 0;       // peak resident memory after loading and selecting
     double peakBytes = 0;         // expected peak resident memory of `isohex mesh`
@@ -23,6 +28,8 @@ struct MeshEstimate {
     double wallSeconds = 0;       // expected wall time with `threads` threads
     int threads = 1;              // the threads the wall time is for
     bool threadsChosen = false;   // threads were chosen by the estimate (none asked for)
+    std::optional<PartWindow> part;  // with settings.part: its window of the whole grid
+    double ownHexes = 0;             // with settings.part: the hexes of its own slab (what it writes)
 };
 
 // The time model, fitted to bench/RESULTS.md (2026-12-02, 2-core Xeon,
@@ -66,7 +73,8 @@ MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings
                           StageSink& sink, PreparedFacts* facts = nullptr);
 
 // The estimate as isohex estimate prints it: input, element size and grid,
-// hexes, memory in MB, seconds, threads, and the model's stated accuracy.
+// hexes, memory in MB, seconds, threads, and the model's stated accuracy;
+// with a part also "part" (index, count, axis, own and window layers, own hexes).
 nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts);
 
 }  // namespace isohex::pipeline
