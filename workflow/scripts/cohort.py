@@ -1,11 +1,13 @@
 """The cohort summary of workflow/Snakefile: one row per scan from the files the
 workflow leaves (OUT/NAME.report.json, OUT/estimates/NAME.json, OUT/logs/), written
 as OUT/cohort.csv, OUT/cohort.html (a table and an SVG of the scaled Jacobian per
-scan) and OUT/failures.txt (each failed scan with its error lines). Standard
+scan) and OUT/failures.txt (each failed scan with its error lines). A scan in
+parts (OUT/parts/NAME/K.vtu, merged into OUT/NAME.vtu) has the merge's report, its
+parts' SLURM jobs, and fails at the part (or the merge) whose log has the error. Standard
 library only: Snakemake runs it in its own interpreter at the end of every run
 (onsuccess and onerror), so a failed scan never keeps the others out of it.
 
-    python3 workflow/scripts/cohort.py OUT NAME...   writes the same files by hand
+    python3 workflow/scripts/cohort.py OUT NAME[:PARTS]...   writes the same files by hand
 """
 import csv
 import html
@@ -17,7 +19,7 @@ import sys
 COLUMNS = ["name", "status", "stage", "hexes", "sj_min", "sj_mean", "sj_below_0_2", "inverted",
            "volume_change_percent", "boundary_distance_mean", "seconds", "peak_memory_mb",
            "estimated_hexes", "estimated_peak_memory_mb", "estimated_wall_seconds", "threads",
-           "slurm_job", "host", "error"]
+           "slurm_job", "host", "error", "parts", "part_jobs"]
 SUFFIXES = (".nii.gz", ".nii", ".nrrd", ".nhdr", ".mha", ".mhd", ".tif", ".tiff", ".vdb")
 
 
@@ -60,21 +62,64 @@ def _error_lines(path):
     return errors or lines[-3:]
 
 
-def scan_row(out, name):
+def _job(path):
+    """The SLURM job id and host a job wrote to its .job file ("local" off SLURM)."""
+    try:
+        with open(path) as f:
+            return (f.read().split() + ["", ""])[:2]
+    except OSError:
+        return ["", ""]
+
+
+def _merged(out, name, parts, row):
+    """The figures of a scan meshed in parts: the merge's report (quality, validity),
+    the parts' seconds added to the merge's, the largest peak of the parts and the
+    merge, and the merged mesh's volume against the scan's isosurface (which every
+    part measures whole). The boundary distance stays empty: the merge has no scan."""
+    reps = [_json(os.path.join(out, "parts", name, f"{k}.report.json")) or {} for k in range(1, parts + 1)]
+    merge = _json(os.path.join(out, name + ".report.json")) or {}
+    iso = reps[0].get("fidelity", {}).get("volume_isosurface")
+    volume = merge.get("volume", {}).get("total")
+    if iso and volume is not None:
+        row["volume_change_percent"] = 100.0 * (volume - iso) / iso
+    seconds = sum(r.get("timings_s", {}).get("total", 0) for r in reps) + merge.get("merge", {}).get("seconds", 0)
+    peaks = [r.get("peak_memory_mb", 0) for r in reps] + [merge.get("peak_memory_mb", 0)]
+    row.update(seconds=round(seconds, 3), peak_memory_mb=max(peaks),
+               part_jobs=" ".join(_job(os.path.join(out, "logs", "parts", name, f"{k}.job"))[0] or "-"
+                                  for k in range(1, parts + 1)))
+
+
+def _part_failure(out, name, parts):
+    """(stage, error) of the parts that failed (their estimate or their mesh job), or
+    None: the stages as "part K/N" (or "estimate part K/N"), comma-separated, and
+    each one's error lines."""
+    stages, errors = [], []
+    logs = os.path.join(out, "logs", "parts", name)
+    for k in range(1, parts + 1):
+        if os.path.exists(os.path.join(out, "parts", name, f"{k}.vtu")):
+            continue
+        log = os.path.join(logs, f"{k}.estimate.log")
+        stage = f"estimate part {k}/{parts}"
+        if os.path.exists(os.path.join(out, "estimates", "parts", name, f"{k}.json")) or not os.path.exists(log):
+            log, stage = os.path.join(logs, f"{k}.log.jsonl"), f"part {k}/{parts}"
+        if os.path.exists(log):
+            stages.append(stage)
+            errors += _error_lines(log)
+    return (", ".join(stages), " | ".join(errors)) if stages else None
+
+
+def scan_row(out, name, parts=1):
     """One scan's row: done (with its report's figures), failed (with the stage
-    and error lines) or not run."""
+    and error lines) or not run. A scan in `parts` parts: see _merged and _part_failure."""
     row = dict.fromkeys(COLUMNS, "")
     row["name"] = name
+    if parts > 1:
+        row["parts"] = parts
     est = _json(os.path.join(out, "estimates", name + ".json"))
     if est:
         row.update(estimated_hexes=est.get("hexes", ""), estimated_peak_memory_mb=est.get("peak_memory_mb", ""),
                    estimated_wall_seconds=est.get("wall_seconds", ""), threads=est.get("threads", ""))
-    try:
-        with open(os.path.join(out, "logs", name + ".job")) as f:
-            job = f.read().split()
-        row["slurm_job"], row["host"] = (job + ["", ""])[:2]
-    except OSError:
-        pass
+    row["slurm_job"], row["host"] = _job(os.path.join(out, "logs", name + ".job"))
     rep = _json(os.path.join(out, name + ".report.json"))
     if rep and os.path.exists(os.path.join(out, name + ".vtu")):
         sj = rep.get("scaled_jacobian", {})
@@ -84,11 +129,19 @@ def scan_row(out, name):
                    volume_change_percent=fid.get("volume_change_percent", ""),
                    boundary_distance_mean=fid.get("boundary_distance_mean", ""),
                    seconds=rep.get("timings_s", {}).get("total", ""), peak_memory_mb=rep.get("peak_memory_mb", ""))
+        if parts > 1:
+            _merged(out, name, parts, row)
         return row
     mesh_log = os.path.join(out, "logs", name + ".log.jsonl")
     estimate_log = os.path.join(out, "logs", name + ".estimate.log")
+    part_failure = _part_failure(out, name, parts) if parts > 1 else None
     if not est and os.path.exists(estimate_log):
         row.update(status="failed", stage="estimate", error=" | ".join(_error_lines(estimate_log)))
+    elif part_failure:
+        row.update(status="failed", stage=part_failure[0], error=part_failure[1])
+    elif parts > 1 and os.path.exists(os.path.join(out, "logs", name + ".merge.log")):
+        row.update(status="failed", stage="merge",
+                   error=" | ".join(_error_lines(os.path.join(out, "logs", name + ".merge.log"))))
     elif os.path.exists(mesh_log):
         row.update(status="failed", stage="mesh", error=" | ".join(_error_lines(mesh_log)))
     else:
@@ -141,9 +194,11 @@ def _write(path, text):
     os.replace(tmp, path)
 
 
-def summarize(out, names):
-    """Writes OUT/cohort.csv, OUT/cohort.html and OUT/failures.txt; returns the rows."""
-    rows = [scan_row(out, n) for n in sorted(names)]
+def summarize(out, names, parts=None):
+    """Writes OUT/cohort.csv, OUT/cohort.html and OUT/failures.txt; returns the rows.
+    `parts`: name -> the number of parts a scan is meshed in (absent: 1, whole)."""
+    parts = parts or {}
+    rows = [scan_row(out, n, parts.get(n, 1)) for n in sorted(names)]
     os.makedirs(out, exist_ok=True)
     table = io.StringIO()
     writer = csv.DictWriter(table, fieldnames=COLUMNS, lineterminator="\n")
@@ -162,5 +217,6 @@ def summarize(out, names):
 
 if __name__ == "__main__":
     if len(sys.argv) < 3:
-        sys.exit("usage: cohort.py OUT NAME...")
-    summarize(sys.argv[1], sys.argv[2:])
+        sys.exit("usage: cohort.py OUT NAME[:PARTS]...")
+    scans = dict((a.rsplit(":", 1) + ["1"])[:2] if ":" in a else (a, "1") for a in sys.argv[2:])
+    summarize(sys.argv[1], scans, {n: int(k) for n, k in scans.items()})
