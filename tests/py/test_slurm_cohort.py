@@ -6,6 +6,10 @@ mesh was made by a SLURM job sized by `isohex estimate`, that the damaged scan i
 reported with its error and the others complete, that a second run submits nothing,
 and that a run after one mesh is deleted and a scan added submits exactly those two jobs
 (the added one fails in its SLURM job, and its error line reaches the summary).
+One scan is meshed in 3 parts (the manifest's parts column): each part and the merge
+are separate SLURM jobs, the merged mesh is one conformal mesh of the parts (checked
+with meshio), a lost part is made again alone with the merge, and a split scan whose
+parts fail is reported with the parts' error lines and never merged.
 Where SLURM cannot run (not root, no packages, a daemon that will not start) the
 test fails saying why; it never skips."""
 import csv
@@ -13,12 +17,16 @@ import gzip
 import json
 import math
 import os
+import re
 import pwd
 import shutil
 import subprocess
 import sys
 import time
 import unittest
+
+import meshio
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 from vtk_tools import read_vtu  # noqa: E402
@@ -37,6 +45,10 @@ GOOD = {
 }
 DAMAGED = "damaged"
 TIGHT = "skull_tight_budget"  # added before the third run
+# a scan meshed in parts: one SLURM job per part, then a merge job
+SPLIT, SPLIT_PARTS = "torus_parts", 3
+SPLIT_SCAN = ("phantoms/torus.nii.gz", "--iso 50 --size 3")
+TIGHT_SPLIT = "skull_parts_tight_budget"  # added before the third run: both its parts fail
 
 
 def cells(path):
@@ -63,10 +75,11 @@ class SlurmCohort(unittest.TestCase):
         cls.manifest = os.path.join(cls.dir, "cohort.csv")
         with open(cls.manifest, "w", newline="") as f:
             w = csv.writer(f)
-            w.writerow(["name", "input", "options"])
+            w.writerow(["name", "input", "options", "parts"])
             for name, (scan, opts) in GOOD.items():
-                w.writerow([name, scan, opts])
-            w.writerow([DAMAGED, DAMAGED + ".nii.gz", "--iso 50 --size 3"])
+                w.writerow([name, scan, opts, ""])
+            w.writerow([DAMAGED, DAMAGED + ".nii.gz", "--iso 50 --size 3", ""])
+            w.writerow([SPLIT, *SPLIT_SCAN, SPLIT_PARTS])
         cls.out = os.path.join(cls.dir, "meshes")
         cls.first = cls.snakemake()
         cls.jobs_after_first = cls.cluster.completed_jobs()
@@ -88,16 +101,30 @@ class SlurmCohort(unittest.TestCase):
         with open(os.path.join(self.out, "estimates", name + ".json")) as f:
             return json.load(f)
 
-    def slurm_job_of(self, name):
-        with open(os.path.join(self.out, "logs", name + ".job")) as f:
+    def slurm_job_of(self, name, part=None):
+        log = os.path.join(self.out, "logs", name + ".job") if part is None else \
+            os.path.join(self.out, "logs", "parts", name, f"{part}.job")
+        with open(log) as f:
             return f.read().split()[0]
+
+    def part_file(self, name, k):
+        return os.path.join(self.out, "parts", name, f"{k}.vtu")
+
+    def rule_of(self, jobid):
+        """The rule and wildcards the scheduler's copy of the job's script runs."""
+        script = self.cluster.scontrol("write", "batch_script", jobid, "-")
+        m = re.search(r"--target-jobs '([^']+)'", script)
+        self.assertIsNotNone(m, script)
+        rule, _, wildcards = m.group(1).partition(":")
+        return rule, dict(w.split("=", 1) for w in wildcards.split(",") if w)
 
     def test_1_good_scans_meshed_by_slurm_jobs_sized_by_the_estimate(self):
         p = self.first
         # the damaged scan fails, so the run as a whole does, after meshing the others
         self.assertNotEqual(p.returncode, 0, p.stdout + p.stderr)
         records = {r["JobId"]: r for r in self.jobs_after_first}
-        self.assertEqual(len(records), len(GOOD), f"one SLURM job per good scan, none for the damaged one: {records}")
+        self.assertEqual(len(records), len(GOOD) + SPLIT_PARTS + 1,
+                         f"one SLURM job per good scan, one per part and a merge, none for the damaged one: {records}")
         for name in GOOD:
             vtu = os.path.join(self.out, name + ".vtu")
             with open(os.path.join(self.out, name + ".report.json")) as f:
@@ -122,7 +149,7 @@ class SlurmCohort(unittest.TestCase):
     def test_2_damaged_scan_reported_with_its_error(self):
         with open(os.path.join(self.out, "cohort.csv"), newline="") as f:
             rows = {r["name"]: r for r in csv.DictReader(f)}
-        self.assertEqual(set(rows), set(GOOD) | {DAMAGED})
+        self.assertEqual(set(rows), set(GOOD) | {DAMAGED, SPLIT})
         for name in GOOD:
             self.assertEqual(rows[name]["status"], "done", rows[name])
             with open(os.path.join(self.out, name + ".report.json")) as f:
@@ -143,29 +170,122 @@ class SlurmCohort(unittest.TestCase):
         with open(os.path.join(self.out, "cohort.html")) as f:
             page = f.read()
         self.assertIn("<svg", page)
-        self.assertIn(f"{len(GOOD)} of {len(GOOD) + 1} scans meshed", page)
+        self.assertIn(f"{len(GOOD) + 1} of {len(GOOD) + 2} scans meshed", page)
+
+    def test_2b_scan_in_parts_meshed_by_one_job_per_part_and_a_merge_job(self):
+        records = {r["JobId"]: r for r in self.jobs_after_first}
+        # each part and the merge: its own SLURM job, completed, running that rule for that part
+        part_jobs = [self.slurm_job_of(SPLIT, k) for k in range(1, SPLIT_PARTS + 1)]
+        merge_job = self.slurm_job_of(SPLIT)
+        self.assertEqual(len(set(part_jobs + [merge_job])), SPLIT_PARTS + 1, (part_jobs, merge_job))
+        for k, jobid in enumerate(part_jobs, start=1):
+            self.assertIn(jobid, records, f"part {k}: its job {jobid} is not in the scheduler's job records")
+            self.assertEqual(records[jobid]["JobState"], "COMPLETED", records[jobid])
+            self.assertEqual(self.rule_of(jobid), ("mesh_part", {"name": SPLIT, "k": str(k)}))
+            # sized by that part's estimate (isohex estimate --part K/N)
+            with open(os.path.join(self.out, "estimates", "parts", SPLIT, f"{k}.json")) as f:
+                est = json.load(f)
+            self.assertEqual(est["part"]["index"], k)
+            self.assertEqual(est["part"]["count"], SPLIT_PARTS)
+            self.assertEqual(int(records[jobid]["ProcCnt"]), est["threads"], records[jobid])
+            job = self.cluster.job(jobid)
+            self.assertEqual(job["MinMemoryNode"], f"{math.ceil(1.5 * est['peak_memory_mb']) + 512}M", job)
+            with open(os.path.join(self.out, "parts", SPLIT, f"{k}.report.json")) as f:
+                rep = json.load(f)
+            self.assertEqual(rep["part"]["index"], k)
+            self.assertLess(abs(est["part"]["own_hexes"] - rep["hexes"]) / rep["hexes"], 0.1, (k, est, rep["hexes"]))
+        self.assertIn(merge_job, records)
+        self.assertEqual(records[merge_job]["JobState"], "COMPLETED", records[merge_job])
+        self.assertEqual(self.rule_of(merge_job), ("merge", {"name": SPLIT}))
+        # the merge started after every part ended (the scheduler's times)
+        self.assertGreaterEqual(records[merge_job]["StartTime"], max(records[j]["EndTime"] for j in part_jobs))
+        self.check_merged_mesh()
+        with open(os.path.join(self.out, "cohort.csv"), newline="") as f:
+            row = {r["name"]: r for r in csv.DictReader(f)}[SPLIT]
+        with open(os.path.join(self.out, SPLIT + ".report.json")) as f:
+            rep = json.load(f)
+        self.assertEqual(row["status"], "done", row)
+        self.assertEqual(int(row["parts"]), SPLIT_PARTS)
+        self.assertEqual(row["part_jobs"].split(), part_jobs)
+        self.assertEqual(row["slurm_job"], merge_job)
+        self.assertEqual(int(row["hexes"]), rep["hexes"])
+        self.assertAlmostEqual(float(row["sj_min"]), rep["scaled_jacobian"]["min"])
+        self.assertNotEqual(row["volume_change_percent"], "")
+
+    def check_merged_mesh(self):
+        """The merged mesh, read by meshio: valid by isohex's own check, the parts' hexes
+        all there, and their nodes joined on the cuts: no point twice, and the nodes each
+        part marks as on a cut counted once."""
+        q = subprocess.run([ISOHEX, "quality", os.path.join(self.out, SPLIT + ".vtu"), "--json"],
+                           capture_output=True, text=True)
+        self.assertEqual(q.returncode, 0, q.stderr)
+        quality = json.loads(q.stdout)
+        self.assertTrue(quality["validity"]["ok"], quality["validity"])
+        self.assertEqual(quality["scaled_jacobian"]["inverted"], 0)
+        merged = meshio.read(os.path.join(self.out, SPLIT + ".vtu"))
+        parts = [meshio.read(self.part_file(SPLIT, k)) for k in range(1, SPLIT_PARTS + 1)]
+        hexes = lambda m: sum(len(b.data) for b in m.cells if b.type == "hexahedron")  # noqa: E731
+        self.assertEqual(hexes(merged), sum(hexes(p) for p in parts))
+        self.assertEqual(len(merged.points), len(np.unique(merged.points, axis=0)), "a point twice in the merged mesh")
+        # the nodes each part marks as on a cut, by place: each is matched by exactly one
+        # node of the neighbour across that cut (none unmatched, none twice), and the
+        # merged mesh has the parts' nodes less one copy of each matched pair
+        places = [{tuple(x) for x in np.round(p.points[p.point_data["isohex_on_cut"] != 0], 6)} for p in parts]
+        on_cut = [int(np.count_nonzero(p.point_data["isohex_on_cut"])) for p in parts]
+        self.assertEqual(on_cut, [len(c) for c in places], "two cut nodes of one part at one place")
+        shared = [len(places[k] & places[k + 1]) for k in range(SPLIT_PARTS - 1)]
+        self.assertGreater(min(shared), 0, shared)
+        for k in range(SPLIT_PARTS):
+            matched = (shared[k - 1] if k > 0 else 0) + (shared[k] if k < SPLIT_PARTS - 1 else 0)
+            self.assertEqual(on_cut[k], matched, f"part {k + 1}: cut nodes without a partner across its cuts")
+        self.assertEqual(len(merged.points), sum(len(p.points) for p in parts) - sum(shared))
+        with open(os.path.join(self.out, SPLIT + ".report.json")) as f:
+            cuts = json.load(f)["merge"]["cuts"]
+        self.assertEqual([c["matched_nodes"] for c in cuts], shared)
 
     def test_3_rerun_submits_nothing_then_only_what_is_missing(self):
-        times = {n: os.path.getmtime(os.path.join(self.out, n + ".vtu")) for n in GOOD}
+        files = [os.path.join(self.out, n + ".vtu") for n in [*GOOD, SPLIT]]
+        files += [self.part_file(SPLIT, k) for k in range(1, SPLIT_PARTS + 1)]
+        times = {f: os.path.getmtime(f) for f in files}
         again = self.snakemake()
         self.assertNotIn("submitted with SLURM jobid", again.stdout + again.stderr)
         self.assertEqual(len(self.cluster.completed_jobs()), len(self.jobs_after_first))
-        for n in GOOD:
-            self.assertEqual(os.path.getmtime(os.path.join(self.out, n + ".vtu")), times[n], n)
-        # one mesh lost, and a scan added whose memory budget is too small for its mesh (its
-        # estimate passes, its job fails): the next run submits those two only
-        os.remove(os.path.join(self.out, "torus.vtu"))
+        for f in files:
+            self.assertEqual(os.path.getmtime(f), times[f], f)
+        # one mesh lost, one part of the split scan lost with its merged mesh, and two scans
+        # added whose memory budget is too small for their mesh (their estimates pass, their
+        # jobs fail), one whole, one in 2 parts: the next run submits those jobs only
+        lost = [os.path.join(self.out, "torus.vtu"), self.part_file(SPLIT, 2), os.path.join(self.out, SPLIT + ".vtu")]
+        for f in lost:
+            os.remove(f)
+        split_jobs = [self.slurm_job_of(SPLIT, k) for k in range(1, SPLIT_PARTS + 1)] + [self.slurm_job_of(SPLIT)]
         with open(self.manifest, "a", newline="") as f:
-            csv.writer(f).writerow([TIGHT, GOOD["skull"][0], "--iso 2.9 --max-memory 20"])
+            csv.writer(f).writerow([TIGHT, GOOD["skull"][0], "--iso 2.9 --max-memory 20", ""])
+            csv.writer(f).writerow([TIGHT_SPLIT, GOOD["skull"][0], "--iso 2.9 --level 1 --max-memory 20", 2])
         third = self.snakemake()
         jobs = {r["JobId"]: r for r in self.cluster.completed_jobs()}
-        self.assertEqual(len(jobs), len(self.jobs_after_first) + 2, third.stdout + third.stderr)
+        # torus, the tight scan, part 2 and the merge of the split scan, the tight split's 2 parts
+        self.assertEqual(len(jobs), len(self.jobs_after_first) + 6, third.stdout + third.stderr)
         self.assertEqual(jobs[self.slurm_job_of("torus")]["JobState"], "COMPLETED")
         self.assertEqual(jobs[self.slurm_job_of(TIGHT)]["JobState"], "FAILED")
         self.assertGreater(cells(os.path.join(self.out, "torus.vtu")), 100)
-        for n in GOOD:
-            if n != "torus":
-                self.assertEqual(os.path.getmtime(os.path.join(self.out, n + ".vtu")), times[n], n)
+        for f in files:
+            if f not in lost:
+                self.assertEqual(os.path.getmtime(f), times[f], f)
+        # the split scan: part 2 and the merge made again by new jobs, parts 1 and 3 kept
+        again_jobs = [self.slurm_job_of(SPLIT, k) for k in range(1, SPLIT_PARTS + 1)] + [self.slurm_job_of(SPLIT)]
+        self.assertEqual([a == b for a, b in zip(again_jobs, split_jobs)], [True, False, True, False])
+        for jobid in (again_jobs[1], again_jobs[3]):
+            self.assertEqual(jobs[jobid]["JobState"], "COMPLETED", jobs[jobid])
+        self.assertEqual(self.rule_of(again_jobs[1]), ("mesh_part", {"name": SPLIT, "k": "2"}))
+        self.check_merged_mesh()
+        # the tight split: each part failed in its own SLURM job, and no merge was submitted
+        for k in (1, 2):
+            jobid = self.slurm_job_of(TIGHT_SPLIT, k)
+            self.assertEqual(jobs[jobid]["JobState"], "FAILED", jobs[jobid])
+            self.assertEqual(self.rule_of(jobid), ("mesh_part", {"name": TIGHT_SPLIT, "k": str(k)}))
+        self.assertFalse(os.path.exists(os.path.join(self.out, "logs", TIGHT_SPLIT + ".job")))
+        self.assertFalse(os.path.exists(os.path.join(self.out, TIGHT_SPLIT + ".vtu")))
         # the failed job's error line, from its log, in the summary
         with open(os.path.join(self.out, "cohort.csv"), newline="") as f:
             rows = {r["name"]: r for r in csv.DictReader(f)}
@@ -175,9 +295,17 @@ class SlurmCohort(unittest.TestCase):
         self.assertIn("isohex: error:", rows[TIGHT]["error"])
         self.assertIn("--max-memory", rows[TIGHT]["error"])
         self.assertFalse(os.path.exists(os.path.join(self.out, TIGHT + ".vtu")))
+        split = rows[TIGHT_SPLIT]
+        self.assertEqual(split["status"], "failed", split)
+        self.assertEqual(split["stage"], "part 1/2, part 2/2", split)
+        self.assertEqual(split["part_jobs"].split(), [self.slurm_job_of(TIGHT_SPLIT, k) for k in (1, 2)])
+        for k in (1, 2):  # each part's error line, after its part
+            self.assertEqual(split["error"].count(f"part {k}/2: isohex: error: {GOOD['skull'][0]}: "), 1, split)
+        self.assertIn("--max-memory", split["error"])
+        self.assertEqual(rows[SPLIT]["status"], "done", rows[SPLIT])
         with open(os.path.join(self.out, "failures.txt")) as f:
             failed = sorted(line.split(":")[0] for line in f)
-        self.assertEqual(failed, sorted([DAMAGED, TIGHT]))
+        self.assertEqual(failed, sorted([DAMAGED, TIGHT, TIGHT_SPLIT]))
         print(f"test_slurm_cohort: {time.time() - self.t0:.1f} s since the cluster started", file=sys.stderr)
 
 

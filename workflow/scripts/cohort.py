@@ -84,15 +84,13 @@ def _merged(out, name, parts, row):
         row["volume_change_percent"] = 100.0 * (volume - iso) / iso
     seconds = sum(r.get("timings_s", {}).get("total", 0) for r in reps) + merge.get("merge", {}).get("seconds", 0)
     peaks = [r.get("peak_memory_mb", 0) for r in reps] + [merge.get("peak_memory_mb", 0)]
-    row.update(seconds=round(seconds, 3), peak_memory_mb=max(peaks),
-               part_jobs=" ".join(_job(os.path.join(out, "logs", "parts", name, f"{k}.job"))[0] or "-"
-                                  for k in range(1, parts + 1)))
+    row.update(seconds=round(seconds, 3), peak_memory_mb=max(peaks))
 
 
 def _part_failure(out, name, parts):
     """(stage, error) of the parts that failed (their estimate or their mesh job), or
     None: the stages as "part K/N" (or "estimate part K/N"), comma-separated, and
-    each one's error lines."""
+    each one's error lines, each after its part's stage."""
     stages, errors = [], []
     logs = os.path.join(out, "logs", "parts", name)
     for k in range(1, parts + 1):
@@ -104,7 +102,7 @@ def _part_failure(out, name, parts):
             log, stage = os.path.join(logs, f"{k}.log.jsonl"), f"part {k}/{parts}"
         if os.path.exists(log):
             stages.append(stage)
-            errors += _error_lines(log)
+            errors += [f"{stage}: {e}" for e in _error_lines(log)]
     return (", ".join(stages), " | ".join(errors)) if stages else None
 
 
@@ -113,8 +111,10 @@ def scan_row(out, name, parts=1):
     and error lines) or not run. A scan in `parts` parts: see _merged and _part_failure."""
     row = dict.fromkeys(COLUMNS, "")
     row["name"] = name
-    if parts > 1:
+    if parts > 1:  # the parts' SLURM jobs ("-" for a part not run), done or not
         row["parts"] = parts
+        row["part_jobs"] = " ".join(_job(os.path.join(out, "logs", "parts", name, f"{k}.job"))[0] or "-"
+                                    for k in range(1, parts + 1))
     est = _json(os.path.join(out, "estimates", name + ".json"))
     if est:
         row.update(estimated_hexes=est.get("hexes", ""), estimated_peak_memory_mb=est.get("peak_memory_mb", ""),
