@@ -1,6 +1,7 @@
 """isohex estimate against real runs: the hexes it expects within 5% of the mesh isohex
 then writes (counted by VTK on the file), its peak memory within a factor 1.5 of the
-run's own peak, threads chosen or as asked, and a damaged scan refused in one line."""
+run's own peak, threads chosen or as asked, a part's estimate (--part K/N) against the
+part's file, and a damaged scan refused in one line."""
 import gzip
 import json
 import os
@@ -55,6 +56,29 @@ class Estimate(unittest.TestCase):
         self.against_mesh("two_materials", os.path.join(self.phantoms, "two_materials.nii.gz"), "--labels",
                           "--size", "3")
         self.against_mesh("skull", os.path.join(SOURCE, "samples", "skull_ct.nii.gz"), "--iso", "2.9")
+
+    def test_parts(self):
+        """--part K/N: the part's own hexes within 5% of the part file's, its window's
+        hexes (what the job builds) at least those, its layers the part's report's, and
+        the own hexes of all parts adding up to the whole scan's estimate."""
+        scan, opts, n = os.path.join(self.phantoms, "torus.nii.gz"), ["--iso", "50", "--size", "3"], 3
+        whole = self.estimate(scan, *opts)
+        self.assertNotIn("part", whole)
+        own = 0
+        for k in range(1, n + 1):
+            e = self.estimate(scan, *opts, "--part", f"{k}/{n}")
+            out, report = os.path.join(self.dir, f"part{k}.vtu"), os.path.join(self.dir, f"part{k}.json")
+            run(["mesh", scan, "--quiet", "-o", out, "--report", report, "--force", "--part", f"{k}/{n}", *opts])
+            with open(report) as f:
+                rep = json.load(f)["part"]
+            self.assertEqual((e["part"]["index"], e["part"]["count"], e["part"]["axis"]), (k, n, rep["axis"]))
+            self.assertEqual(e["part"]["own_layers"], rep["own_layers"])
+            self.assertEqual(e["part"]["window_layers"], rep["window_layers"])
+            hexes = cells(out)
+            self.assertLess(abs(e["part"]["own_hexes"] - hexes) / hexes, 0.05, f"part {k}: {e['part']}, file {hexes}")
+            self.assertGreaterEqual(e["hexes"], e["part"]["own_hexes"])
+            own += e["part"]["own_hexes"]
+        self.assertEqual(own, whole["hexes"])
 
     def test_threads(self):
         scan = os.path.join(SOURCE, "samples", "skull_ct.nii.gz")
