@@ -75,10 +75,12 @@ def _merged(out, name, parts, row):
     """The figures of a scan meshed in parts: the merge's report (quality, validity),
     the parts' seconds added to the merge's, the largest peak of the parts and the
     merge, and the merged mesh's volume against the scan's isosurface (which every
-    part measures whole). The boundary distance stays empty: the merge has no scan."""
+    part measures whole; left empty unless all parts give the same). The boundary
+    distance stays empty: the merge has no scan."""
     reps = [_json(os.path.join(out, "parts", name, f"{k}.report.json")) or {} for k in range(1, parts + 1)]
     merge = _json(os.path.join(out, name + ".report.json")) or {}
-    iso = reps[0].get("fidelity", {}).get("volume_isosurface")
+    isos = {r.get("fidelity", {}).get("volume_isosurface") for r in reps}
+    iso = isos.pop() if len(isos) == 1 else None  # the same whole-scan volume in every part, else unknown
     volume = merge.get("volume", {}).get("total")
     if iso and volume is not None:
         row["volume_change_percent"] = 100.0 * (volume - iso) / iso
