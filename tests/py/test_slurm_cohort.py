@@ -211,6 +211,8 @@ class SlurmCohort(unittest.TestCase):
         self.assertEqual(int(row["hexes"]), rep["hexes"])
         self.assertAlmostEqual(float(row["sj_min"]), rep["scaled_jacobian"]["min"])
         self.assertLess(abs(float(row["volume_change_percent"])), 5, row)
+        with open(os.path.join(self.out, "cohort.html")) as f:
+            self.assertIn(f"{SPLIT} ({SPLIT_PARTS} parts)", f.read())
 
     def check_merged_mesh(self):
         """The merged mesh, read by meshio: valid by isohex's own check, the parts' hexes

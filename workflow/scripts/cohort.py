@@ -163,7 +163,8 @@ def _svg(rows):
                      f'<text x="{x}" y="{height - 6}" text-anchor="middle">{tick}</text>')
     for i, r in enumerate(rows):
         y = i * (bar_h + gap) + 4
-        parts.append(f'<text x="{left - 6}" y="{y + bar_h - 3}" text-anchor="end">{html.escape(r["name"])}</text>')
+        label = r["name"] + (f" ({r['parts']} parts)" if r["parts"] else "")
+        parts.append(f'<text x="{left - 6}" y="{y + bar_h - 3}" text-anchor="end">{html.escape(label)}</text>')
         if r["status"] == "done":
             mean, low = float(r["sj_mean"]), max(float(r["sj_min"]), 0.0)
             parts.append(f'<rect x="{left}" y="{y}" width="{mean * width:.1f}" height="{bar_h}" fill="#9ecae1"/>'
