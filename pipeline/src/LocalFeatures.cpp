@@ -62,8 +62,8 @@ int LocalFeatures::thinAxes(int i, int j, int k) const {
     return n;
 }
 
-std::vector<std::size_t> LocalFeatures::smallComponent(std::size_t p, const std::array<int, 3>& centre,
-                                                       int radius) const {
+std::vector<std::size_t> LocalFeatures::flood(std::size_t p, const std::array<int, 3>& centre, int radius,
+                                              bool thinOnly) const {
     const octree::Grid& g = labels_.grid;
     const std::int32_t m = labels_.material[p];
     std::vector<std::size_t> comp{p}, stack{p};
@@ -75,7 +75,7 @@ std::vector<std::size_t> LocalFeatures::smallComponent(std::size_t p, const std:
             const int a = i + d[0], b = j + d[1], c = k + d[2];
             if (!g.contains(a, b, c)) return {};  // the grid's border: not enclosed
             const std::size_t q = g.index(a, b, c);
-            if (labels_.material[q] != m || seen.count(q)) continue;
+            if (labels_.material[q] != m || seen.count(q) || (thinOnly && thinAxes(a, b, c) < 2)) continue;
             if (std::abs(a - centre[0]) > radius || std::abs(b - centre[1]) > radius || std::abs(c - centre[2]) > radius)
                 return {};
             seen.insert(q);
@@ -102,7 +102,7 @@ LocalShape LocalFeatures::shapeAt(const Vec3& centre) const {
                 const std::int32_t m = labels_.at(i, j, k);
                 labels.insert(m);
                 if (!g.contains(i, j, k)) continue;
-                if (!smallComponent(g.index(i, j, k), c, kWindow).empty()) {
+                if (!flood(g.index(i, j, k), c, kWindow, false).empty()) {
                     small = true;
                     smallBackground = smallBackground || m == 0;
                 }
@@ -155,31 +155,6 @@ FineFeature LocalFeatures::describe(LocalShape shape, std::vector<std::size_t> p
     return f;
 }
 
-std::vector<std::size_t> LocalFeatures::thinRun(std::size_t p, const std::array<int, 3>& centre, int radius) const {
-    const octree::Grid& g = labels_.grid;
-    const std::int32_t m = labels_.material[p];
-    std::vector<std::size_t> run{p}, stack{p};
-    std::set<std::size_t> seen{p};
-    while (!stack.empty()) {
-        const auto [i, j, k] = g.coords(stack.back());
-        stack.pop_back();
-        for (const auto& d : kSix) {
-            const int a = i + d[0], b = j + d[1], c = k + d[2];
-            if (!g.contains(a, b, c)) continue;
-            const std::size_t q = g.index(a, b, c);
-            if (labels_.material[q] != m || seen.count(q) || thinAxes(a, b, c) < 2) continue;
-            if (std::abs(a - centre[0]) > radius || std::abs(b - centre[1]) > radius || std::abs(c - centre[2]) > radius)
-                return {};
-            seen.insert(q);
-            run.push_back(q);
-            stack.push_back(q);
-            if (run.size() > kFeaturePoints) return {};
-        }
-    }
-    std::sort(run.begin(), run.end());
-    return run;
-}
-
 std::vector<FineFeature> LocalFeatures::featuresAt(const Vec3& centre) const {
     const octree::Grid& g = labels_.grid;
     const std::array<int, 3> c = nearestPoint(centre);
@@ -193,10 +168,10 @@ std::vector<FineFeature> LocalFeatures::featuresAt(const Vec3& centre) const {
                 const std::size_t p = g.index(i, j, k);
                 if (taken.count(p)) continue;
                 const bool background = labels_.material[p] == 0;
-                std::vector<std::size_t> comp = smallComponent(p, c, kWindow);
+                std::vector<std::size_t> comp = flood(p, c, kWindow, false);
                 LocalShape shape = background ? LocalShape::Pocket : LocalShape::Speck;
                 if (comp.empty() && thinAxes(i, j, k) >= 2) {
-                    comp = thinRun(p, c, kWindow);
+                    comp = flood(p, c, kWindow, true);
                     shape = background ? LocalShape::Tunnel : LocalShape::Strand;
                 }
                 if (comp.empty()) continue;

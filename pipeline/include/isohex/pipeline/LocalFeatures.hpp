@@ -65,12 +65,11 @@ private:
     std::array<std::array<double, 3>, 3> toGrid_{};
     double cellVolume_ = 0;
     std::array<int, 3> nearestPoint(const Vec3& x) const;
-    // the component of point p's label through 6-neighbours, within `radius`
-    // of `centre`; empty when it reaches the window's border or exceeds kFeaturePoints
-    std::vector<std::size_t> smallComponent(std::size_t p, const std::array<int, 3>& centre, int radius) const;
-    // the points of p's label one point wide along two axes joined to p
-    // through 6-neighbours; empty past `radius` of `centre` or kFeaturePoints
-    std::vector<std::size_t> thinRun(std::size_t p, const std::array<int, 3>& centre, int radius) const;
+    // the points of p's label joined to p through 6-neighbours (with
+    // `thinOnly`, only those one point wide along two axes: a strand or
+    // tunnel); empty when they reach the grid's border, go farther than
+    // `radius` from `centre` or number more than kFeaturePoints
+    std::vector<std::size_t> flood(std::size_t p, const std::array<int, 3>& centre, int radius, bool thinOnly) const;
     int thinAxes(int i, int j, int k) const;  // axes along which both 6-neighbours have another label
     FineFeature describe(LocalShape shape, std::vector<std::size_t> points) const;
 };
