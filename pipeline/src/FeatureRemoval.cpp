@@ -1,6 +1,7 @@
 #include "isohex/pipeline/FeatureRemoval.hpp"
 
 #include <algorithm>
+#include <map>
 #include <memory>
 #include <set>
 
@@ -42,15 +43,19 @@ const octree::RepairedDomain* repairedOf(const Prepared& p) {
 }
 
 // The features next to the worst hexes below the target, each once, none
-// sharing a grid point with an earlier one.
+// sharing a grid point with an earlier one. A material's only piece is never
+// a feature: the user asked for that material.
 std::vector<FineFeature> featuresNear(const Meshing& m, const std::vector<Index>& below) {
     const LocalFeatures local(m.prepared.labels, repairedOf(m.prepared));
+    std::map<std::int32_t, std::size_t> pointsOf;
+    for (std::int32_t label : m.prepared.labels.material) ++pointsOf[label];
     std::vector<FineFeature> out;
     std::set<std::size_t> taken;
     for (std::size_t n = 0; n < below.size() && n < kMaxHexesForFeatures; ++n)
         for (FineFeature& f : local.featuresAt(hexCentre(m.mesh, below[n]))) {
             if (std::any_of(f.points.begin(), f.points.end(), [&](std::size_t p) { return taken.count(p) > 0; }))
                 continue;
+            if (f.points.size() == pointsOf[f.material]) continue;
             taken.insert(f.points.begin(), f.points.end());
             out.push_back(std::move(f));
         }

@@ -3,8 +3,8 @@
 // minimum's means: where hexes are still below Q after the optimiser, the
 // retries and the bounded relaxation, a speck, pocket, one-point strand or
 // tunnel of the element grid's labels next to them is given the label around
-// it, the labels are repaired and meshed again, and the result is kept when
-// its worst hex is better. Each feature removed is reported with its
+// it (never a material's only piece), the labels are repaired and meshed
+// again, and the result is kept when its worst hex is better. Each feature removed is reported with its
 // position and volume. Off when the mesh reaches Q.
 #include <cstddef>
 #include <cstdint>
