@@ -407,6 +407,13 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
         "--min-quality after the optimiser and the retries (default 0.5; reported as quality.means)",
         "voxels 0..5", [](MeshArgs& a) -> auto& { return a.settings.maxDeviation; }, between(0.0, 5.0, "(voxels)")));
     t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
+    t.push_back(onOff("keep-features", g,
+                      "Never remove a speck, pocket, strand or tunnel finer than an element, even where hexes stay "
+                      "below --min-quality after every other means (by default such features next to those hexes "
+                      "take the label around them and the labels are meshed again; each one is listed in the "
+                      "report's quality.means with its position and volume)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.removeFeatures; }, true));
+    t.back().excludes = {"no-optimize"};
 }
 
 // The labels of "3,7"; throws isohex::Error naming --label.

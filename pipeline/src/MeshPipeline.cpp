@@ -3,6 +3,8 @@
 #include <map>
 
 #include "Stage.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/FeatureRemoval.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/pipeline/ReportJson.hpp"
 #include "isohex/pipeline/SheetMethod.hpp"
@@ -13,13 +15,15 @@ namespace {
 
 // The outcome with its certificate, in the report as "quality".
 MeshOutcome certified(MeshOutcome out, const std::string& input, const MeshSettings& settings,
-                      const std::optional<RelaxationResult>& relaxation) {
-    out.quality = certifyQuality(out.mesh, minQualityFor(input, settings));
+                      const std::optional<RelaxationResult>& relaxation, const LocalFeatures* local = nullptr,
+                      const std::optional<FeatureRemovalResult>& features = std::nullopt) {
+    out.quality = certifyQuality(out.mesh, minQualityFor(input, settings), local);
     out.quality.defaultTarget = !settings.minQuality.has_value();
     if (worstHexTargetFor(input, settings) > settings.worstHexTarget && settings.optimize && settings.worstHexPass)
         out.quality.worstHexTarget = worstHexTargetFor(input, settings);
     out.quality.relaxation = relaxation;
     out.report["quality"] = toJson(out.quality);
+    if (features) out.report["quality"]["means"].push_back(toJson(*features));
     return out;
 }
 
@@ -35,10 +39,12 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     MeshReport r;
     r.method = settings.method;
     std::vector<std::string> warnings;  // after preparation's
+    std::optional<FeatureRemovalResult> features;
     if (settings.optimize) {
         RetryResult retries = retryStuckHexes(m, settings, sink, warnings);
         if (settings.method == Method::Dual) r.retries = std::move(retries);
         r.relaxation = relaxToMinQuality(m.mesh, m.prepared, settings, sink);
+        features = removeFineFeatures(m, settings, sink, r.relaxation);
     }
     r.fidelity = timedStage(sink, "fidelity", [&] { return fidelity(m.mesh, m.prepared); });
     r.prepared = m.prepared.facts;
@@ -66,7 +72,11 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         out.partNodes = std::move(m.partNodes);
     }
     out.report = toJson(r);
-    return certified(std::move(out), input, settings, r.relaxation);
+    // the labels the mesh was contoured from, for the shape next to each hex below Q
+    const LocalFeatures local(m.prepared.labels,
+                              dynamic_cast<const octree::RepairedDomain*>(m.prepared.repairedDomain.get()));
+    return certified(std::move(out), input, settings, r.relaxation, m.prepared.labels.material.empty() ? nullptr : &local,
+                     features);
 }
 
 }  // namespace isohex::pipeline

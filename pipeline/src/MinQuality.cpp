@@ -111,7 +111,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const double target = minQualityFor(p.facts.input.path, settings);
     const std::vector<double> sj = scaledJacobians(mesh);
     // as certifyQuality counts: below the target, not positive, or degenerate
-    if (std::none_of(sj.begin(), sj.end(), [&](double v) { return v > 1.0 + 1e-9 || !(v > 0) || v < target; }))
+    if (std::none_of(sj.begin(), sj.end(), [&](double v) { return belowTarget(v, target); }))
         return std::nullopt;
     Stage st(sink, "relax");
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
@@ -122,7 +122,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     return r;
 }
 
-QualityCertificate certifyQuality(const HexMesh& mesh, double target) {
+QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local) {
     QualityCertificate c;
     c.target = target;
     const std::vector<double> sj = scaledJacobians(mesh);
@@ -140,15 +140,23 @@ QualityCertificate certifyQuality(const HexMesh& mesh, double target) {
             const auto* it = std::upper_bound(kScaledJacobianBins.begin(), kScaledJacobianBins.end(), v);
             ++c.histogram[static_cast<std::size_t>(std::clamp<long>(it - kScaledJacobianBins.begin() - 1, 0, 10))];
         }
-        if (degenerate || !(v > 0) || v < target) below.emplace_back(v, static_cast<Index>(h));
+        if (belowTarget(sj[h], target)) below.emplace_back(v, static_cast<Index>(h));
+    }
+    if (local) {
+        c.belowByShape.emplace();
+        c.belowByShape->fill(0);
+        for (const auto& [v, h] : below) ++(*c.belowByShape)[static_cast<std::size_t>(local->shapeAt(hexCentre(mesh, h)))];
     }
     c.mean = counted ? sum / static_cast<double>(counted) : 0.0;
     c.hexesBelow = below.size();
     c.certified = below.empty() && !sj.empty();
     std::sort(below.begin(), below.end());
     if (below.size() > kMaxPlacesListed) below.resize(kMaxPlacesListed);
-    for (const auto& [v, h] : below)
-        c.places.push_back({hexCentre(mesh, h), mesh.material[static_cast<std::size_t>(h)], v, causeOf(mesh, h)});
+    for (const auto& [v, h] : below) {
+        const Vec3 at = hexCentre(mesh, h);
+        c.places.push_back({at, mesh.material[static_cast<std::size_t>(h)], v, causeOf(mesh, h), std::nullopt});
+        if (local) c.places.back().shape = local->shapeAt(at);
+    }
     return c;
 }
 

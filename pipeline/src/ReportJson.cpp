@@ -250,15 +250,35 @@ nlohmann::json toJson(const RelaxationResult& r) {
             {"seconds", r.seconds}};
 }
 
+nlohmann::json toJson(const FeatureRemovalResult& r) {
+    nlohmann::json features = nlohmann::json::array();
+    for (const RemovedFeature& f : r.features)
+        features.push_back({{"shape", shapeText(f.shape)}, {"at", f.at}, {"volume", f.volume},
+                            {"grid_points", f.gridPoints}, {"material", f.material}, {"replaced_by", f.replacedBy}});
+    nlohmann::json j = {{"mean", "feature_removal"},
+                        {"features", features},
+                        {"kept", r.kept},
+                        {"min_scaled_jacobian_before", r.minBefore},
+                        {"min_scaled_jacobian_after", r.minAfter},
+                        {"below_target_before", r.belowBefore},
+                        {"below_target_after", r.belowAfter},
+                        {"repaired_points", r.repairedPoints},
+                        {"seconds", r.seconds}};
+    if (r.notMeshedBecause) j["not_meshed_because"] = *r.notMeshedBecause;
+    return j;
+}
+
 nlohmann::json toJson(const QualityCertificate& c) {
     nlohmann::json places = nlohmann::json::array();
-    for (const BelowPlace& p : c.places)
+    for (const BelowPlace& p : c.places) {
         places.push_back({{"at", p.at}, {"material", p.material}, {"scaled_jacobian", p.scaledJacobian},
                           {"cause", causeText(p.cause)}});
+        if (p.shape) places.back()["shape"] = shapeText(*p.shape);
+    }
     nlohmann::json means = nlohmann::json::array();
     if (c.worstHexTarget) means.push_back({{"mean", "worst_hex_pass"}, {"target", *c.worstHexTarget}});
     if (c.relaxation) means.push_back(toJson(*c.relaxation));
-    return {{"min_quality_certified", c.certified},
+    nlohmann::json j = {{"min_quality_certified", c.certified},
             {"target", c.target},
             {"default_target", c.defaultTarget},
             {"achieved", c.achieved},
@@ -268,6 +288,13 @@ nlohmann::json toJson(const QualityCertificate& c) {
             {"hexes_below_target", c.hexesBelow},
             {"places", places},
             {"means", means}};
+    if (c.belowByShape) {
+        nlohmann::json byShape = nlohmann::json::object();
+        for (std::size_t i = 0; i < kLocalShapes; ++i)
+            byShape[shapeText(static_cast<LocalShape>(i))] = (*c.belowByShape)[i];
+        j["below_target_by_shape"] = byShape;
+    }
+    return j;
 }
 
 nlohmann::json toJson(const OptimizeResult& o) {

@@ -65,6 +65,8 @@ struct MeshSettings {
     // compare fixes the boundary unless --move-boundary (its warnings say so)
     bool fixBoundaryByCompare = false;
     bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
+    bool removeFeatures = true;   // where hexes stay below the certified minimum, remove specks, pockets,
+                                  // strands and tunnels finer than an element next to them (FeatureRemoval.hpp)
     double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
     // How far (voxels) the max-min pass may leave a surface node off its
     // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.

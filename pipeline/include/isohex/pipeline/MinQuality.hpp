@@ -13,6 +13,7 @@
 
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/LocalFeatures.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/StageSink.hpp"
@@ -37,6 +38,7 @@ struct BelowPlace {
     std::int32_t material = 0;
     double scaledJacobian = 0;  // 0 for a degenerate hex
     BelowCause cause = BelowCause::Interior;
+    std::optional<LocalShape> shape;  // the labels' shape next to it, when the labels were given
 };
 
 // The places the report lists (worst first); the count covers them all.
@@ -66,6 +68,9 @@ struct QualityCertificate {
     std::vector<BelowPlace> places;  // the worst kMaxPlacesListed of them
     std::optional<double> worstHexTarget;  // the max-min pass's target, when raised to Q
     std::optional<RelaxationResult> relaxation;  // when it ran
+    // every hex below the target by the labels' shape next to it (LocalShape
+    // order), when the labels were given
+    std::optional<std::array<std::size_t, kLocalShapes>> belowByShape;
 };
 
 // The default Q for a scan or label map, and for a closed triangle surface
@@ -104,8 +109,13 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
 std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared& p, const MeshSettings& settings,
                                                   StageSink& sink);
 
-// The certificate of `mesh` against `target`.
-QualityCertificate certifyQuality(const HexMesh& mesh, double target);
+// The certificate of `mesh` against `target`; with `local`, each hex below
+// it also by the shape of the labels next to it.
+QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local = nullptr);
+
+// Whether certifyQuality counts a scaled Jacobian as below `target`: below
+// it, not positive, or Verdict's degenerate value.
+inline bool belowTarget(double sj, double target) { return sj > 1.0 + 1e-9 || !(sj > 0) || sj < target; }
 
 // One line per place (at most `lines`, then how many more): position,
 // material, value and cause.

@@ -4,6 +4,7 @@
 // never rename one.
 #include <nlohmann/json.hpp>
 
+#include "isohex/pipeline/FeatureRemoval.hpp"
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/Merge.hpp"
 #include "isohex/pipeline/MeshPipeline.hpp"
@@ -27,6 +28,7 @@ nlohmann::json toJson(const RetryResult& retries);       // "retries"
 nlohmann::json toJson(const FidelityResult& fidelity);   // "fidelity"
 nlohmann::json toJson(const AdaptiveFacts& adaptive);    // "adaptive"
 nlohmann::json toJson(const QualityCertificate& quality);  // "quality"
+nlohmann::json toJson(const FeatureRemovalResult& r);     // one of "quality"."means"
 nlohmann::json toJson(const PartFacts& part);            // "part"
 nlohmann::json toJson(const MergeResult& merge);         // merge's "merge"
 // The whole report of a run on a scan, and of the sheet method.

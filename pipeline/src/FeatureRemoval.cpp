@@ -1,0 +1,132 @@
+#include "isohex/pipeline/FeatureRemoval.hpp"
+
+#include <algorithm>
+#include <map>
+#include <memory>
+#include <set>
+
+#include "Format.hpp"
+#include "Stage.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/Quality.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/NonManifoldRepair.hpp"
+#include "isohex/octree/Regions.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// The worst scaled Jacobian (degenerate as 0) and the hexes below `target`, worst first.
+struct Below {
+    double min = 1;
+    std::vector<Index> hexes;
+};
+
+Below belowOf(const HexMesh& mesh, double target) {
+    const std::vector<double> sj = scaledJacobians(mesh);
+    Below b;
+    std::vector<std::pair<double, Index>> below;
+    for (std::size_t h = 0; h < sj.size(); ++h) {
+        const double v = sj[h] > 1.0 + 1e-9 ? 0.0 : sj[h];
+        b.min = std::min(b.min, v);
+        if (belowTarget(sj[h], target)) below.emplace_back(v, static_cast<Index>(h));
+    }
+    std::sort(below.begin(), below.end());
+    for (const auto& [v, h] : below) b.hexes.push_back(h);
+    return b;
+}
+
+const octree::RepairedDomain* repairedOf(const Prepared& p) {
+    return dynamic_cast<const octree::RepairedDomain*>(p.repairedDomain.get());
+}
+
+// The features next to the worst hexes below the target, each once, none
+// sharing a grid point with an earlier one. A material's only piece is never
+// a feature: the user asked for that material.
+std::vector<FineFeature> featuresNear(const Meshing& m, const std::vector<Index>& below) {
+    const LocalFeatures local(m.prepared.labels, repairedOf(m.prepared));
+    std::map<std::int32_t, std::size_t> pointsOf;
+    for (std::int32_t label : m.prepared.labels.material) ++pointsOf[label];
+    std::vector<FineFeature> out;
+    std::set<std::size_t> taken;
+    for (std::size_t n = 0; n < below.size() && n < kMaxHexesForFeatures; ++n)
+        for (FineFeature& f : local.featuresAt(hexCentre(m.mesh, below[n]))) {
+            if (std::any_of(f.points.begin(), f.points.end(), [&](std::size_t p) { return taken.count(p) > 0; }))
+                continue;
+            if (f.points.size() == pointsOf[f.material]) continue;
+            taken.insert(f.points.begin(), f.points.end());
+            out.push_back(std::move(f));
+        }
+    return out;
+}
+
+// The labels with the features given the label around them, repaired, meshed
+// again on the field repaired for them.
+Meshing meshWithout(const Meshing& m, const std::vector<FineFeature>& features, const MeshSettings& settings,
+                    StageSink& sink, std::size_t& repairedPoints) {
+    const Prepared& p = m.prepared;
+    Prepared q = p;
+    for (const FineFeature& f : features)
+        for (std::size_t pt : f.points) q.labels.material[pt] = f.replacedBy;
+    const octree::RepairReport repair = octree::repairNonManifold(q.labels, *p.domain);
+    q.facts.grid.repair.report.pointsAdded += repair.pointsAdded;
+    q.facts.grid.repair.report.pointsRemoved += repair.pointsRemoved;
+    const octree::Labels sampled = octree::sampleLabels(*p.domain, q.labels.grid);
+    auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, sampled, q.labels);
+    repairedPoints = repaired->changedPoints();
+    q.repairedDomain = std::move(repaired);
+    q.facts.grid.topology = octree::regionTopology(q.labels);
+    return meshLabels(std::move(q), settings, sink);
+}
+
+}  // namespace
+
+std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const MeshSettings& settings, StageSink& sink,
+                                                       std::optional<RelaxationResult>& relaxation) {
+    if (!settings.optimize || !settings.removeFeatures || settings.method != Method::Dual || best.prepared.part ||
+        best.adaptive)
+        return std::nullopt;
+    const double target = minQualityFor(best.prepared.facts.input.path, settings);
+    const Below before = belowOf(best.mesh, target);
+    if (before.hexes.empty()) return std::nullopt;
+    const Stopwatch clock;
+    FeatureRemovalResult r;
+    r.minBefore = r.minAfter = before.min;
+    r.belowBefore = r.belowAfter = before.hexes.size();
+    const std::vector<FineFeature> features = featuresNear(best, before.hexes);
+    if (features.empty()) {
+        r.notMeshedBecause = "no speck, pocket, strand or tunnel finer than an element next to the hexes below " +
+                             shortNumber(target);
+        r.seconds = clock.seconds();
+        return r;
+    }
+    for (const FineFeature& f : features)
+        r.features.push_back({f.shape, f.material, f.replacedBy, f.at, f.volume, f.points.size()});
+    sink.note("info", "meshing again without " + std::to_string(features.size()) +
+                          " feature(s) finer than an element next to the hexes below " + shortNumber(target));
+    Meshing again;
+    try {
+        again = meshWithout(best, features, settings, sink, r.repairedPoints);
+    } catch (const Error& e) {
+        r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
+        r.seconds = clock.seconds();
+        return r;
+    }
+    std::optional<RelaxationResult> relaxedAgain = relaxToMinQuality(again.mesh, again.prepared, settings, sink);
+    const Below after = belowOf(again.mesh, target);
+    r.minAfter = after.min;
+    r.belowAfter = after.hexes.size();
+    r.kept = after.min > before.min || (after.min == before.min && after.hexes.size() < before.hexes.size());
+    if (r.kept) {
+        again.contouredHexes = again.mesh.hexCount();
+        again.contouredNodes = again.mesh.nodeCount();
+        best = std::move(again);
+        relaxation = std::move(relaxedAgain);
+    }
+    r.seconds = clock.seconds();
+    return r;
+}
+
+}  // namespace isohex::pipeline

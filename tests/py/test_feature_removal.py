@@ -1,0 +1,90 @@
+"""End-to-end tests of feature removal, the certified minimum's last means: a
+label map with a one-voxel speck or a one-voxel pocket misses --min-quality 0.6
+with --keep-features; by default the
+feature is removed, listed in the report (position, volume) and the minimum is
+reached, judged by VTK's vtkMeshQuality on the written file; the same volumes
+without the feature (a ball, a plate) remove nothing. (A tunnel one voxel wide
+through a plate four voxels thick reaches 0.6 without removal; the tunnel
+search is tested on label grids in tests/pipeline/test_local_features.cpp.)"""
+import json
+import os
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "samples"))
+from common import EXIT_BELOW_QUALITY, run, workdir  # noqa: E402
+from make_phantoms import write_nifti  # noqa: E402
+from vtk_tools import vtk_sj  # noqa: E402
+
+Q = 0.6
+
+
+class FeatureRemoval(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("feature_removal")
+        n = 32
+        x, y, z = np.meshgrid(*(np.arange(n),) * 3, indexing="ij")
+        ball = (((x - 15.5) ** 2 + (y - 15.5) ** 2 + (z - 15.5) ** 2) < 10.5 ** 2).astype(np.uint8)
+        speck, pocket = ball.copy(), ball.copy()
+        speck[15, 15, 29] = 1   # two voxels off the ball
+        pocket[15, 15, 15] = 0  # at its centre
+        plate = np.zeros((n, n, n), np.uint8)
+        plate[4:28, 4:28, 14:18] = 1
+        for name, a in (("ball", ball), ("speck", speck), ("pocket", pocket), ("plate", plate)):
+            write_nifti(os.path.join(cls.dir, name + ".nii.gz"), a)
+
+    def mesh(self, name, *extra):
+        out = os.path.join(self.dir, name + "".join(extra).replace("-", "_") + ".vtu")
+        report = out[:-4] + ".json"
+        p = run(["mesh", os.path.join(self.dir, name + ".nii.gz"), "--labels", "--size", "1", "--min-quality",
+                 str(Q), "--threads", "1", "-o", out, "--report", report, "-q", "--force", *extra], check=False)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        return p, vtk_sj(out), q
+
+    def removal(self, q):
+        return [m for m in q["means"] if m["mean"] == "feature_removal"]
+
+    def check_removed(self, name, shape, at, material, replaced_by):
+        kept, sj_kept, q_kept = self.mesh(name, "--allow-below", "--keep-features")
+        self.assertEqual(kept.returncode, EXIT_BELOW_QUALITY, kept.stderr)
+        self.assertLess(sj_kept.min(), Q)
+        self.assertEqual(self.removal(q_kept), [])
+        self.assertGreater(q_kept["below_target_by_shape"][shape], 0)
+        p, sj, q = self.mesh(name)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIs(q["min_quality_certified"], True)
+        self.assertGreaterEqual(sj.min(), Q)
+        (r,) = self.removal(q)
+        self.assertIs(r["kept"], True)
+        self.assertEqual(len(r["features"]), 1)
+        f = r["features"][0]
+        self.assertEqual(f["shape"], shape)
+        np.testing.assert_allclose(f["at"], at, atol=1e-9)
+        self.assertEqual(f["volume"], float(f["grid_points"]))  # 1 mm voxels, --size 1
+        self.assertEqual((f["material"], f["replaced_by"]), (material, replaced_by))
+        return f
+
+    def test_one_voxel_speck_is_removed_and_listed(self):
+        f = self.check_removed("speck", "speck", [15, 15, 29], 1, 0)
+        self.assertEqual(f["volume"], 1.0)
+
+    def test_one_voxel_pocket_is_filled_and_listed(self):
+        f = self.check_removed("pocket", "pocket", [15, 15, 15], 0, 1)
+        self.assertEqual(f["volume"], 1.0)
+
+    def test_controls_without_features_remove_nothing(self):
+        for name in ("ball", "plate"):
+            p, sj, q = self.mesh(name)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertGreaterEqual(sj.min(), Q)
+            self.assertEqual(self.removal(q), [])
+            self.assertEqual(sum(q["below_target_by_shape"].values()), 0)
+
+
+if __name__ == "__main__":
+    unittest.main()
