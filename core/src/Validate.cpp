@@ -427,7 +427,7 @@ ValidityReport validate(const HexMesh& mesh, const Topology& topo) {
     if (mesh.material.size() != mesh.hexes.size())
         throw Error("validate: the mesh has " + std::to_string(mesh.hexes.size()) + " hexes but " +
                     std::to_string(mesh.material.size()) + " material ids; give every hex a material");
-    requireTopologyOf(mesh, topo, "validate");
+    requireTopologyOf(mesh, topo, "validate", TopologyParts::All);
 
     const HexAcc hexes = checkHexes(mesh, topo);
     const Found orientation = checkOrientation(mesh, topo);
