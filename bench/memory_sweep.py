@@ -9,6 +9,7 @@ peak resident set size from GNU time, the report's own peak_memory_mb) and the s
 fit of peak bytes against hexes: the slope is the bytes each additional hex costs at peak,
 the intercept what does not grow with the mesh (libraries, the scan and its grids).
 Without the VTK measurements bench/run adds, a sweep takes about as long as its meshing.
+The meshes and reports stay in --work (ch2bet_SIZE.vtu, .json, .time) for comparing builds.
 """
 import argparse
 import json
@@ -51,7 +52,6 @@ def run_size(a, size):
         text = f.read()
     with open(rep) as f:
         report = json.load(f)
-    os.remove(out)
     return report["hexes"], peak_kib(text) * 1024, report.get("peak_memory_mb"), wall_s(text)
 
 

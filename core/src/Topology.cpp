@@ -332,6 +332,29 @@ Topology buildTopology(const HexMesh& mesh, TopologyParts parts) {
     return t;
 }
 
+void addQuadHolders(Topology& t, const HexMesh& mesh) {
+    requireTopologyOf(mesh, t, "addQuadHolders");
+    const std::size_t H = mesh.hexes.size();
+    std::vector<Index> quadBase;
+    std::vector<FaceLink> link = linkFaces(t.nodeHexes, mesh.hexes, quadBase);
+    for (std::size_t h = 0; h < H; ++h) quadBase[h + 1] += quadBase[h];
+    std::vector<Index> holderCount(t.quads.size() + 1, 0);
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            Index q = quadBase[h];
+            for (int f = 0; f < 6; ++f)
+                if (link[h].owned(h, f)) holderCount[static_cast<std::size_t>(q++) + 1] = link[h].holders[f];
+        }
+    });
+    link = {};
+    listQuadHolders(t, H, std::move(holderCount));
+}
+
+void addHexEdges(Topology& t, const HexMesh& mesh) {
+    requireTopologyOf(mesh, t, "addHexEdges");
+    numberEdges(t, mesh.hexes, true);
+}
+
 Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b) {
     if (topo.hexEdges.size() != mesh.hexes.size())
         throw Error("edgeBetween needs a topology with hexEdges (built with TopologyParts::All)");

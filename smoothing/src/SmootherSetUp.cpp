@@ -16,27 +16,30 @@ void Smoother::setUp() {
     const std::size_t N = mesh_.nodeCount();
     if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::NodeMoves);
     else requireTopologyOf(mesh_, topo_, "smoothing");
-    const std::vector<std::int32_t> quadSurface = quadSurfaces();
-    if (!quadSurface.empty() && projector_->hasCurves()) thinCurveBands(quadSurface);
-    const bool anySurface = assignModes();
-    colourMovable();
-    if (anySurface) buildSurfaceQuads(quadSurface);
+    {
+        const std::vector<std::int32_t> quadSurface = quadSurfaces();
+        if (!quadSurface.empty() && projector_->hasCurves()) thinCurveBands(quadSurface);
+        const bool anySurface = assignModes();
+        colourMovable();
+        if (anySurface) buildSurfaceQuads(quadSurface);
+    }
     buildCurveNeighbours();
-    buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
-        [n = maxTerms_] { return std::vector<CornerTerm>(n); });
-    everMoved_.assign(N, 0);
-    nodeMoved_.assign(N, 0);
     measureReferenceLengths();
-    touched_.assign(N, 0);
-    start_ = mesh_.nodes;
     // The phases read node-to-hex rows only (and surfaceQuadNodes_): a
     // topology built here keeps nothing else, which on a brain is three
-    // quarters of it (about 130 bytes per hex).
+    // quarters of it (about 130 bytes per hex), and lets it go before the
+    // per-node state below is allocated.
     if (&topo_ == &ownTopology_) {
         Topology kept;
         kept.nodeHexes = std::move(ownTopology_.nodeHexes);
         ownTopology_ = std::move(kept);
     }
+    buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
+        [n = maxTerms_] { return std::vector<CornerTerm>(n); });
+    everMoved_.assign(N, 0);
+    nodeMoved_.assign(N, 0);
+    touched_.assign(N, 0);
+    start_ = mesh_.nodes;
 }
 
 std::vector<std::int32_t> Smoother::quadSurfaces() const {

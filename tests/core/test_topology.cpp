@@ -159,6 +159,24 @@ TEST(Topology, OverfullQuadIsFoundWithoutTheHolderLists) {
     EXPECT_EQ(buildTopology(bookOfThree(), TopologyParts::NodeMoves).overfullQuads.size(), 1u);
 }
 
+// Added one at a time, the parts NodeMoves leaves out are the full topology's,
+// also where a quad has three holders.
+TEST(Topology, PartsAddedLaterEqualTheFullTopologys) {
+    HexMesh block = makeBlock(4, 3, 3);
+    for (std::size_t h = 0; h < block.hexCount(); h += 2) block.material[h] = 3;
+    for (const HexMesh& m : {block, bookOfThree()}) {
+        const Topology all = buildTopology(m);
+        Topology t = buildTopology(m, TopologyParts::NodeMoves);
+        addQuadHolders(t, m);
+        EXPECT_EQ(t.quadHexesAll.offsets, all.quadHexesAll.offsets);
+        EXPECT_EQ(t.quadHexesAll.items, all.quadHexesAll.items);
+        EXPECT_TRUE(t.hexEdges.empty());
+        addHexEdges(t, m);
+        EXPECT_EQ(t.hexEdges, all.hexEdges);
+        EXPECT_EQ(t.edges, all.edges);
+    }
+}
+
 TEST(Topology, OutOfRangeNodeIsAnError) {
     HexMesh m = makeBlock(1, 1, 1);
     m.hexes[0][3] = 99;

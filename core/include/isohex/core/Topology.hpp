@@ -59,6 +59,13 @@ Topology buildTopology(const HexMesh& mesh, TopologyParts parts = TopologyParts:
 void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who,
                        TopologyParts parts = TopologyParts::NodeMoves);
 
+// On a topology of `mesh` built with TopologyParts::NodeMoves, the part it
+// left empty, as buildTopology(mesh) gives it: quadHexesAll, or hexEdges
+// (edges are numbered again, to the same values). For work that needs the
+// two one after the other and not both at once (validate).
+void addQuadHolders(Topology& topo, const HexMesh& mesh);
+void addHexEdges(Topology& topo, const HexMesh& mesh);
+
 // The id of the edge joining nodes a and b, or kNone if no hex has that edge.
 // Needs a topology built with TopologyParts::All (throws otherwise).
 Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b);
