@@ -144,9 +144,13 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
                                 "parts by; write part files as .vtu and give the merged mesh's format to isohex merge");
     pipeline::MeshOutcome out = pipeline::runMeshPipeline(job.input, args.settings, sink);
     const Stopwatch quality;
-    const HexQuality q = computeQuality(out.mesh);
-    const QualitySummary s = summarize(out.mesh, q);
+    // validate's topology is gone before the per-hex measures exist (the two
+    // together were the job's peak once the optimiser's was lowered)
     const ValidityReport v = validate(out.mesh);
+    HexQuality q = computeQuality(out.mesh);
+    const QualitySummary s = summarize(out.mesh, q);
+    std::vector<double> scaledJacobian = std::move(q.scaledJacobian);
+    q = {};  // the other measures are summarised
     const double qualitySeconds = quality.seconds();
     if (!out.quality.certified && !args.settings.allowBelow) {
         // Nothing is written: the mesh is refused, its places named.
@@ -166,7 +170,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     const Stopwatch writing;
     io::WriteOptions w;
     w.overwrite = args.run.force;
-    w.scaledJacobian = q.scaledJacobian;
+    w.scaledJacobian = std::move(scaledJacobian);
     w.cellFields = out.cellFields;
     if (out.part) pipeline::addPartArrays(w, out.mesh, *out.partNodes, *out.part);
     // Each file is written whole or not at all (a temporary file renamed);

@@ -112,7 +112,9 @@ Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index 
 
 }  // namespace
 
-void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who) {
+void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who, TopologyParts parts) {
+    if (parts == TopologyParts::All && topo.hexEdges.size() != mesh.hexes.size())
+        throw Error(who + ": needs a topology with every part; build it with buildTopology(mesh)");
     if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size() ||
         topo.nodeOnBoundary.size() != mesh.nodes.size())
         throw Error(who + ": the topology was built for a different mesh (" + std::to_string(topo.hexQuads.size()) +
@@ -204,8 +206,9 @@ void listQuadHolders(Topology& t, std::size_t H, std::vector<Index> holderCount)
 
 // Numbers the quads: each is owned by its smallest hex and numbered in owner
 // order (independent of the thread count); faces a hex does not own take the
-// id of the owner's face. Then lists every hex holding each quad.
-void numberQuads(Topology& t, const std::vector<Hex>& hexes) {
+// id of the owner's face. Returns how many hexes hold each quad, shifted by
+// one (holderCount[q + 1]).
+std::vector<Index> numberQuads(Topology& t, const std::vector<Hex>& hexes) {
     const std::size_t H = hexes.size();
     t.hexQuads.resize(H);
     std::vector<Index> quadBase;
@@ -236,16 +239,16 @@ void numberQuads(Topology& t, const std::vector<Hex>& hexes) {
             for (int f = 0; f < 6; ++f)
                 if (!link[h].owned(h, f)) t.hexQuads[h][f] = t.hexQuads[link[h].other[f]][link[h].otherFace[f]];
     });
-    link = {};
-    listQuadHolders(t, H, std::move(holderCount));
+    return holderCount;
 }
 
 // Numbers the edges: an edge is held by the hexes holding both its ends and
 // owned by the smallest, within it by the first local edge with these ends;
-// numbered in owner order, the others take the owner's id.
-void numberEdges(Topology& t, const std::vector<Hex>& hexes) {
+// numbered in owner order, the others take the owner's id (in hexEdges, when
+// `perHex`).
+void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
     const std::size_t H = hexes.size();
-    t.hexEdges.resize(H);
+    if (perHex) t.hexEdges.resize(H);
     std::vector<std::uint16_t> ownedEdges(H, 0);
     std::vector<Index> edgeBase(H + 1, 0);
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
@@ -274,10 +277,12 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes) {
                 if (ownedEdges[h] >> e & 1) {
                     const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
                     t.edges[id] = {std::min(a, b), std::max(a, b)};
-                    t.hexEdges[h][e] = id++;
+                    if (perHex) t.hexEdges[h][e] = id;
+                    ++id;
                 }
         }
     });
+    if (!perHex) return;
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h)
@@ -291,11 +296,12 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes) {
 }
 
 // Sorts the quads into boundary (one hex), interface (two of different
-// material) and overfull (more than two), and marks the boundary nodes.
-void classifyQuads(Topology& t, const HexMesh& mesh) {
+// material) and overfull (more than two) by their holder counts (shifted by
+// one, as numberQuads gives them), and marks the boundary nodes.
+void classifyQuads(Topology& t, const HexMesh& mesh, const std::vector<Index>& holderCount) {
     t.nodeOnBoundary.assign(mesh.nodes.size(), 0);
     for (std::size_t q = 0; q < t.quads.size(); ++q) {
-        const auto n = t.quadHexesAll.size(q);
+        const auto n = holderCount[q + 1];
         const Quad& quad = t.quads[q];
         if (n == 1) {
             t.boundaryQuads.push_back(static_cast<Index>(q));
@@ -313,17 +319,45 @@ void classifyQuads(Topology& t, const HexMesh& mesh) {
 
 }  // namespace
 
-Topology buildTopology(const HexMesh& mesh) {
+Topology buildTopology(const HexMesh& mesh, TopologyParts parts) {
     checkIndices(mesh);
+    const bool all = parts == TopologyParts::All;
     Topology t;
     t.nodeHexes = nodeHexRows(mesh.hexes, mesh.nodes.size());
-    numberQuads(t, mesh.hexes);
-    numberEdges(t, mesh.hexes);
-    classifyQuads(t, mesh);
+    std::vector<Index> holderCount = numberQuads(t, mesh.hexes);
+    classifyQuads(t, mesh, holderCount);
+    if (all) listQuadHolders(t, mesh.hexes.size(), std::move(holderCount));
+    holderCount = {};
+    numberEdges(t, mesh.hexes, all);
     return t;
 }
 
+void addQuadHolders(Topology& t, const HexMesh& mesh) {
+    requireTopologyOf(mesh, t, "addQuadHolders");
+    const std::size_t H = mesh.hexes.size();
+    std::vector<Index> quadBase;
+    std::vector<FaceLink> link = linkFaces(t.nodeHexes, mesh.hexes, quadBase);
+    for (std::size_t h = 0; h < H; ++h) quadBase[h + 1] += quadBase[h];
+    std::vector<Index> holderCount(t.quads.size() + 1, 0);
+    tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
+        for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            Index q = quadBase[h];
+            for (int f = 0; f < 6; ++f)
+                if (link[h].owned(h, f)) holderCount[static_cast<std::size_t>(q++) + 1] = link[h].holders[f];
+        }
+    });
+    link = {};
+    listQuadHolders(t, H, std::move(holderCount));
+}
+
+void addHexEdges(Topology& t, const HexMesh& mesh) {
+    requireTopologyOf(mesh, t, "addHexEdges");
+    numberEdges(t, mesh.hexes, true);
+}
+
 Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b) {
+    if (topo.hexEdges.size() != mesh.hexes.size())
+        throw Error("edgeBetween needs a topology with hexEdges (built with TopologyParts::All)");
     if (a < 0 || b < 0 || static_cast<std::size_t>(std::max(a, b)) >= topo.nodeHexes.rows()) return kNone;
     std::array<Index, kMaxHolders> cand;
     const int n = intersectRows(topo.nodeHexes, a, b, cand);

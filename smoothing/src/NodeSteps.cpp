@@ -70,7 +70,7 @@ bool Smoother::surfaceFrame(std::size_t sv, Vector3& centroid, Vector3& normal) 
     Vector3 firstNormal = Vector3::Zero();
     double area = 0;
     for (const Index* q = nodeSurfaceQuads_.begin(sv); q != nodeSurfaceQuads_.end(sv); ++q) {
-        const auto& qn = topo_.quads[static_cast<std::size_t>(*q)].nodes;
+        const auto& qn = surfaceQuadNodes_[static_cast<std::size_t>(*q)];
         Vector3 p[4];
         for (int i = 0; i < 4; ++i) {
             const Vec3& y = mesh_.nodes[static_cast<std::size_t>(qn[i])];

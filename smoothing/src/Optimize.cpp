@@ -237,23 +237,30 @@ void Smoother::releasePhase(bool meanRatio) {
     returnToSurface();
     result_.surfaceNodesReleased =
         static_cast<std::size_t>(std::count(released_.begin(), released_.end(), std::uint8_t{1}));
+    anchorNodes_ = {};
     anchor_ = {};
     anchorLength_ = {};
 }
 
 // The bound is in edge lengths measured now: with the current length a node
-// next to one that went far could go as far again, and so on.
+// next to one that went far could go as far again, and so on. Only surface and
+// curve nodes can be released, so only they get an anchor (a tenth of the
+// nodes on a brain; a copy of every position was 32 bytes per node at peak).
 void Smoother::anchorReleasedNodes() {
     released_.assign(mesh_.nodeCount(), 0);
-    anchor_ = mesh_.nodes;
-    anchorLength_.assign(mesh_.nodeCount(), 0.0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh_.nodeCount(), 1024), [&](const auto& r) {
+    anchorNodes_.clear();
+    for (std::size_t v = 0; v < mesh_.nodeCount(); ++v)
+        if (mode_[v] == Mode::Surface || mode_[v] == Mode::Curve) anchorNodes_.push_back(static_cast<Index>(v));
+    anchor_.resize(anchorNodes_.size());
+    anchorLength_.resize(anchorNodes_.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, anchorNodes_.size(), 1024), [&](const auto& r) {
         auto& buf = buffers_->local();
-        for (std::size_t v = r.begin(); v != r.end(); ++v)
-            if (mode_[v] == Mode::Surface || mode_[v] == Mode::Curve) {
-                const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, static_cast<Index>(v), buf.data());
-                anchorLength_[v] = localEdgeLength(buf.data(), n);
-            }
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Index v = anchorNodes_[i];
+            anchor_[i] = mesh_.nodes[static_cast<std::size_t>(v)];
+            const std::size_t n = gatherCornerTerms(mesh_, topo_.nodeHexes, v, buf.data());
+            anchorLength_[i] = localEdgeLength(buf.data(), n);
+        }
     });
 }
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <tbb/blocked_range.h>
@@ -68,6 +69,15 @@ inline void raise(std::uint8_t& flag) { std::atomic_ref<std::uint8_t>(flag).stor
 // The region an untangling phase works on: the movable nodes within some
 // rings of the inverted hexes, per colour in increasing order, and the hexes
 // whose status those nodes can change.
+// Where the nodes an untangling round moves were before it, each logged at
+// its first move (a node is visited by one thread at a time); the order of the
+// entries does not matter, since undoing puts every node back.
+struct UndoLog {
+    explicit UndoLog(std::size_t nodes) : logged(nodes, 0) {}
+    std::vector<std::uint8_t> logged;  // per node
+    tbb::enumerable_thread_specific<std::vector<std::pair<Index, Vec3>>> entries;
+};
+
 struct UntangleRegion {
     std::vector<std::uint8_t> inRegion, hexInRegion;  // per node, per hex
     std::vector<Index> nodes, hexes;
@@ -198,6 +208,8 @@ private:
     // Every change of a node's position goes through here (or marks
     // nodeMoved_ itself), so that refreshHexStates sees it.
     void moveNode(std::size_t v, const Vec3& p) {
+        if (undo_ && std::atomic_ref<std::uint8_t>(undo_->logged[v]).exchange(1, std::memory_order_relaxed) == 0)
+            undo_->entries.local().emplace_back(static_cast<Index>(v), mesh_.nodes[v]);
         mesh_.nodes[v] = p;
         nodeMoved_[v] = 1;
     }
@@ -228,11 +240,12 @@ private:
     const SmoothingOptions& opt_;
     const Progress& progress_;
 
-    Topology ownTopology_;  // built in setUp when the caller gave none
+    Topology ownTopology_;  // built in setUp when the caller gave none; only nodeHexes kept after it
     const Topology& topo_;  // the caller's topology of mesh_, or ownTopology_
     std::vector<Mode> mode_;
     NodeColouring colouring_;
-    Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only)
+    Csr nodeSurfaceQuads_;  // per node, the surface quads of its own surface (Surface nodes only), as slots of
+    std::vector<std::array<Index, 4>> surfaceQuadNodes_;  // the nodes of each quad some row names
     Csr nodeCurveNeighbours_;  // per Curve node, the nodes joined to it by an edge of the same curve
     std::size_t maxTerms_ = 0;
     std::unique_ptr<tbb::enumerable_thread_specific<std::vector<CornerTerm>>> buffers_;
@@ -246,10 +259,14 @@ private:
     std::vector<Vec3> start_;
     std::vector<std::uint8_t> touched_;  // moved by untangling since the last mean-ratio phase
     bool guarded_ = true;  // untangling moves may not invert a valid corner
+    std::unique_ptr<UndoLog> undo_;  // while an unguarded round runs
     bool releaseSurface_ = false;  // surface nodes untangle in 3-D, off their surface
     std::vector<std::uint8_t> released_;
-    std::vector<Vec3> anchor_;  // surface positions when the release began
-    std::vector<double> anchorLength_;  // local edge length there and then
+    // Per surface or curve node (anchorNodes_, in increasing order): its
+    // position when the release began and its local edge length there and then.
+    std::vector<Index> anchorNodes_;
+    std::vector<Vec3> anchor_;
+    std::vector<double> anchorLength_;
     double releaseLimit_ = 0;   // current bound on a released node's distance from its anchor, edge lengths
     SmoothingResult result_;
     // Per hex as of the last refreshHexStates: its inverse mean ratio and

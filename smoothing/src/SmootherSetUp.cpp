@@ -14,19 +14,30 @@ namespace isohex::smoothing::detail {
 void Smoother::setUp() {
     mesh_.checkConsistent("mesh to smooth");
     const std::size_t N = mesh_.nodeCount();
-    if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_);
+    if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::NodeMoves);
     else requireTopologyOf(mesh_, topo_, "smoothing");
-    const std::vector<std::int32_t> quadSurface = quadSurfaces();
-    if (!quadSurface.empty() && projector_->hasCurves()) thinCurveBands(quadSurface);
-    const bool anySurface = assignModes();
-    colourMovable();
-    if (anySurface) buildSurfaceQuads(quadSurface);
+    {
+        const std::vector<std::int32_t> quadSurface = quadSurfaces();
+        if (!quadSurface.empty() && projector_->hasCurves()) thinCurveBands(quadSurface);
+        const bool anySurface = assignModes();
+        colourMovable();
+        if (anySurface) buildSurfaceQuads(quadSurface);
+    }
     buildCurveNeighbours();
+    measureReferenceLengths();
+    // The phases read node-to-hex rows only (and surfaceQuadNodes_): a
+    // topology built here keeps nothing else, which on a brain is three
+    // quarters of it (about 130 bytes per hex), and lets it go before the
+    // per-node state below is allocated.
+    if (&topo_ == &ownTopology_) {
+        Topology kept;
+        kept.nodeHexes = std::move(ownTopology_.nodeHexes);
+        ownTopology_ = std::move(kept);
+    }
     buffers_ = std::make_unique<tbb::enumerable_thread_specific<std::vector<CornerTerm>>>(
         [n = maxTerms_] { return std::vector<CornerTerm>(n); });
     everMoved_.assign(N, 0);
     nodeMoved_.assign(N, 0);
-    measureReferenceLengths();
     touched_.assign(N, 0);
     start_ = mesh_.nodes;
 }
@@ -118,9 +129,18 @@ void Smoother::buildSurfaceQuads(const std::vector<std::int32_t>& quadSurface) {
     for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
     c.items.resize(static_cast<std::size_t>(c.offsets[N]));
     std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+    // rows name slots of surfaceQuadNodes_: the quads used, in quad order
+    std::vector<Index> slot(topo_.quads.size(), kNone);
+    surfaceQuadNodes_.clear();
     for (std::size_t q = 0; q < topo_.quads.size(); ++q)
         for (Index v : topo_.quads[q].nodes)
-            if (uses(q, v)) c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(q);
+            if (uses(q, v)) {
+                if (slot[q] == kNone) {
+                    slot[q] = static_cast<Index>(surfaceQuadNodes_.size());
+                    surfaceQuadNodes_.push_back(topo_.quads[q].nodes);
+                }
+                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = slot[q];
+            }
 }
 
 // Curve neighbours: edges joining two curve nodes of the same curve; at the

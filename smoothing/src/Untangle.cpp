@@ -1,6 +1,7 @@
 // The smoother's untangling phase: Knupp's measure minimised node by node over
 // the movable nodes near the inverted hexes, the region widened ring by ring
 // when it stalls.
+#include <algorithm>
 #include <cmath>
 
 #include "Smoother.hpp"
@@ -11,12 +12,16 @@ namespace isohex::smoothing::detail {
 
 bool Smoother::untangleRound(bool guard, std::size_t before) {
     guarded_ = guard && opt_.untangleKeepsValidCorners;
-    const std::vector<Vec3> saved = guarded_ ? std::vector<Vec3>{} : mesh_.nodes;
+    // An unguarded round may have to be undone: moveNode logs where each node
+    // it moves first was (the moved nodes only, not a copy of every position).
+    if (!guarded_) undo_ = std::make_unique<UndoLog>(mesh_.nodeCount());
     untanglePhase();
     guarded_ = opt_.untangleKeepsValidCorners;
-    if (saved.empty() || invertedNow() <= before) return true;
-    for (std::size_t v = 0; v < saved.size(); ++v)
-        if (saved[v] != mesh_.nodes[v]) moveNode(v, saved[v]);
+    const std::unique_ptr<UndoLog> undo = std::move(undo_);
+    if (!undo || invertedNow() <= before) return true;
+    for (const auto& entries : undo->entries)
+        for (const auto& [v, p] : entries)
+            if (p != mesh_.nodes[static_cast<std::size_t>(v)]) moveNode(static_cast<std::size_t>(v), p);
     return false;
 }
 
@@ -61,13 +66,16 @@ void Smoother::buildRegion(UntangleRegion& region, int rings, const std::vector<
 // Knupp's measure is convex and the determinants affine along the step, so a
 // shorter step still lowers the measure and keeps valid corners valid.
 bool Smoother::withinRelease(std::size_t sv, const Vector3& d, Vec3& to) const {
-    const Vec3& a = anchor_[sv];
+    // every surface and curve node has an anchor (anchorReleasedNodes)
+    const auto slot = static_cast<std::size_t>(
+        std::lower_bound(anchorNodes_.begin(), anchorNodes_.end(), static_cast<Index>(sv)) - anchorNodes_.begin());
+    const Vec3& a = anchor_[slot];
     const Vec3& x = mesh_.nodes[sv];
     double t = 1;
     for (int k = 0; k <= 6; ++k, t *= 0.5) {
         to = displaced(x, t * d);
         const double dx = to[0] - a[0], dy = to[1] - a[1], dz = to[2] - a[2];
-        if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[sv]) break;
+        if (std::sqrt(dx * dx + dy * dy + dz * dz) <= releaseLimit_ * anchorLength_[slot]) break;
     }
     return !(t < 1.0 / 64);
 }

@@ -21,6 +21,20 @@ std::size_t blockQuads(std::size_t a, std::size_t b, std::size_t c) {
 std::size_t blockEdges(std::size_t a, std::size_t b, std::size_t c) {
     return a * (b + 1) * (c + 1) + (a + 1) * b * (c + 1) + (a + 1) * (b + 1) * c;
 }
+// A hex and two more on its bottom face (a non-manifold "book").
+HexMesh bookOfThree() {
+    HexMesh m = makeBlock(1, 1, 1);
+    for (int k = 0; k < 2; ++k) {
+        Hex h = m.hexes[0];
+        for (int i = 4; i < 8; ++i) {
+            Vec3 p = m.nodes[h[i]];
+            p[0] += 2.0 * (k + 1);
+            h[i] = m.addNode(p);
+        }
+        m.addHex(h);
+    }
+    return m;
+}
 }  // namespace
 
 TEST(Topology, BlockHasClosedFormCounts) {
@@ -104,20 +118,63 @@ TEST(Topology, MaterialInterfacesAreFoundAndGroupedIntoSurfaces) {
 }
 
 TEST(Topology, QuadInThreeHexesIsListedAsOverfull) {
-    HexMesh m = makeBlock(1, 1, 1);
-    // two more hexes on the same bottom face (a non-manifold "book")
-    for (int k = 0; k < 2; ++k) {
-        Hex h = m.hexes[0];
-        for (int i = 4; i < 8; ++i) {
-            Vec3 p = m.nodes[h[i]];
-            p[0] += 2.0 * (k + 1);
-            h[i] = m.addNode(p);
-        }
-        m.addHex(h);
-    }
+    const HexMesh m = bookOfThree();
     const Topology t = buildTopology(m);
     ASSERT_EQ(t.overfullQuads.size(), 1u);
     EXPECT_EQ(t.quadHexesAll.size(t.overfullQuads[0]), 3u);
+}
+
+// The parts node moves need are those of the full topology; the two they do
+// not need are left empty, and what needs them refuses such a topology.
+TEST(Topology, NodeMovesPartsEqualTheFullTopologysAndLeaveTheRestEmpty) {
+    HexMesh m = makeBlock(5, 4, 3);
+    for (std::size_t h = 0; h < m.hexCount(); h += 3) m.material[h] = 2;  // interfaces
+    const Topology all = buildTopology(m);
+    const Topology lean = buildTopology(m, TopologyParts::NodeMoves);
+    ASSERT_EQ(lean.quads.size(), all.quads.size());
+    for (std::size_t q = 0; q < all.quads.size(); ++q) {
+        EXPECT_EQ(lean.quads[q].nodes, all.quads[q].nodes);
+        EXPECT_EQ(lean.quads[q].hex, all.quads[q].hex);
+        EXPECT_EQ(lean.quads[q].localFace, all.quads[q].localFace);
+    }
+    EXPECT_EQ(lean.hexQuads, all.hexQuads);
+    EXPECT_EQ(lean.edges, all.edges);
+    EXPECT_EQ(lean.nodeHexes.offsets, all.nodeHexes.offsets);
+    EXPECT_EQ(lean.nodeHexes.items, all.nodeHexes.items);
+    EXPECT_FALSE(all.interfaceQuads.empty());
+    EXPECT_EQ(lean.boundaryQuads, all.boundaryQuads);
+    EXPECT_EQ(lean.interfaceQuads, all.interfaceQuads);
+    EXPECT_EQ(lean.overfullQuads, all.overfullQuads);
+    EXPECT_EQ(lean.nodeOnBoundary, all.nodeOnBoundary);
+    EXPECT_EQ(lean.boundaryNodes, all.boundaryNodes);
+    EXPECT_TRUE(lean.hexEdges.empty());
+    EXPECT_TRUE(lean.quadHexesAll.items.empty());
+    EXPECT_THROW(edgeBetween(m, lean, m.hexes[0][0], m.hexes[0][1]), Error);
+    EXPECT_NE(edgeBetween(m, all, m.hexes[0][0], m.hexes[0][1]), kNone);
+    EXPECT_THROW(requireTopologyOf(m, lean, "test", TopologyParts::All), Error);
+    EXPECT_NO_THROW(requireTopologyOf(m, lean, "test"));
+}
+
+TEST(Topology, OverfullQuadIsFoundWithoutTheHolderLists) {
+    EXPECT_EQ(buildTopology(bookOfThree(), TopologyParts::NodeMoves).overfullQuads.size(), 1u);
+}
+
+// Added one at a time, the parts NodeMoves leaves out are the full topology's,
+// also where a quad has three holders.
+TEST(Topology, PartsAddedLaterEqualTheFullTopologys) {
+    HexMesh block = makeBlock(4, 3, 3);
+    for (std::size_t h = 0; h < block.hexCount(); h += 2) block.material[h] = 3;
+    for (const HexMesh& m : {block, bookOfThree()}) {
+        const Topology all = buildTopology(m);
+        Topology t = buildTopology(m, TopologyParts::NodeMoves);
+        addQuadHolders(t, m);
+        EXPECT_EQ(t.quadHexesAll.offsets, all.quadHexesAll.offsets);
+        EXPECT_EQ(t.quadHexesAll.items, all.quadHexesAll.items);
+        EXPECT_TRUE(t.hexEdges.empty());
+        addHexEdges(t, m);
+        EXPECT_EQ(t.hexEdges, all.hexEdges);
+        EXPECT_EQ(t.edges, all.edges);
+    }
 }
 
 TEST(Topology, OutOfRangeNodeIsAnError) {

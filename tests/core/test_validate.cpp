@@ -366,3 +366,24 @@ TEST(Validate, RejectsTopologyBuiltForAnotherMesh) {
     const Topology other = buildTopology(unitCube());
     EXPECT_THROW(validate(makeBlock(2, 1, 1), other), Error);
 }
+
+// validate(mesh) adds the topology's quad holders and per-hex edges one at a
+// time; the report is the one a full topology gives, defects and places alike.
+TEST(Validate, OwnTopologyBuiltInTurnGivesTheFullTopologysReport) {
+    HexMesh book = unitCube();
+    book.addHex(hexOf(topFace(book, 0), addSquare(book, 2.0)));
+    book.addHex(hexOf(topFace(book, 0), addSquare(book, 1.5)));
+    HexMesh mirrored = makeBlock(2, 1, 2);
+    const Hex h = mirrored.hexes[1];
+    mirrored.hexes[1] = {h[4], h[5], h[6], h[7], h[0], h[1], h[2], h[3]};
+    mirrored.addNode({5, 5, 5});
+    HexMesh wedge = makeBlock(2, 2, 1);
+    wedge.hexes[3][6] = wedge.hexes[3][7];
+    const std::vector<HexMesh> meshes{book, mirrored, wedge, weld(unitCube(), unitCube({1, 1, 0}))};
+    for (const HexMesh& m : meshes) {
+        const ValidityReport own = validate(m);
+        EXPECT_FALSE(own.ok());
+        EXPECT_EQ(toJson(own).dump(), toJson(validate(m, buildTopology(m))).dump());
+    }
+    EXPECT_THROW(validate(book, buildTopology(book, TopologyParts::NodeMoves)), Error);
+}

@@ -41,16 +41,33 @@ struct Topology {
     std::vector<Index> boundaryNodes;                // sorted
 };
 
-// Builds every field of Topology. Hexes with repeated nodes still get their
-// faces and edges (validate() reports them); indices out of range throw.
-Topology buildTopology(const HexMesh& mesh);
+// What buildTopology fills. `NodeMoves` leaves hexEdges and quadHexesAll
+// empty (48 bytes per hex and about 40 more at peak, on 2 M hexes about 160 MB):
+// moving nodes (the smoother, the worst-hex pass) reads neither; every other
+// field is the same as with `All`.
+enum class TopologyParts : std::uint8_t { All, NodeMoves };
 
-// Throws isohex::Error, naming `who`, if `topo` cannot be buildTopology(mesh)
-// (its hex or node counts differ): for functions that take a prebuilt
-// topology instead of building their own.
-void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who);
+// Builds the fields of Topology that `parts` names. Hexes with repeated nodes
+// still get their faces and edges (validate() reports them); indices out of
+// range throw.
+Topology buildTopology(const HexMesh& mesh, TopologyParts parts = TopologyParts::All);
+
+// Throws isohex::Error, naming `who`, if `topo` cannot be buildTopology(mesh,
+// parts) or a fuller one (its hex or node counts differ, or it lacks the
+// parts): for functions that take a prebuilt topology instead of building
+// their own.
+void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who,
+                       TopologyParts parts = TopologyParts::NodeMoves);
+
+// On a topology of `mesh` built with TopologyParts::NodeMoves, the part it
+// left empty, as buildTopology(mesh) gives it: quadHexesAll, or hexEdges
+// (edges are numbered again, to the same values). For work that needs the
+// two one after the other and not both at once (validate).
+void addQuadHolders(Topology& topo, const HexMesh& mesh);
+void addHexEdges(Topology& topo, const HexMesh& mesh);
 
 // The id of the edge joining nodes a and b, or kNone if no hex has that edge.
+// Needs a topology built with TopologyParts::All (throws otherwise).
 Index edgeBetween(const HexMesh& mesh, const Topology& topo, Index a, Index b);
 
 // The surfaces a mesh exposes: boundary quads grouped by (material inside,
