@@ -6,10 +6,13 @@
 namespace isohex::pipeline {
 
 PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSink& sink,
-                            std::vector<isohex::PillowResult>* passes) {
+                            std::vector<isohex::PillowResult>* passes, const HeldBack* heldBack) {
     PillowResult r;
     r.enabled = settings.pillow;
-    if (!settings.pillow) return r;
+    if (!settings.pillow) {
+        if (heldBack) r.returned = returnTowardsTargets(mesh, *heldBack);
+        return r;
+    }
     Stage st(sink, "pillow");
     const std::size_t before = mesh.hexCount();
     PillowOptions opt;
@@ -19,6 +22,7 @@ PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSi
     r.hexesAdded = mesh.hexCount() - before;
     for (const auto& s : results) r.invertedAtInsertion += s.invertedAtStart;
     if (passes) *passes = results;
+    if (heldBack) r.returned = returnTowardsTargets(mesh, *heldBack);
     st.finish();
     return r;
 }

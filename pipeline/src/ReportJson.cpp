@@ -198,6 +198,14 @@ nlohmann::json toJson(const GridFacts& g) {
 nlohmann::json toJson(const PillowResult& p) {
     nlohmann::json j;
     j["enabled"] = p.enabled;
+    // Where contouring held vertices back to leave no hex inverted, and how
+    // many of them went back to their place after the sheet (any setting).
+    if (const auto& h = p.returned)
+        j["held_back"] = {{"vertices", h->heldBack},
+                          {"at_target", h->moved.reached},
+                          {"part_way", h->moved.partway},
+                          {"not_moved", h->moved.stayed},
+                          {"seconds", h->seconds}};
     if (!p.enabled) return j;
     j["layers"] = p.layers;
     j["sheets"] = p.sheets;

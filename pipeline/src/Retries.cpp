@@ -154,11 +154,12 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     Meshing m;
     m.prepared = std::move(prepared);
     if (settings.adaptive) m.adaptive.emplace();
-    m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr);
+    HeldBack heldBack;
+    m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
     if (!m.prepared.part) {
-        m.pillow = pillowBoundary(m.mesh, settings, sink);
+        m.pillow = pillowBoundary(m.mesh, settings, sink, nullptr, &heldBack);
         // the sheet's hexes are appended, each on a boundary hex of the finest level
         if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
         m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
@@ -169,7 +170,7 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     std::vector<NodeKey> keys = contourKeys(m.mesh, *m.prepared.part);
     const std::vector<std::int32_t> materials = sortedMaterials(m.mesh);
     std::vector<isohex::PillowResult> passes;
-    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes);
+    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
     addCopyKeys(keys, passes, materials);
     m.partNodes = keepOwnHexes(m.mesh, std::move(keys), *m.prepared.part);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
