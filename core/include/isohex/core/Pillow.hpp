@@ -10,9 +10,11 @@ namespace isohex {
 
 struct PillowOptions {
     // The inner copy of a split node starts this fraction of the local edge
-    // length inside the shrink set, along the averaged surface normal. The
-    // fraction is halved per node (up to `maxHalvings` times) where the start
-    // position would invert an adjacent hex.
+    // length inside the shrink set, along the averaged surface normal, turned
+    // where needed so that it points inside every boundary quad's corner at
+    // the node (else the sheet hex on that quad starts inverted whatever the
+    // length). The fraction is halved per node (up to `maxHalvings` times)
+    // where the start position would invert an adjacent hex.
     double inset = 0.3;
     int maxHalvings = 6;
     // Find the shrink set's boundary faces through the node -> hex adjacency
