@@ -620,7 +620,10 @@ struct DualContouring {
         if (keepInCell(x, lower)) ++tally.clamped;
         const Eigen::Vector3d qef = x;
         x = ontoCellSurface(cellDomain, m, p, x, lower);
-        tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
+        // Vertices left at their QEF point (cells where three materials meet,
+        // off any one surface) stay there: held back, curve nodes came back
+        // to their curve worse.
+        if (x != qef) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
         mesh.nodes[id] = {x(0), x(1), x(2)};
     }
 
