@@ -620,10 +620,17 @@ struct DualContouring {
         if (keepInCell(x, lower)) ++tally.clamped;
         const Eigen::Vector3d qef = x;
         x = ontoCellSurface(cellDomain, m, p, x, lower);
-        // Vertices left at their QEF point (cells where three materials meet,
-        // off any one surface) stay there: held back, curve nodes came back
-        // to their curve worse.
-        if (x != qef) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
+        // Vertices of cells where three or more materials meet that stay at
+        // their QEF point (on no one surface) stay there: held back, those
+        // curve nodes came back to their curve worse.
+        std::int32_t ma = m[0], mb = m[0];
+        bool several = false;
+        for (int c = 1; c < 8; ++c)
+            if (m[c] != ma && m[c] != mb) {
+                if (mb == ma) mb = m[c];
+                else several = true;
+            }
+        if (!(several && x == qef)) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
         mesh.nodes[id] = {x(0), x(1), x(2)};
     }
 
