@@ -538,7 +538,7 @@ Vec3 clearCornerNormals(const std::vector<Vec3>& P, const BoundaryQuads& quads, 
 // from the centroid of the shrink-set hexes around the node, towards that
 // centroid.
 Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<QuadGeometry>& quadGeometry,
-                const BigVec<Vec3>& cornerSum, double B, Index s, Index v, double inset) {
+                const BigVec<Vec3>& cornerSum, double B, Index s, Index v, double inset, bool turn) {
     const BigCsr& around = b.quads.around;
     const BigCsr& nodeT = b.hexes.nodeT;
     Vec3 normal{0, 0, 0};
@@ -553,7 +553,8 @@ Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<Quad
     }
     const double len = norm(normal);
     bool clears = false;
-    Vec3 dir = len > 0 ? -1.0 * clearCornerNormals(P, b.quads, around, s, v, (1.0 / len) * normal, clears)
+    Vec3 dir = len > 0 ? (turn ? -1.0 * clearCornerNormals(P, b.quads, around, s, v, (1.0 / len) * normal, clears)
+                              : (-1.0 / len) * normal)
                        : Vec3{0, 0, 0};
     const double step = inset * edgeSum / edgeCount;
     if (clears) return step * dir;
@@ -585,14 +586,14 @@ Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<Quad
 
 // Per copy, its inward step (inwardStep) from its node.
 BigVec<Vec3> inwardSteps(const std::vector<Vec3>& P, const Boundary& b, const Copies& copies,
-                         const std::vector<Index>& copyOf, double inset) {
+                         const std::vector<Index>& copyOf, double inset, bool turn) {
     BigVec<Vec3> push(copies.count());
     BigVec<QuadGeometry> quadGeometry = quadGeometries(P, b.quads);
     double B = 0;
     BigVec<Vec3> cornerSum = cornerSums(P, b.hexes, B);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, copies.count(), 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i)
-            push[i] = inwardStep(P, b, quadGeometry, cornerSum, B, copies.copySlot[i], copyOf[i], inset);
+            push[i] = inwardStep(P, b, quadGeometry, cornerSum, B, copies.copySlot[i], copyOf[i], inset, turn);
     });
     release(quadGeometry);
     release(cornerSum);
@@ -842,7 +843,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     res.firstNewHex = static_cast<Index>(H);
     res.firstNewNode = static_cast<Index>(N);
     const Copies copies = numberCopies(b, res.copyOf);
-    const BigVec<Vec3> push = inwardSteps(mesh.nodes, b, copies, res.copyOf, opt.inset);
+    const BigVec<Vec3> push = inwardSteps(mesh.nodes, b, copies, res.copyOf, opt.inset, opt.turnIntoCorners);
     splitNodes(mesh, S, b, copies, push, res.copyOf);
     release(b.hexes.slot);
     release(b.quads.faces);

@@ -350,14 +350,15 @@ struct CrossedVertex {
 // already). A hex whose crossed corners are all at their centres is the grid's
 // own cube (positive), so raising levels always ends with every hex valid.
 struct SurfaceMoves {
-    static constexpr int kTop = 7;
+    static constexpr int kTopMax = 7;
+    int kTop = kTopMax;  // 4 (the QEF point) without ExtractOptions::validStart
     std::vector<CrossedVertex> qef;  // ascending node
     std::vector<Vec3> onSurface;     // the same nodes' targets (surface point, or the QEF point)
     std::vector<std::uint8_t> level;          // per mesh node
 
     // Position of node qef[i] at level l.
     Vec3 at(std::size_t i, int l) const {
-        if (l >= kTop) return qef[i].centre;
+        if (l >= kTopMax) return qef[i].centre;
         const Vec3& a = qef[i].qef;
         if (l > 4) {
             const double sc = l == 5 ? 0.5 : 0.75;
@@ -630,7 +631,7 @@ struct DualContouring {
                 if (mb == ma) mb = m[c];
                 else several = true;
             }
-        if (!(several && x == qef)) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
+        if (opt.validStart ? !(several && x == qef) : x != qef) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
         mesh.nodes[id] = {x(0), x(1), x(2)};
     }
 
@@ -708,6 +709,7 @@ struct DualContouring {
     // who starts the sheet and the optimiser from them.
     void holdBackInvertingMoves() {
         SurfaceMoves mv;
+        if (!opt.validStart) mv.kTop = 4;
         for (auto& v : qefSlab) mv.qef.insert(mv.qef.end(), v.begin(), v.end());
         qefSlab.clear();
         mv.onSurface.resize(mv.qef.size());

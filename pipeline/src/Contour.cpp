@@ -19,6 +19,7 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
     Stage st(sink, "extract");
     octree::ExtractOptions opt;
     opt.meshExterior = settings.meshExterior;
+    opt.validStart = !settings.tangledStart;
     if (settings.method == Method::Voxel) opt.cellCentres = true;
     else if (settings.method != Method::Dual)
         throw SettingError({Setting::Method, " must be 'dual' or 'voxel' (got '" +

@@ -152,6 +152,7 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     // move is refused for that reason; once on the surface a node stays on it.
     int off = -1;  // unknown
     auto offSurface = [&] {
+        if (!opt_.offSurfaceNodesOntoSurface) off = 0;
         if (off < 0) off = !(offset(projector_->project(surface, xv), xv).norm() <= kOnSurface * L);
         return off == 1;
     };

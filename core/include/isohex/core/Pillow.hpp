@@ -16,6 +16,9 @@ struct PillowOptions {
     // length). The fraction is halved per node (up to `maxHalvings` times)
     // where the start position would invert an adjacent hex.
     double inset = 0.3;
+    // Off: the averaged normal as it is (the start before the optimiser had
+    // a valid one: for comparisons and tests of untangling).
+    bool turnIntoCorners = true;
     int maxHalvings = 6;
     // Find the shrink set's boundary faces through the node -> hex adjacency
     // of the whole shrink set instead of first narrowing it to the nodes the

@@ -28,6 +28,13 @@ struct ExtractOptions {
     // outside meets two or more materials goes onto the surface of their
     // union (Domain::unionValue) instead, where the domain knows it.
     bool projectVertices = true;
+    // Hold back every crossed cell's vertex that leaves a hex inverted, along
+    // surface point -> QEF point -> cell centre, so that no hex is inverted
+    // (ExtractStats::heldBackAt). Off: only vertices moved onto the surface,
+    // no farther than their QEF point, and hexes inverted with the QEF
+    // points too stay inverted (the start before the optimiser had a valid
+    // one: for comparisons and tests of untangling).
+    bool validStart = true;
     Progress progress;
 };
 

@@ -40,6 +40,7 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
 struct ReturnResult {
     std::size_t heldBack = 0;  // vertices held back by contour
     TargetsResult moved;       // of those: at their target, part of the way, not moved
+    TargetsResult copiesFollowed;  // their sheet copies moved by the same displacement (pillowBoundary)
     double seconds = 0;
 };
 
