@@ -352,6 +352,7 @@ struct CrossedVertex {
 struct SurfaceMoves {
     static constexpr int kTopMax = 7;
     int kTop = kTopMax;  // 4 (the QEF point) without ExtractOptions::validStart
+    bool centre = true;  // the centre Jacobian counts too (not without ExtractOptions::validStart)
     std::vector<CrossedVertex> qef;  // ascending node
     std::vector<Vec3> onSurface;     // the same nodes' targets (surface point, or the QEF point)
     std::vector<std::uint8_t> level;          // per mesh node
@@ -366,7 +367,7 @@ struct SurfaceMoves {
             return Vec3{a[0] + sc * (c[0] - a[0]), a[1] + sc * (c[1] - a[1]), a[2] + sc * (c[2] - a[2])};
         }
         const Vec3& b = onSurface[i];
-        if (l == 0) return b;
+        if (l == 0 && centre) return b;  // (without validStart: qef + 1 (b - qef), as before, to the bit)
         const double sc = l == 4 ? 0.0 : std::ldexp(1.0, -l);
         return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
     }
@@ -375,7 +376,7 @@ struct SurfaceMoves {
         return static_cast<std::size_t>(
             std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.id < v; }) - qef.begin());
     }
-    static bool valid(const HexCoords& x) { return minCornerDeterminant(x) > 0 && centreDeterminant(x) > 0; }
+    bool valid(const HexCoords& x) const { return minCornerDeterminant(x) > 0 && (!centre || centreDeterminant(x) > 0); }
     // The fewest extra levels for the crossed corners of an inverted hex
     // (corner positions x0) that make it valid; -1 if it has no corner below kTop.
     int extraLevels(const Hex& hex, const HexCoords& x0) const {
@@ -709,7 +710,10 @@ struct DualContouring {
     // who starts the sheet and the optimiser from them.
     void holdBackInvertingMoves() {
         SurfaceMoves mv;
-        if (!opt.validStart) mv.kTop = 4;
+        if (!opt.validStart) {
+            mv.kTop = 4;
+            mv.centre = false;
+        }
         for (auto& v : qefSlab) mv.qef.insert(mv.qef.end(), v.begin(), v.end());
         qefSlab.clear();
         mv.onSurface.resize(mv.qef.size());

@@ -135,10 +135,25 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
                             (stuck.inverted.empty() ? " nearly flat" : " inverted") + " hex(es) change material");
     Meshing again;
     std::vector<NodeKey> keys;
-    const std::size_t repairedPoints = meshEdited(s, q, edits, again, keys, tried);
+    std::optional<Prepared> whole;  // for meshing the whole again
+    if (s.local) whole = q;
+    std::size_t repairedPoints = meshEdited(s, q, edits, again, keys, tried);
     ++s.result.meshedAgain;
     Stuck now = stuckHexes(again.mesh, floor);
-    const bool better = now.betterThan(stuck, floor);
+    bool better = now.betterThan(stuck, floor);
+    if (whole && !better) {
+        // The neighbourhood alone did not help (where kept nodes meet new
+        // ones it can leave a hex flat): the whole mesh again, as before.
+        s.sink.note("info", "retry " + std::to_string(n) + ": optimising the neighbourhood of the edits did not help; "
+                                "meshing the whole again");
+        s.local = false;
+        tried.region.reset();
+        repairedPoints = meshEdited(s, *whole, edits, again, keys, tried);
+        s.local = true;
+        s.keptKeys.clear();  // made again from the mesh kept, when needed
+        now = stuckHexes(again.mesh, floor);
+        better = now.betterThan(stuck, floor);
+    }
     tried.after = now.counts();
     tried.kept = better;
     s.result.attempts.push_back(tried);
