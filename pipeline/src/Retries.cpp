@@ -141,9 +141,10 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     ++s.result.meshedAgain;
     Stuck now = stuckHexes(again.mesh, floor);
     bool better = now.betterThan(stuck, floor);
-    if (whole && !better) {
-        // The neighbourhood alone did not help (where kept nodes meet new
-        // ones it can leave a hex flat): the whole mesh again, as before.
+    if (whole && (!better || (!stuck.inverted.empty() && now.inverted.size() >= stuck.inverted.size()))) {
+        // The neighbourhood alone did not help, or left the inverted hexes
+        // it was for (where kept nodes meet new ones it can leave a hex
+        // flat): the whole mesh again, as before.
         s.sink.note("info", "retry " + std::to_string(n) + ": optimising the neighbourhood of the edits did not help; "
                                 "meshing the whole again");
         s.local = false;
