@@ -349,6 +349,10 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.fixBoundary; }));
     t.push_back(onOff("no-optimize", g, "Skip untangling and mean-ratio optimisation", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.optimize; }, true));
+    t.push_back(onOff("tangled-start", g,
+                      "Start the optimiser as isohex did before its valid start: surface vertices on the surface "
+                      "and hexes left inverted for the untangler (for comparisons and tests of untangling)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }));
 }
 
 // The rows of the max-min pass and the retries, after the optimiser's.

@@ -45,14 +45,29 @@ void ProgressSink::event(const std::string& name, const nlohmann::json& fields) 
     writeAll(STDERR_FILENO, j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
+nlohmann::json ProgressSink::overallFields() const {
+    nlohmann::json j = {{"overall", model_.overall()}};
+    if (const auto eta = model_.eta(sinceRunBegan_.seconds())) j["eta_s"] = *eta;
+    return j;
+}
+
 void ProgressSink::begin(std::string_view stage) {
     stageBegins(stage);
     std::lock_guard lock(mutex_);
+    if (!runBegan_) {
+        runBegan_ = true;
+        sinceRunBegan_.restart();
+    }
     stage_ = stage;
     fraction_ = 0;
+    model_.begin(stage);
     sinceStageBegan_.restart();
     sinceDrawn_.restart();
-    if (mode_ == Mode::Json) event("stage_begin", {{"stage", stage_}});
+    if (mode_ == Mode::Json) {
+        nlohmann::json j = overallFields();
+        j["stage"] = stage_;
+        event("stage_begin", j);
+    }
     else if (terminal_) drawBar(false);
 }
 
@@ -61,11 +76,15 @@ void ProgressSink::reading(const std::string& file) { nowReading(file); }
 void ProgressSink::progress(double fraction) {
     std::lock_guard lock(mutex_);
     fraction_ = std::clamp(fraction, 0.0, 1.0);
+    model_.progress(fraction_);
     const double sinceDrawn = sinceDrawn_.seconds();
     if (mode_ == Mode::Json) {
         if (sinceDrawn >= 1.0) {
             sinceDrawn_.restart();
-            event("progress", {{"stage", stage_}, {"fraction", fraction_}});
+            nlohmann::json j = overallFields();
+            j["stage"] = stage_;
+            j["fraction"] = fraction_;
+            event("progress", j);
         }
     } else if (terminal_) {
         if (sinceDrawn >= 0.1) {
@@ -74,8 +93,8 @@ void ProgressSink::progress(double fraction) {
         }
     } else if (mode_ == Mode::Auto && sinceDrawn >= 5.0) {
         sinceDrawn_.restart();
-        std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s)\n", job_.c_str(), job_.empty() ? "" : ": ", stage_.c_str(),
-                     100 * fraction_, sinceStageBegan_.seconds());
+        std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s; run %.0f%%)\n", job_.c_str(), job_.empty() ? "" : ": ",
+                     stage_.c_str(), 100 * fraction_, sinceStageBegan_.seconds(), 100 * model_.overall());
     }
 }
 
@@ -84,7 +103,13 @@ void ProgressSink::end(std::string_view stage, double secs) {
     fraction_ = 1;
     const std::string key(stage);
     timings_[key] = timings_.value(key, 0.0) + secs;
-    if (mode_ == Mode::Json) event("stage_end", {{"stage", std::string(stage)}, {"seconds", secs}});
+    model_.end(stage, secs);
+    if (mode_ == Mode::Json) {
+        nlohmann::json j = overallFields();
+        j["stage"] = key;
+        j["seconds"] = secs;
+        event("stage_end", j);
+    }
     else if (terminal_) drawBar(true);
     else if (mode_ == Mode::Auto)
         std::fprintf(stderr, "isohex: %s%s%-8s done in %.2f s\n", job_.c_str(), job_.empty() ? "" : ": ",
@@ -103,16 +128,19 @@ void ProgressSink::note(std::string_view level, const std::string& text) {
                  text.c_str());
 }
 
+// The bar and its percentage are the whole run's (they never go back, also
+// when a retry meshes again); the stage's own time follows its name.
 void ProgressSink::drawBar(bool final) {
-    const double elapsed = sinceStageBegan_.seconds();
+    const double overall = model_.overall();
     constexpr int width = 30;
-    const int filled = static_cast<int>(fraction_ * width + 0.5);
+    const int filled = static_cast<int>(overall * width + 0.5);
     std::string bar(static_cast<std::size_t>(filled), '#');
     bar.resize(width, '.');
     char eta[32] = "";
-    if (!final && fraction_ > 0.02) std::snprintf(eta, sizeof eta, "  ETA %.1f s", elapsed * (1 - fraction_) / fraction_);
-    std::fprintf(stderr, "\r\033[K%-9s [%s] %3.0f%%  %.1f s%s%s", stage_.c_str(), bar.c_str(), 100 * fraction_, elapsed,
-                 eta, final ? "\n" : "");
+    if (const auto left = model_.eta(sinceRunBegan_.seconds()); left && !final)
+        std::snprintf(eta, sizeof eta, "  ETA %.1f s", *left);
+    std::fprintf(stderr, "\r\033[K%-9s [%s] %3.0f%%  %.1f s%s%s", stage_.c_str(), bar.c_str(), 100 * overall,
+                 sinceStageBegan_.seconds(), eta, final ? "\n" : "");
     std::fflush(stderr);
 }
 

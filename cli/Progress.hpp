@@ -1,13 +1,16 @@
 #pragma once
-// Draws pipeline progress on stderr: a bar with elapsed time and ETA on a
-// terminal, plain periodic lines otherwise, one JSON object per event with
-// --log-json, nothing with --quiet (warnings still print).
+// Draws pipeline progress on stderr: a bar of the whole run (ProgressModel:
+// never backwards, retries included) with the stage, elapsed time and ETA on
+// a terminal, plain periodic lines otherwise, one JSON object per event with
+// --log-json (stage events and progress carry the run's "overall" fraction
+// and "eta_s"), nothing with --quiet (warnings still print).
 #include <mutex>
 #include <string>
 #include <string_view>
 
 #include <nlohmann/json.hpp>
 
+#include "ProgressModel.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/pipeline/StageSink.hpp"
 
@@ -35,12 +38,15 @@ public:
 
 private:
     void drawBar(bool final);
+    nlohmann::json overallFields() const;  // the run's fraction and ETA for JSON events
     Mode mode_;
     bool terminal_ = false;
     std::string job_;
     std::string stage_;
     double fraction_ = 0;
-    Stopwatch sinceStageBegan_, sinceDrawn_;
+    Stopwatch sinceStageBegan_, sinceDrawn_, sinceRunBegan_;
+    bool runBegan_ = false;
+    ProgressModel model_;
     std::mutex mutex_;
     nlohmann::json timings_ = nlohmann::json::object();
 };

@@ -475,13 +475,70 @@ BigVec<Vec3> cornerSums(const std::vector<Vec3>& P, const CandidateHexes& t, dou
     return cornerSum;
 }
 
+// Where the averaged outward normal `n` (unit) makes an angle of more than
+// acos(kCornerCone) with the corner normal of one of node v's boundary quads
+// at v, the sheet hex on that quad starts inverted at v whatever the step's
+// length (its corner Jacobian there is -step . corner normal times a positive
+// factor). Then the direction is the one farthest from every corner normal's
+// half-space boundary: the minimum-norm point of the convex hull of the unit
+// corner normals (max over unit d of min_i d . u_i is its length, and it
+// points along it; Gilbert's algorithm over at most a few dozen normals),
+// taken as soon as it clears kCornerCone with every corner normal. Returns
+// the outward direction and sets `clears` when it makes a positive angle
+// with every corner normal; where none does (the hull holds 0: the surface
+// folds at v) `n` stays.
+constexpr double kCornerCone = 0.2;
+constexpr int kMaxCorners = 24;
+
+Vec3 clearCornerNormals(const std::vector<Vec3>& P, const BoundaryQuads& quads, const BigCsr& around, Index s, Index v,
+                        const Vec3& n, bool& clears) {
+    Vec3 u[kMaxCorners];
+    int m = 0;
+    double worst = 1;
+    for (const Index* it = around.begin(s); it != around.end(s) && m < kMaxCorners; ++it) {
+        const auto& q = quads.nodes[static_cast<std::size_t>(*it / 4)];
+        const int k = *it % 4;
+        const Vec3 c = cross(P[q[(k + 1) % 4]] - P[v], P[q[(k + 3) % 4]] - P[v]);
+        const double l = norm(c);
+        if (!(l > 0)) continue;
+        u[m] = (1.0 / l) * c;
+        worst = std::min(worst, dot(n, u[m]));
+        ++m;
+    }
+    clears = m > 0 && worst > 0;
+    if (m == 0 || worst >= kCornerCone) return n;
+    Vec3 x = n;  // Gilbert's iteration from n (in the hull's span after the first step)
+    for (int it = 0; it < 64; ++it) {
+        int arg = 0;
+        for (int i = 1; i < m; ++i)
+            if (dot(x, u[i]) < dot(x, u[arg])) arg = i;
+        const double xl = norm(x);
+        if (it > 0 && xl > 0 && dot(x, u[arg]) >= kCornerCone * xl) break;
+        const Vec3 e = x - u[arg];
+        const double ee = dot(e, e);
+        if (!(ee > 0)) break;
+        const double t = std::clamp(dot(x, e) / ee, 0.0, 1.0);
+        if (t == 0) break;  // x is the minimum-norm point
+        x = x - t * e;
+    }
+    const double xl = norm(x);
+    if (!(xl > 1e-9)) return n;
+    double least = 1;
+    for (int i = 0; i < m; ++i) least = std::min(least, dot(x, u[i]) / xl);
+    if (!(least > worst)) return n;
+    clears = least > 0;
+    return (1.0 / xl) * x;
+}
+
 // The inward step of the copy of node v (slot s): `inset` times the mean
 // length of its boundary quads' edges at v, along the averaged inward normal
-// (area weighted, over the node's boundary quads in quad order), or towards
-// the centroid of the shrink-set hexes around the node where the normal
-// points away from them.
+// (area weighted, over the node's boundary quads in quad order) turned where
+// needed to point inside every boundary quad's corner at v
+// (clearCornerNormals). Where no direction does, and the normal points away
+// from the centroid of the shrink-set hexes around the node, towards that
+// centroid.
 Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<QuadGeometry>& quadGeometry,
-                const BigVec<Vec3>& cornerSum, double B, Index s, Index v, double inset) {
+                const BigVec<Vec3>& cornerSum, double B, Index s, Index v, double inset, bool turn) {
     const BigCsr& around = b.quads.around;
     const BigCsr& nodeT = b.hexes.nodeT;
     Vec3 normal{0, 0, 0};
@@ -495,7 +552,12 @@ Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<Quad
         edgeCount += 2;
     }
     const double len = norm(normal);
-    Vec3 dir = len > 0 ? (-1.0 / len) * normal : Vec3{0, 0, 0};
+    bool clears = false;
+    Vec3 dir = len > 0 ? (turn ? -1.0 * clearCornerNormals(P, b.quads, around, s, v, (1.0 / len) * normal, clears)
+                              : (-1.0 / len) * normal)
+                       : Vec3{0, 0, 0};
+    const double step = inset * edgeSum / edgeCount;
+    if (clears) return step * dir;
     // The centroid from the per-hex sums (another order of the same n terms)
     // is within about 2 n u B per coordinate of the one summed corner by
     // corner (u = 2^-53, B the largest coordinate), so where the sign test
@@ -519,19 +581,19 @@ Vec3 inwardStep(const std::vector<Vec3>& P, const Boundary& b, const BigVec<Quad
         const double l = norm(toCentre);
         dir = l > 0 ? (1.0 / l) * toCentre : Vec3{0, 0, 0};
     }
-    return (inset * edgeSum / edgeCount) * dir;
+    return step * dir;
 }
 
 // Per copy, its inward step (inwardStep) from its node.
 BigVec<Vec3> inwardSteps(const std::vector<Vec3>& P, const Boundary& b, const Copies& copies,
-                         const std::vector<Index>& copyOf, double inset) {
+                         const std::vector<Index>& copyOf, double inset, bool turn) {
     BigVec<Vec3> push(copies.count());
     BigVec<QuadGeometry> quadGeometry = quadGeometries(P, b.quads);
     double B = 0;
     BigVec<Vec3> cornerSum = cornerSums(P, b.hexes, B);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, copies.count(), 1024), [&](const auto& r) {
         for (std::size_t i = r.begin(); i != r.end(); ++i)
-            push[i] = inwardStep(P, b, quadGeometry, cornerSum, B, copies.copySlot[i], copyOf[i], inset);
+            push[i] = inwardStep(P, b, quadGeometry, cornerSum, B, copies.copySlot[i], copyOf[i], inset, turn);
     });
     release(quadGeometry);
     release(cornerSum);
@@ -781,7 +843,7 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     res.firstNewHex = static_cast<Index>(H);
     res.firstNewNode = static_cast<Index>(N);
     const Copies copies = numberCopies(b, res.copyOf);
-    const BigVec<Vec3> push = inwardSteps(mesh.nodes, b, copies, res.copyOf, opt.inset);
+    const BigVec<Vec3> push = inwardSteps(mesh.nodes, b, copies, res.copyOf, opt.inset, opt.turnIntoCorners);
     splitNodes(mesh, S, b, copies, push, res.copyOf);
     release(b.hexes.slot);
     release(b.quads.faces);

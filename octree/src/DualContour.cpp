@@ -334,60 +334,87 @@ void classifyFromGrid(HexMesh& mesh, const Labels& labels, const Hexed& hexed, c
     GridClassifier<Hexed>(labels, hexed, node, cg).classify(mesh);
 }
 
-// The nodes moved from their QEF point onto the surface, and how far each is
-// pulled back towards it: level l puts node qef[i] at qef + 2^-l (surface -
-// qef), level 4 back at the QEF point; 255 marks a node that was not moved.
+// A vertex of a crossed cell as placed: its node, QEF point and cell centre.
+struct CrossedVertex {
+    Index id;
+    Vec3 qef, centre;
+};
+
+// The vertices of crossed cells and how far each is pulled back from where
+// dual contouring put it (its target: the surface point, or the QEF point of
+// a cell it does not project) towards the centre of its cell, along the path
+// target -> QEF point -> centre. Level l < 4 puts node qef[i] at
+// qef + 2^-l (target - qef), level 4 at the QEF point, levels 5 and 6 half
+// and three quarters of the way from the QEF point to the centre, level 7
+// (kTop) at the centre; 255 marks a node of an uncrossed cell (at its centre
+// already). A hex whose crossed corners are all at their centres is the grid's
+// own cube (positive), so raising levels always ends with every hex valid.
 struct SurfaceMoves {
-    std::vector<std::pair<Index, Vec3>> qef;  // (node, QEF point), ascending node
-    std::vector<Vec3> onSurface;              // the same nodes' surface points
+    static constexpr int kTopMax = 7;
+    int kTop = kTopMax;  // 4 (the QEF point) without ExtractOptions::validStart
+    bool centre = true;  // the centre Jacobian counts too (not without ExtractOptions::validStart)
+    std::vector<CrossedVertex> qef;  // ascending node
+    std::vector<Vec3> onSurface;     // the same nodes' targets (surface point, or the QEF point)
     std::vector<std::uint8_t> level;          // per mesh node
 
-    // Position of moved node qef[i] at level l.
+    // Position of node qef[i] at level l.
     Vec3 at(std::size_t i, int l) const {
-        const double sc = l >= 4 ? 0.0 : std::ldexp(1.0, -l);
-        const Vec3& a = qef[i].second;
+        if (l >= kTopMax) return qef[i].centre;
+        const Vec3& a = qef[i].qef;
+        if (l > 4) {
+            const double sc = l == 5 ? 0.5 : 0.75;
+            const Vec3& c = qef[i].centre;
+            return Vec3{a[0] + sc * (c[0] - a[0]), a[1] + sc * (c[1] - a[1]), a[2] + sc * (c[2] - a[2])};
+        }
         const Vec3& b = onSurface[i];
+        if (l == 0 && centre) return b;  // (without validStart: qef + 1 (b - qef), as before, to the bit)
+        const double sc = l == 4 ? 0.0 : std::ldexp(1.0, -l);
         return Vec3{a[0] + sc * (b[0] - a[0]), a[1] + sc * (b[1] - a[1]), a[2] + sc * (b[2] - a[2])};
     }
-    // Index in qef of moved node id.
+    // Index in qef of node id.
     std::size_t slot(Index id) const {
         return static_cast<std::size_t>(
-            std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.first < v; }) - qef.begin());
+            std::lower_bound(qef.begin(), qef.end(), id, [](const auto& e, Index v) { return e.id < v; }) - qef.begin());
     }
-    // The fewest extra levels (1..4) for the moved corners of an inverted hex
-    // (corner positions x0) that make it valid; -1 when even the QEF
-    // positions leave it inverted.
+    bool valid(const HexCoords& x) const { return minCornerDeterminant(x) > 0 && (!centre || centreDeterminant(x) > 0); }
+    // The fewest extra levels for the crossed corners of an inverted hex
+    // (corner positions x0) that make it valid; -1 if it has no corner below kTop.
     int extraLevels(const Hex& hex, const HexCoords& x0) const {
-        for (int extra = 1; extra <= 4; ++extra) {
+        for (int extra = 1; extra <= kTop; ++extra) {
             HexCoords x = x0;
+            bool raised = false;
             for (int c = 0; c < 8; ++c) {
                 const std::uint8_t l = level[static_cast<std::size_t>(hex[c])];
-                if (l < 4) x[c] = at(slot(hex[c]), std::min(4, l + extra));
+                if (l < kTop) {
+                    x[c] = at(slot(hex[c]), std::min(kTop, l + extra));
+                    raised = true;
+                }
             }
-            if (minCornerDeterminant(x) > 0) return extra;
+            if (!raised) return -1;
+            if (valid(x)) return extra;
         }
         return -1;
     }
     // One round, decided from the positions at its start: every inverted hex
-    // with a moved corner that pulling back can mend asks its moved corners
-    // for the levels it needs; a node takes the largest level asked
-    // (`wanted`, a copy of `level` on entry). Returns whether any hex asked.
+    // with a crossed corner asks its crossed corners for the levels it needs;
+    // a node takes the largest level asked (`wanted`, a copy of `level` on
+    // entry). Returns whether any hex asked.
     bool askLevels(const HexMesh& mesh, std::vector<std::uint8_t>& wanted) const {
         std::atomic<bool> changed{false};
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.hexes.size(), 4096), [&](const auto& r) {
             for (std::size_t h = r.begin(); h != r.end(); ++h) {
                 const Hex& hex = mesh.hexes[h];
                 bool movable = false;
-                for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < 4;
+                for (Index v : hex) movable = movable || level[static_cast<std::size_t>(v)] < kTop;
                 if (!movable) continue;
                 const HexCoords x0 = hexCoords(mesh, static_cast<Index>(h));
-                if (minCornerDeterminant(x0) > 0) continue;
+                if (valid(x0)) continue;
                 const int found = extraLevels(hex, x0);
-                if (found < 0) continue;  // inverted with the QEF positions too: keep the surface
+                if (found < 0) continue;
                 for (Index v : hex) {
                     const std::uint8_t l = level[static_cast<std::size_t>(v)];
-                    if (l >= 4) continue;
-                    const auto want = static_cast<std::uint8_t>(std::min(4, l + found));
+                    if (l >= kTop) continue;
+                    const auto want = static_cast<std::uint8_t>(std::min(kTop, l + found));
                     std::atomic_ref<std::uint8_t> w(wanted[static_cast<std::size_t>(v)]);
                     std::uint8_t cur = w.load(std::memory_order_relaxed);
                     while (cur < want && !w.compare_exchange_weak(cur, want, std::memory_order_relaxed)) {
@@ -416,8 +443,8 @@ struct DualContouring {
     std::vector<std::size_t> perSlab;    // nodes in the cell slabs before slab ck + 1 (after markNodeCells)
     std::size_t nodeCount = 0;
     HexMesh mesh;
-    // nodes moved onto the surface with their QEF position, per cell slab in node order
-    std::vector<std::vector<std::pair<Index, Vec3>>> qefSlab;
+    // vertices of crossed cells with their QEF point and cell centre, per cell slab in node order
+    std::vector<std::vector<CrossedVertex>> qefSlab;
     std::size_t crossed = 0, clamped = 0;
     std::vector<Index> heldBack;
     std::vector<Vec3> heldBackAt;
@@ -566,7 +593,7 @@ struct DualContouring {
     // What placeNode adds up per slab.
     struct SlabTally {
         std::size_t crossed = 0, clamped = 0;
-        std::vector<std::pair<Index, Vec3>>& moved;  // nodes moved onto the surface, with their QEF point
+        std::vector<CrossedVertex>& crossedVertices;  // vertices of crossed cells, with QEF point and centre
     };
 
     // Node `id` of cell (ci, cj, ck): its centre when no surface crosses the
@@ -595,13 +622,23 @@ struct DualContouring {
         if (keepInCell(x, lower)) ++tally.clamped;
         const Eigen::Vector3d qef = x;
         x = ontoCellSurface(cellDomain, m, p, x, lower);
-        if (x != qef) tally.moved.emplace_back(id, Vec3{qef(0), qef(1), qef(2)});
+        // Vertices of cells where three or more materials meet that stay at
+        // their QEF point (on no one surface) stay there: held back, those
+        // curve nodes came back to their curve worse.
+        std::int32_t ma = m[0], mb = m[0];
+        bool several = false;
+        for (int c = 1; c < 8; ++c)
+            if (m[c] != ma && m[c] != mb) {
+                if (mb == ma) mb = m[c];
+                else several = true;
+            }
+        if (opt.validStart ? !(several && x == qef) : x != qef) tally.crossedVertices.push_back({id, Vec3{qef(0), qef(1), qef(2)}, centre});
         mesh.nodes[id] = {x(0), x(1), x(2)};
     }
 
     // 2. Node positions, numbered in cell order, slab by slab in parallel.
-    // Nodes moved onto the surface keep their QEF position in qefSlab in
-    // case the move inverts a hex (holdBackInvertingMoves).
+    // Vertices of crossed cells keep their QEF point and cell centre in
+    // qefSlab in case their position inverts a hex (holdBackInvertingMoves).
     void placeNodes() {
         qefSlab.assign(static_cast<std::size_t>(nz) + 1, {});
         std::atomic<std::size_t> crossedCells{0}, clampedVertices{0};
@@ -659,37 +696,42 @@ struct DualContouring {
         });
     }
 
-    // 4. A move onto the surface must not invert a hex. Where a hex with
-    // moved corners is inverted, its moved corners are pulled back towards
-    // their QEF positions, x = qef + s (surface point - qef), with the
-    // largest s in 1/2, 1/4, 1/8, 0 that makes it valid (none helps: the hex
-    // is inverted with the QEF positions too, and the corners stay on the
-    // surface). A node takes the smallest s any of its hexes asks for;
-    // pulling back can invert a neighbour, so repeat (s only decreases).
-    // Each round decides from the positions at its start, so the result does
-    // not depend on the thread count. The mesh keeps every vertex on the
-    // surface; the held-back (valid) positions go to the caller, who puts
-    // them where a sheet needs them.
+    // 4. Placing vertices on the surface (or at QEF points) must not leave a
+    // hex inverted. Where a hex with corners in crossed cells is inverted,
+    // those corners are pulled back along target -> QEF point -> cell centre
+    // (SurfaceMoves::at) by the fewest levels that make it valid. A node
+    // takes the most levels any of its hexes asks for; pulling back can
+    // invert a neighbour, so repeat (levels only rise). This ends with every
+    // hex valid: a hex whose crossed corners are at their cell centres is the
+    // grid's cube around its point, so an inverted hex can always ask, and
+    // levels are bounded. Each round decides from the positions at its start,
+    // so the result does not depend on the thread count. The mesh keeps every
+    // vertex at its target; the held-back (valid) positions go to the caller,
+    // who starts the sheet and the optimiser from them.
     void holdBackInvertingMoves() {
         SurfaceMoves mv;
+        if (!opt.validStart) {
+            mv.kTop = 4;
+            mv.centre = false;
+        }
         for (auto& v : qefSlab) mv.qef.insert(mv.qef.end(), v.begin(), v.end());
         qefSlab.clear();
         mv.onSurface.resize(mv.qef.size());
-        for (std::size_t i = 0; i < mv.qef.size(); ++i) mv.onSurface[i] = mesh.nodes[static_cast<std::size_t>(mv.qef[i].first)];
+        for (std::size_t i = 0; i < mv.qef.size(); ++i) mv.onSurface[i] = mesh.nodes[static_cast<std::size_t>(mv.qef[i].id)];
         mv.level.assign(nodeCount, 255);
-        for (const auto& [id, x] : mv.qef) mv.level[static_cast<std::size_t>(id)] = 0;
+        for (const CrossedVertex& v : mv.qef) mv.level[static_cast<std::size_t>(v.id)] = 0;
         std::vector<std::uint8_t> wanted;
-        for (int round = 0; round < 16 && !mv.qef.empty(); ++round) {
+        while (!mv.qef.empty()) {  // at most kTop rounds per crossed vertex; a few in practice
             wanted = mv.level;
             if (!mv.askLevels(mesh, wanted)) break;
             mv.level.swap(wanted);
             for (std::size_t i = 0; i < mv.qef.size(); ++i) {
-                const auto id = static_cast<std::size_t>(mv.qef[i].first);
+                const auto id = static_cast<std::size_t>(mv.qef[i].id);
                 mesh.nodes[id] = mv.at(i, mv.level[id]);
             }
         }
         for (std::size_t i = 0; i < mv.qef.size(); ++i) {
-            const Index id = mv.qef[i].first;
+            const Index id = mv.qef[i].id;
             if (mv.level[static_cast<std::size_t>(id)] == 0) continue;
             heldBack.push_back(id);
             heldBackAt.push_back(mesh.nodes[static_cast<std::size_t>(id)]);

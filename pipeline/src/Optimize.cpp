@@ -38,6 +38,7 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     Stage st(sink, "optimize");
     smoothing::SmoothingOptions opt;
     opt.fixBoundary = settings.fixBoundary;
+    opt.offSurfaceNodesOntoSurface = !settings.tangledStart;
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     // The optimiser builds its own topology and keeps only the node-to-hex

@@ -78,6 +78,12 @@ nlohmann::json toJson(const RetryAttempt& a) {
         j["edits"].push_back({{"grid_point", e.gridPoint}, {"at", e.at}, {"from", e.from}, {"to", e.to}});
     if (a.notMeshedBecause) j["not_meshed_because"] = *a.notMeshedBecause;
     if (a.after) j["after"] = toJson(*a.after);
+    if (const auto& r = a.region)  // the neighbourhood optimised again; the rest kept its nodes
+        j["region"] = {{"cells", r->cells},          {"nodes", r->nodes},
+                       {"hexes", r->hexes},          {"mesh_hexes", r->meshHexes},
+                       {"nodes_carried", r->carried}, {"inverted_before", r->invertedBefore},
+                       {"untangle_sweeps", r->untangleSweeps}, {"sweeps", r->sweeps},
+                       {"seconds", r->seconds}};
     return j;
 }
 
@@ -198,6 +204,15 @@ nlohmann::json toJson(const GridFacts& g) {
 nlohmann::json toJson(const PillowResult& p) {
     nlohmann::json j;
     j["enabled"] = p.enabled;
+    // Where contouring held vertices back to leave no hex inverted, and how
+    // many of them went back to their place after the sheet (any setting).
+    if (const auto& h = p.returned)
+        j["held_back"] = {{"vertices", h->heldBack},
+                          {"at_target", h->moved.reached},
+                          {"part_way", h->moved.partway},
+                          {"not_moved", h->moved.stayed},
+                          {"copies_followed", h->copiesFollowed.reached + h->copiesFollowed.partway},
+                          {"seconds", h->seconds}};
     if (!p.enabled) return j;
     j["layers"] = p.layers;
     j["sheets"] = p.sheets;

@@ -13,6 +13,7 @@
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/LocalRetry.hpp"
 
 namespace isohex::pipeline {
 
@@ -28,6 +29,8 @@ struct RetryState {
     Eigen::Matrix3d toGrid;                          // world offsets to grid coordinates
     std::vector<std::size_t> frozen;                 // grid points edited once, never again
     std::shared_ptr<const octree::Labels> sampled;   // the grid sampled afresh, made on first use
+    bool local = false;                              // retries optimise a neighbourhood (LocalRetry.hpp)
+    std::vector<NodeKey> keptKeys;                   // with local: the kept mesh's node keys, made on first use
 };
 
 // The hexes an attempt works on: inverted ones first (while any is left the
@@ -74,14 +77,29 @@ std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std:
 }
 
 // Meshes the edited labels `q` again on the field repaired for them; returns
-// how many grid points that field changes.
-std::size_t meshEdited(RetryState& s, Prepared& q, Meshing& again) {
+// how many grid points that field changes. Local retries contour and pillow
+// the whole grid but optimise only around the edits (`keys` then receives
+// the new mesh's node keys, `tried` its region).
+std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::PointEdit>& edits, Meshing& again,
+                       std::vector<NodeKey>& keys, RetryAttempt& tried) {
     const Prepared& p = s.best.prepared;
     if (!s.sampled) s.sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, s.grid));
     auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *s.sampled, q.labels);
     const std::size_t repairedPoints = repaired->changedPoints();
     q.repairedDomain = std::move(repaired);
-    again = meshLabels(std::move(q), s.settings, s.sink);
+    if (!s.local) {
+        again = meshLabels(std::move(q), s.settings, s.sink);
+        return repairedPoints;
+    }
+    if (s.keptKeys.empty()) s.keptKeys = meshingKeys(s.best.prepared, s.settings);
+    std::vector<std::size_t> edited;
+    for (const auto& e : edits) edited.push_back(e.point);
+    LocalRegion region;
+    again = meshLabelsNear(std::move(q), s.settings, s.sink, s.best, s.keptKeys, edited, keys, region);
+    const smoothing::SmoothingResult& o = region.optimization.smoothingResult;
+    tried.region = RetryRegion{region.nodes, region.hexes, region.meshHexes, region.carried, kLocalRetryCells,
+                               o.invertedBefore, static_cast<std::size_t>(o.untangleSweeps),
+                               static_cast<std::size_t>(o.sweeps), region.seconds};
     return repairedPoints;
 }
 
@@ -116,10 +134,27 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
                             std::to_string(edits.size()) + " grid point(s) next to " + std::to_string(work.size()) +
                             (stuck.inverted.empty() ? " nearly flat" : " inverted") + " hex(es) change material");
     Meshing again;
-    const std::size_t repairedPoints = meshEdited(s, q, again);
+    std::vector<NodeKey> keys;
+    std::optional<Prepared> whole;  // for meshing the whole again
+    if (s.local) whole = q;
+    std::size_t repairedPoints = meshEdited(s, q, edits, again, keys, tried);
     ++s.result.meshedAgain;
     Stuck now = stuckHexes(again.mesh, floor);
-    const bool better = now.betterThan(stuck, floor);
+    bool better = now.betterThan(stuck, floor);
+    if (whole && (!better || (!stuck.inverted.empty() && now.inverted.size() >= stuck.inverted.size()))) {
+        // The neighbourhood alone did not help, or left the inverted hexes
+        // it was for (where kept nodes meet new ones it can leave a hex
+        // flat): the whole mesh again, as before.
+        s.sink.note("info", "retry " + std::to_string(n) + ": optimising the neighbourhood of the edits did not help; "
+                                "meshing the whole again");
+        s.local = false;
+        tried.region.reset();
+        repairedPoints = meshEdited(s, *whole, edits, again, keys, tried);
+        s.local = true;
+        s.keptKeys.clear();  // made again from the mesh kept, when needed
+        now = stuckHexes(again.mesh, floor);
+        better = now.betterThan(stuck, floor);
+    }
     tried.after = now.counts();
     tried.kept = better;
     s.result.attempts.push_back(tried);
@@ -129,6 +164,7 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
         again.contouredNodes = again.mesh.nodeCount();
         again.prepared.facts.grid.repairedFieldPoints = repairedPoints;
         s.best = std::move(again);
+        if (s.local) s.keptKeys = std::move(keys);
         s.result.stuck = std::move(now);
         s.result.pointsEdited += edits.size();
     }
@@ -154,11 +190,12 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     Meshing m;
     m.prepared = std::move(prepared);
     if (settings.adaptive) m.adaptive.emplace();
-    m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr);
+    HeldBack heldBack;
+    m.mesh = contour(m.prepared, settings, sink, m.adaptive ? &*m.adaptive : nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
     if (!m.prepared.part) {
-        m.pillow = pillowBoundary(m.mesh, settings, sink);
+        m.pillow = pillowBoundary(m.mesh, settings, sink, nullptr, &heldBack);
         // the sheet's hexes are appended, each on a boundary hex of the finest level
         if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
         m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
@@ -169,7 +206,7 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     std::vector<NodeKey> keys = contourKeys(m.mesh, *m.prepared.part);
     const std::vector<std::int32_t> materials = sortedMaterials(m.mesh);
     std::vector<isohex::PillowResult> passes;
-    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes);
+    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
     addCopyKeys(keys, passes, materials);
     m.partNodes = keepOwnHexes(m.mesh, std::move(keys), *m.prepared.part);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
@@ -183,7 +220,7 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
     const bool dual = settings.method == Method::Dual;
     const int maxRetries = dual ? settings.retries.value_or(kDefaultRetries) : 0;
     const double floor = dual ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
-    RetryState s{best, settings, sink, {}, best.prepared.labels.grid, {}, {}, {}};
+    RetryState s{best, settings, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best.prepared, settings), {}};
     s.result.allowed = maxRetries;
     s.result.floor = floor;
     if (floor > 0) s.result.stuck = stuckHexes(best.mesh, floor);

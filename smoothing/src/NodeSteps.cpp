@@ -9,6 +9,10 @@ namespace isohex::smoothing::detail {
 
 namespace {
 
+// A surface node this close to its projection (in local edge lengths) is on
+// its surface.
+constexpr double kOnSurface = 1e-3;
+
 // With `terms` describing the node moved by `applied` from its original
 // position: true if moving it by `trial` (from the original) instead leaves
 // every corner that was positive at the original position positive.
@@ -142,6 +146,16 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
     Vector3 delta = centroid - x;
     delta -= delta.dot(normal) * normal;
     const std::int32_t surface = mesh_.nodeClass[sv].id;
+    // A node off its surface (a vertex contouring held back so that no hex
+    // starts inverted) takes a valid move onto it even where its hexes get
+    // worse: the surface comes first, as for curve nodes. Asked only when a
+    // move is refused for that reason; once on the surface a node stays on it.
+    int off = -1;  // unknown
+    auto offSurface = [&] {
+        if (!opt_.offSurfaceNodesOntoSurface) off = 0;
+        if (off < 0) off = !(offset(projector_->project(surface, xv), xv).norm() <= kOnSurface * L);
+        return off == 1;
+    };
     if (delta.norm() > opt_.moveTolerance * L) {
         double omega = opt_.surfaceRelaxation;
         for (int k = 0; k <= opt_.surfaceHalvings; ++k, omega *= 0.5) {
@@ -150,8 +164,17 @@ Smoother::Visit Smoother::surfaceStep(Index v, std::vector<CornerTerm>& buf) con
             const Vector3 d = offset(y, xv);
             if (!d.allFinite()) continue;
             const double f = objective.value(d);
-            if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0)) continue;
+            if (!std::isfinite(f) || (opt_.surfaceMustNotWorsen && f > f0 && !offSurface())) continue;
             accept(r, d, f, y);  // exactly the projector's point
+            return r;
+        }
+    }
+    if (off == 1) {  // every trial refused, all the while off the surface: straight onto it, if valid
+        const Vec3 y = projector_->project(surface, xv);
+        const Vector3 d = offset(y, xv);
+        const double f = d.allFinite() ? objective.value(d) : f0;
+        if (d.allFinite() && std::isfinite(f)) {
+            accept(r, d, f, y);
             return r;
         }
     }

@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
+#include "isohex/core/Error.hpp"
+#include "isohex/core/NodeTargets.hpp"
 #include "isohex/core/Quality.hpp"
 #include "support/Blocks.hpp"
 
@@ -144,4 +146,28 @@ TEST(Quality, SummaryIsIndependentOfThreadCount) {
     EXPECT_EQ(one.scaledJacobian.mean, many.scaledJacobian.mean);  // bitwise
     EXPECT_EQ(one.totalVolume, many.totalVolume);
     EXPECT_EQ(one.histogram, many.histogram);
+}
+
+// moveTowardsTargets takes a node all the way where its hexes stay valid,
+// part of the way where the target would invert one, and never inverts one.
+TEST(NodeTargets, MovesAsFarAsTheHexesStayValid) {
+    HexMesh m = test::makeBlock(2, 1, 1);  // two unit cubes side by side along x
+    // the four nodes of the shared face sit at x = 1
+    std::vector<Index> face;
+    for (std::size_t v = 0; v < m.nodeCount(); ++v)
+        if (m.nodes[v][0] == 1.0) face.push_back(static_cast<Index>(v));
+    ASSERT_EQ(face.size(), 4u);
+    const Index a = face[0], b = face[1];
+    const Vec3 inside = {m.nodes[a][0] + 0.25, m.nodes[a][1], m.nodes[a][2]};  // valid: the face bends a quarter in
+    const Vec3 beyond = {m.nodes[b][0] + 1.5, m.nodes[b][1], m.nodes[b][2]};  // past the far face: would invert a hex
+    const std::vector<Index> nodes = {a, b};
+    const std::vector<Vec3> targets = {inside, beyond};
+    const TargetsResult r = moveTowardsTargets(m, nodes, targets);
+    EXPECT_EQ(r.reached, 1u);
+    EXPECT_EQ(r.partway, 1u);
+    EXPECT_EQ(m.nodes[a], inside);
+    EXPECT_GT(m.nodes[b][0], 1.0);  // it went some of the way
+    EXPECT_LT(m.nodes[b][0], 2.0);
+    for (std::size_t h = 0; h < m.hexCount(); ++h) EXPECT_GT(minJacobianDeterminant(hexCoords(m, static_cast<Index>(h))), 0);
+    EXPECT_THROW(moveTowardsTargets(m, nodes, std::vector<Vec3>{inside}), Error);
 }

@@ -295,6 +295,11 @@ TEST(DualContour, MovesOntoTheSurfaceInvertNoHexTheQefVerticesKeepValid) {
             EXPECT_FALSE(inverted && !invertedQef) << name << " hex " << h;
         }
         EXPECT_LE(invertedMoved, invertedPlain) << name;
+        // and with the held-back positions none at all (corners and centre):
+        // at worst a vertex goes back to its cell's centre, where the hexes
+        // are the grid's cubes
+        for (std::size_t h = 0; h < m.hexCount(); ++h)
+            EXPECT_GT(minJacobianDeterminant(hexCoords(m, h)), 0) << name << " hex " << h;
     }
 }
 

@@ -184,15 +184,42 @@ class SmoothingOnRealInputs(unittest.TestCase):
             if name != "jhu":  # labels: volume against the union isosurface, see tests/pipeline
                 self.assertLess(abs(r1["fidelity"]["volume_change_percent"]), 2.0, name)
 
+    def test_the_optimiser_starts_almost_untangled(self):
+        # Contouring holds back the vertices whose place inverts a hex (as
+        # far as towards their cell centres, where the hexes are the grid's
+        # cubes), the sheet's copies step inside every boundary quad corner,
+        # and after the sheet the held-back vertices and their copies go back
+        # as far as the hexes allow: at most 0.5% of the hexes are inverted
+        # when the optimiser starts (issue 39), against several percent with
+        # --tangled-start, and the result is no worse on the surface.
+        for name, src, opts in [("skull", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), ["--iso", "2.9"]),
+                                ("jhu", os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz"),
+                                 ["--labels"])]:
+            good, rg = self.mesh(name + "_start", src, *opts)
+            bad, rb = self.mesh(name + "_tangled_start", src, *opts, "--tangled-start")
+            hexes = rg["hexes"]
+            held = rg["pillow"]["held_back"]
+            print(f"{name}: {rg['optimization']['inverted_before']} of {hexes} inverted at the optimiser's start, "
+                  f"{rb['optimization']['inverted_before']} with --tangled-start; {held['vertices']} vertices held "
+                  f"back, {held['at_target']} back at their target after the sheet")
+            self.assertLessEqual(rg["optimization"]["inverted_before"], 0.005 * hexes, name)
+            self.assertGreater(rb["optimization"]["inverted_before"], 0.01 * rb["hexes"], name)
+            self.assertNotIn("held_back", rb["pillow"])
+            self.assertGreater(held["vertices"], 0)
+            self.assertEqual(held["at_target"] + held["part_way"] + held["not_moved"], held["vertices"])
+            self.assertEqual(int((vtk_sj(good) <= 0).sum()), 0, name)
+            self.assertLess(rg["fidelity"]["boundary_distance_mean_voxels"], 0.1, name)
+
     def test_untangling_keeps_nodes_near_where_they_started(self):
         # ch2bet at 2 mm has thousands of hexes inverted when the sheet goes
         # in. Untangling once sized its target determinant by the current edge
         # lengths, so a node that stretched its hexes raised its own target
         # and kept going: surface nodes ended 80 mm away, in hexes with
         # 100 mm edges, yet the report saw only their scaled Jacobian.
+        # (--tangled-start: the default start leaves a few dozen inverted)
         size = 2.0
         out, rep = self.mesh("brain_2mm", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
-                             "--size", str(size), "--keep-largest")
+                             "--size", str(size), "--keep-largest", "--tangled-start")
         grid = read_vtu(out)
         pts = ns.vtk_to_numpy(grid.GetPoints().GetData())
         hexes = ns.vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, 8)
@@ -235,9 +262,11 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # surface nodes within half an edge of the surface) clears them. At
         # 3 mm the optimiser leaves 2 (4 mm, where this was first seen, has
         # none left since the optimiser takes three Newton steps per visit).
-        # (--retries 0: the grid-edit retries must not hide a joint release that fails)
+        # (--retries 0: the grid-edit retries must not hide a joint release
+        # that fails; --tangled-start: the optimiser's start as when this was
+        # seen, the default start leaves the optimiser nothing there)
         out, rep = self.mesh("brain_3mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
-                             "--size", "3", "--keep-largest", "--retries", "0")
+                             "--size", "3", "--keep-largest", "--retries", "0", "--tangled-start")
         sj = vtk_sj(out)
         w = rep["optimization"]["worst_hexes"]
         print(f"brain 3 mm: {int((sj <= 0).sum())} inverted, VTK SJ min {sj.min():.3f}, "
@@ -261,8 +290,8 @@ class SmoothingOnRealInputs(unittest.TestCase):
                   ["--labels", "--size", "5"]),
                  ("brain_2.5mm_joint", os.path.join(SHARED_DATA, "ch2bet.nii.gz"),
                   ["--size", "2.5", "--keep-largest"])]
-        for name, src, opts in cases:
-            out, rep = self.mesh(name, src, *opts, "--retries", "0")
+        for name, src, opts in cases:  # (the start as when they were seen)
+            out, rep = self.mesh(name, src, *opts, "--retries", "0", "--tangled-start")
             sj = vtk_sj(out)
             w = rep["optimization"]["worst_hexes"]
             print(f"{name}: {rep['optimization']['inverted_after']} inverted after untangling, "
@@ -356,16 +385,18 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # (a bump one grid point wide where three labels and the outside
         # meet; docs/DESIGN.md). --retries (default 3) gives a grid point next
         # to it another material, a change that keeps every label's
-        # components and tunnels, and meshes again.
+        # components and tunnels, and meshes again. (--tangled-start: the
+        # optimiser's start as when this was seen; from the default start it
+        # leaves none there.)
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
         a = os.path.join(self.dir, "jhu_3.5mm_no_retry.vtu")
         # (--max-deviation 0: no boundary relaxation after the retries either,
         # so the hex the retries are for stays inverted)
         p = run_below_allowed(["mesh", src, "--labels", "--size", "3.5", "--retries", "0", "--max-deviation", "0",
-                               "--threads", 2, "-o", a, "--report", a + ".json", "-q", "--force"], a)
+                               "--tangled-start", "--threads", 2, "-o", a, "--report", a + ".json", "-q", "--force"], a)
         with open(a + ".json") as f:
             ra = json.load(f)
-        b, rb = self.mesh("jhu_3.5mm_retry", src, "--labels", "--size", "3.5")
+        b, rb = self.mesh("jhu_3.5mm_retry", src, "--labels", "--size", "3.5", "--tangled-start")
         sa, sb = vtk_sj(a), vtk_sj(b)
         tries = rb["retries"]["attempts"]
         print(f"JHU 3.5 mm: VTK inverted {int((sa <= 0).sum())} -> {int((sb <= 0).sum())}, "
@@ -376,7 +407,12 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertEqual(ra["retries"], {"allowed": 0, "floor": 0.05, "attempts": [], "points_edited": 0,
                                          "meshed_again": 0})
         self.assertEqual(int((sb <= 0).sum()), 0)
-        self.assertTrue(rb["validity"]["ok"], rb["validity"])
+        # the retries add no defect: a local retry keeps the nodes away from
+        # its edits, so a defect of the first meshing there (from the tangled
+        # start: two boundary nodes at one place) stays, where meshing the
+        # whole again happened to move them apart
+        self.assertNotIn("inverted_hex", rb["validity"].get("defects", {}))
+        self.assertLessEqual(set(rb["validity"].get("defects", {})), set(ra["validity"].get("defects", {})))
         self.assertEqual(rb["retries"]["allowed"], 3)
         kept = [t for t in tries if t["kept"]]
         self.assertGreaterEqual(len(kept), 1)
@@ -386,6 +422,18 @@ class SmoothingOnRealInputs(unittest.TestCase):
         for t in tries:
             for e in t["edits"]:
                 self.assertNotEqual(e["from"], e["to"])
+        # a retry first optimises a neighbourhood of its edits, the rest
+        # keeping its optimised nodes (LocalRetry.hpp); an attempt meshed
+        # whole again (the neighbourhood did not help) has no region
+        for t in tries:
+            if "region" not in t:
+                continue
+            reg = t["region"]
+            print(f"  attempt {t['attempt']}: {reg['hexes']} of {reg['mesh_hexes']} hexes optimised again, "
+                  f"{reg['nodes']} nodes free, {reg['nodes_carried']} carried over")
+            self.assertGreater(reg["hexes"], 0)
+            self.assertLess(reg["hexes"], 0.5 * reg["mesh_hexes"])
+            self.assertGreater(reg["nodes_carried"], 0.9 * len(sa))
         # the edits keep every label's topology (counted again on the edited
         # grid) and hardly move the volume (one grid point of 3.5 mm is about
         # 43 mm^3; a small label's own volume moves by several percent from any
@@ -403,10 +451,11 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # At 3 mm the JHU labels end with no hex inverted but a few nearly
         # flat (scaled Jacobian below 0.05, the default --retry-below), at the
         # same kind of places: the retries lift them, with every label's
-        # topology kept; --retry-below 0 leaves them.
+        # topology kept; --retry-below 0 leaves them. (--tangled-start: the
+        # start as when this was seen.)
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
-        c, rc = self.mesh("jhu_3mm_retry", src, "--labels", "--size", "3")
-        d, rd = self.mesh("jhu_3mm_inverted_only", src, "--labels", "--size", "3", "--retry-below", "0")
+        c, rc = self.mesh("jhu_3mm_retry", src, "--labels", "--size", "3", "--tangled-start")
+        d, rd = self.mesh("jhu_3mm_inverted_only", src, "--labels", "--size", "3", "--retry-below", "0", "--tangled-start")
         sc, sd = vtk_sj(c), vtk_sj(d)
         print(f"JHU 3 mm: VTK SJ min {sd.min():.3f} -> {sc.min():.3f}, below 0.05 {(sd < 0.05).sum()} -> "
               f"{(sc < 0.05).sum()}, below 0.2 {(sd < 0.2).sum()} -> {(sc < 0.2).sum()}")
@@ -423,7 +472,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # the retries, and the joint release they run (its steps are parallel
         # within a region), are deterministic: one thread gives the same file
         self.assertGreater(rc["optimization"]["worst_hexes"]["joint_regions_tried"], 0)
-        e, re_ = self.mesh("jhu_3mm_retry_t1", src, "--labels", "--size", "3", threads=1)
+        e, re_ = self.mesh("jhu_3mm_retry_t1", src, "--labels", "--size", "3", "--tangled-start", threads=1)
         with open(c, "rb") as fc, open(e, "rb") as fe:
             self.assertEqual(fc.read(), fe.read())
         # where there is no grid to edit, the options are refused before anything is written
@@ -445,8 +494,8 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # stages' progress just started over for the retry).
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
         out = os.path.join(self.dir, "jhu_35_flat.vtu")
-        p = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "-o", out, "--report", out + ".json",
-                 "--force"])
+        p = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--tangled-start", "-o", out, "--report",
+                 out + ".json", "--force"])
         with open(out + ".json") as f:
             rep = json.load(f)
         sj = vtk_sj(out)
@@ -467,8 +516,8 @@ class SmoothingOnRealInputs(unittest.TestCase):
         worst = int(np.argmin(sj))
         self.assertLess(np.linalg.norm(pts[conn[worst]].mean(axis=0) - at), 1e-3)
         # --retry-below 0: only inverted hexes count as stuck, and no flat warning
-        q = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--retry-below", "0", "-o", out,
-                 "--force", "-q"])
+        q = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--retry-below", "0", "--tangled-start",
+                 "-o", out, "--force", "-q"])
         self.assertNotIn("nearly flat", q.stderr)
 
     def test_output_is_identical_for_one_and_two_threads(self):

@@ -10,10 +10,15 @@ namespace isohex {
 
 struct PillowOptions {
     // The inner copy of a split node starts this fraction of the local edge
-    // length inside the shrink set, along the averaged surface normal. The
-    // fraction is halved per node (up to `maxHalvings` times) where the start
-    // position would invert an adjacent hex.
+    // length inside the shrink set, along the averaged surface normal, turned
+    // where needed so that it points inside every boundary quad's corner at
+    // the node (else the sheet hex on that quad starts inverted whatever the
+    // length). The fraction is halved per node (up to `maxHalvings` times)
+    // where the start position would invert an adjacent hex.
     double inset = 0.3;
+    // Off: the averaged normal as it is (the start before the optimiser had
+    // a valid one: for comparisons and tests of untangling).
+    bool turnIntoCorners = true;
     int maxHalvings = 6;
     // Find the shrink set's boundary faces through the node -> hex adjacency
     // of the whole shrink set instead of first narrowing it to the nodes the

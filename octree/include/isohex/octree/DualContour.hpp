@@ -28,17 +28,26 @@ struct ExtractOptions {
     // outside meets two or more materials goes onto the surface of their
     // union (Domain::unionValue) instead, where the domain knows it.
     bool projectVertices = true;
+    // Hold back every crossed cell's vertex that leaves a hex inverted, along
+    // surface point -> QEF point -> cell centre, so that no hex is inverted
+    // (ExtractStats::heldBackAt). Off: only vertices moved onto the surface,
+    // no farther than their QEF point, and hexes inverted with the QEF
+    // points too stay inverted (the start before the optimiser had a valid
+    // one: for comparisons and tests of untangling).
+    bool validStart = true;
     Progress progress;
 };
 
 struct ExtractStats {
     std::size_t crossedCells = 0;
     std::size_t clampedVertices = 0;  // QEF minimisers that fell outside their cell
-    // Nodes (ascending) whose move onto the surface inverts a hex that their
-    // QEF positions leave valid. The mesh has them on the surface; heldBackAt
-    // (same order) is the position between the QEF point and the surface
-    // point, as near the surface as keeps every hex around valid (the mesher
-    // starts its sheet and optimiser from there).
+    // Nodes (ascending) of crossed cells whose position (on the surface, or
+    // the QEF point where the vertex is not projected) leaves a hex inverted.
+    // The mesh has them at that position; heldBackAt (same order) is a point
+    // on the path from there through the QEF point to the cell's centre, as
+    // near the start of the path as keeps every hex valid (the mesher starts
+    // its sheet and optimiser from there). With the held-back positions no
+    // hex is inverted: at the centres the hexes are the grid's cubes.
     std::vector<Index> heldBack;
     std::vector<Vec3> heldBackAt;
 };
@@ -49,7 +58,7 @@ struct ExtractStats {
 // grid point should have its label's sign in `domain` (after a repair, pass a
 // RepairedDomain) so that the surface crosses every cell between two labels.
 // Boundary vertices are on the surface, also those whose move there inverts a
-// hex (see ExtractStats::heldBackAt).
+// hex (see ExtractStats::heldBackAt for positions that invert none).
 HexMesh dualContourHexes(const Labels& labels, const Domain& domain, const ExtractOptions& opt = {},
                          ExtractStats* stats = nullptr);
 

@@ -61,6 +61,13 @@ struct MeshSettings {
     int adaptiveLevels = 3;       // levels of the tree above the finest hexes (coarse hexes up to 3^levels steps)
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
+    // Start the sheet and the optimiser as before the valid start: vertices
+    // on their surface wherever their QEF points leave the hexes valid, the
+    // sheet's copies along the plain averaged normal, hexes left inverted for
+    // the untangler (octree::ExtractOptions::validStart, PillowOptions::
+    // turnIntoCorners, SmoothingOptions::offSurfaceNodesOntoSurface off, no
+    // return of held-back vertices). For comparisons and tests of untangling.
+    bool tangledStart = false;
     bool fixBoundary = false;
     // compare fixes the boundary unless --move-boundary (its warnings say so)
     bool fixBoundaryByCompare = false;

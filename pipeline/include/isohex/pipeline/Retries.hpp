@@ -45,6 +45,14 @@ struct RetryEdit {
     std::int32_t from = 0, to = 0;
 };
 
+// Where a retry re-optimised (LocalRetry.hpp): the rest kept its nodes.
+struct RetryRegion {
+    std::size_t nodes = 0, hexes = 0, meshHexes = 0, carried = 0;
+    int cells = 0;  // kLocalRetryCells
+    std::size_t invertedBefore = 0, untangleSweeps = 0, sweeps = 0;
+    double seconds = 0;
+};
+
 struct RetryAttempt {
     int attempt = 0;
     StuckCounts before;
@@ -52,6 +60,7 @@ struct RetryAttempt {
     bool kept = false;
     std::optional<std::string> notMeshedBecause;  // the attempt stopped before meshing
     std::optional<StuckCounts> after;             // when it meshed
+    std::optional<RetryRegion> region;            // when it optimised a neighbourhood only
 };
 
 struct RetryResult {

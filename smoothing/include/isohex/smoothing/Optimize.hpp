@@ -103,6 +103,10 @@ struct SmoothingOptions {
     // Reject a surface move that raises the node's mean-ratio objective (it is
     // always rejected if it would invert a hex), so the objective never rises.
     bool surfaceMustNotWorsen = true;
+    // A surface node off its surface (a vertex contouring held back so that
+    // no hex starts inverted) takes a valid move onto it even where its hexes
+    // get worse: the surface first, as for curve nodes.
+    bool offSurfaceNodesOntoSurface = true;
     // Where the centroidal move is rejected or already done, take Newton steps
     // on the node's mean-ratio objective within the tangent plane instead
     // (projected back, kept only if the objective drops): the surface then

@@ -1,0 +1,53 @@
+#pragma once
+// A retry's meshing kept to a neighbourhood of its grid edits. The edited
+// labels are contoured and pillowed again (the whole grid: a small part of
+// the time), then every node that the kept mesh has too (same NodeKey: the
+// grid cell of its contouring vertex and its sheet) takes its optimised
+// position there; only the nodes within `kLocalRetryCells` grid cells of an
+// edit, the nodes the kept mesh does not have and those whose class changed
+// move, and only the hexes around them are optimised (a submesh whose other
+// nodes are fixed). The rest of the volume keeps its optimised nodes.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/octree/Grid.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Part.hpp"
+#include "isohex/pipeline/Retries.hpp"
+
+namespace isohex::pipeline {
+
+// How far (grid cells, in each axis) around an edited grid point nodes move.
+inline constexpr int kLocalRetryCells = 3;
+
+// Whether a retry can be local: one sheet layer at most, no adaptive tree,
+// not a part (those number their nodes otherwise).
+bool localRetryApplies(const Prepared& prepared, const MeshSettings& settings);
+
+// The node keys of the meshing of `prepared` (contoured and pillowed again
+// without the optimiser, the same node numbering as meshLabels gives).
+std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& settings);
+
+// What a local re-optimisation touched.
+struct LocalRegion {
+    std::size_t nodes = 0;      // nodes free to move
+    std::size_t hexes = 0;      // hexes optimised (those with a free node)
+    std::size_t carried = 0;    // nodes that took their position from the kept mesh
+    std::size_t meshHexes = 0;  // hexes of the whole mesh, for comparison
+    double seconds = 0;
+    OptimizeResult optimization;  // of the submesh
+};
+
+// Contours and pillows the edited labels `prepared`, starts the mesh from the
+// optimised `kept` mesh (node keys `keptKeys`) and optimises the
+// neighbourhood of the grid points `edited` (indices into the labels' grid),
+// as above. `keys` receives the new mesh's node keys. The result's
+// optimization is kept's (the whole-mesh run); the local one is in `region`.
+Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
+                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
+                       std::vector<NodeKey>& keys, LocalRegion& region);
+
+}  // namespace isohex::pipeline

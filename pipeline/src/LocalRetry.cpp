@@ -1,0 +1,155 @@
+#include "isohex/pipeline/LocalRetry.hpp"
+
+#include <algorithm>
+#include <utility>
+
+#include "isohex/core/Pillow.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/DualContour.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// The part of a mesh the local re-optimisation works on: the hexes with a
+// free node, their nodes renumbered (free ones keep their class, the others
+// are Fixed), and where each came from.
+struct Submesh {
+    HexMesh mesh;
+    std::vector<Index> from;  // per submesh node, its node in the whole mesh
+};
+
+Submesh cutOut(const HexMesh& mesh, const std::vector<std::uint8_t>& free) {
+    Submesh s;
+    std::vector<Index> to(mesh.nodeCount(), kNone);
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+        const Hex& hex = mesh.hexes[h];
+        if (std::none_of(hex.begin(), hex.end(), [&](Index v) { return free[static_cast<std::size_t>(v)] != 0; }))
+            continue;
+        Hex out{};
+        for (int c = 0; c < 8; ++c) {
+            const auto v = static_cast<std::size_t>(hex[c]);
+            if (to[v] == kNone) {
+                to[v] = static_cast<Index>(s.from.size());
+                s.from.push_back(hex[c]);
+            }
+            out[c] = to[v];
+        }
+        s.mesh.addHex(out, mesh.material[h]);
+    }
+    // nodes in whole-mesh order, so the submesh does not depend on hex order quirks
+    std::vector<Index> order(s.from.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<Index>(i);
+    std::sort(order.begin(), order.end(), [&](Index a, Index b) { return s.from[a] < s.from[b]; });
+    std::vector<Index> rank(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) rank[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
+    for (Hex& h : s.mesh.hexes)
+        for (Index& v : h) v = rank[static_cast<std::size_t>(v)];
+    std::vector<Index> from(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) from[i] = s.from[static_cast<std::size_t>(order[i])];
+    s.from = std::move(from);
+    for (Index v : s.from) {
+        const auto u = static_cast<std::size_t>(v);
+        s.mesh.addNode(mesh.nodes[u], free[u] ? mesh.nodeClass[u] : NodeClass{NodeKind::Fixed, -1});
+    }
+    s.mesh.surfaces = mesh.surfaces;
+    s.mesh.curves = mesh.curves;
+    return s;
+}
+
+// Grid cells within kLocalRetryCells of an edited point, sorted.
+std::vector<std::int64_t> cellsNear(const octree::Grid& grid, const std::vector<std::size_t>& edited) {
+    std::vector<std::int64_t> near;
+    const int r = kLocalRetryCells;
+    for (std::size_t p : edited) {
+        const auto [i, j, k] = grid.coords(p);
+        for (int c = k - r; c <= k + r; ++c)
+            for (int b = j - r; b <= j + r; ++b)
+                for (int a = i - r; a <= i + r; ++a)
+                    if (grid.contains(a, b, c)) near.push_back(static_cast<std::int64_t>(grid.index(a, b, c)));
+    }
+    std::sort(near.begin(), near.end());
+    near.erase(std::unique(near.begin(), near.end()), near.end());
+    return near;
+}
+
+PartWindow wholeWindow(const octree::Grid& grid) {
+    PartWindow w;
+    w.whole = grid;
+    w.grid = grid;
+    return w;
+}
+
+// Starts `mesh` (node keys `keys`) from the optimised `kept` mesh and
+// optimises the hexes around the nodes near the edits (see the header).
+LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
+                              const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
+                              const Prepared& prepared, const MeshSettings& settings, StageSink& sink) {
+    const Stopwatch clock;
+    LocalRegion r;
+    r.meshHexes = mesh.hexCount();
+    // the kept mesh's nodes by key
+    std::vector<std::pair<NodeKey, Index>> byKey(keptKeys.size());
+    for (std::size_t v = 0; v < keptKeys.size(); ++v) byKey[v] = {keptKeys[v], static_cast<Index>(v)};
+    std::sort(byKey.begin(), byKey.end());
+    const std::vector<std::int64_t> near = cellsNear(prepared.labels.grid, edited);
+    std::vector<std::uint8_t> free(mesh.nodeCount(), 0);
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
+        const NodeKey k = keys[v];
+        const auto it = std::lower_bound(byKey.begin(), byKey.end(), std::make_pair(k, Index{-1}));
+        const bool matched = it != byKey.end() && it->first == k;
+        if (matched) {
+            const auto u = static_cast<std::size_t>(it->second);
+            mesh.nodes[v] = kept.nodes[u];
+            ++r.carried;
+        }
+        const bool changed =
+            !matched || mesh.nodeClass[v].kind != kept.nodeClass[static_cast<std::size_t>(it->second)].kind ||
+            mesh.nodeClass[v].id != kept.nodeClass[static_cast<std::size_t>(it->second)].id;
+        free[v] = changed || std::binary_search(near.begin(), near.end(), k.cell);
+        r.nodes += free[v];
+    }
+    Submesh s = cutOut(mesh, free);
+    r.hexes = s.mesh.hexCount();
+    r.optimization = optimize(s.mesh, prepared, settings, sink, false);
+    for (std::size_t i = 0; i < s.from.size(); ++i) mesh.nodes[static_cast<std::size_t>(s.from[i])] = s.mesh.nodes[i];
+    r.seconds = clock.seconds();
+    return r;
+}
+
+}  // namespace
+
+bool localRetryApplies(const Prepared& prepared, const MeshSettings& settings) {
+    return !prepared.part && !settings.adaptive && (!settings.pillow || settings.boundaryLayers == 1);
+}
+
+std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& settings) {
+    octree::ExtractOptions opt;
+    opt.meshExterior = settings.meshExterior;
+    HexMesh mesh = octree::dualContourHexes(prepared.labels, prepared.extractionDomain(), opt);
+    std::vector<NodeKey> keys = contourKeys(mesh, wholeWindow(prepared.labels.grid));
+    if (settings.pillow) addCopyKeys(keys, pillowAllMaterials(mesh, 1), sortedMaterials(mesh));
+    return keys;
+}
+
+Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
+                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
+                       std::vector<NodeKey>& keys, LocalRegion& region) {
+    Meshing m;
+    m.prepared = std::move(prepared);
+    HeldBack heldBack;
+    m.mesh = contour(m.prepared, settings, sink, nullptr, &heldBack);
+    m.contouredHexes = m.mesh.hexCount();
+    m.contouredNodes = m.mesh.nodeCount();
+    keys = contourKeys(m.mesh, wholeWindow(m.prepared.labels.grid));
+    std::vector<isohex::PillowResult> passes;
+    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
+    if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(m.mesh));
+    region = optimiseNearEdits(m.mesh, keys, kept.mesh, keptKeys, edited, m.prepared, settings, sink);
+    m.optimization = kept.optimization;
+    return m;
+}
+
+}  // namespace isohex::pipeline
