@@ -7,6 +7,7 @@ validate() verdict, and whether the adaptive file has the same bytes with --thre
 Prints a Markdown table.
 
     bench/adaptive_vs_uniform.py [--isohex build/cli/isohex] [--data ../shared/data] [--work DIR] [--quick]
+                                 [--only TEXT]
 """
 import argparse
 import json
@@ -32,6 +33,7 @@ def cases(data, phantoms, quick):
          ("ch2bet 3 mm (--keep-largest)", "ch2bet.nii.gz", ["--size", "3", "--keep-largest"])]
     if not quick:
         c.append(("ch2bet 2 mm (--keep-largest)", "ch2bet.nii.gz", ["--size", "2", "--keep-largest"]))
+        c.append(("ch2bet 1 mm (--keep-largest)", "ch2bet.nii.gz", ["--size", "1", "--keep-largest"]))
     return [(label, f if os.path.isabs(f) else os.path.join(data, f), opts) for label, f, opts in c]
 
 
@@ -75,7 +77,8 @@ def main():
     ap.add_argument("--isohex", default=os.environ.get("ISOHEX", os.path.join(HERE, "..", "build", "cli", "isohex")))
     ap.add_argument("--data", default=os.environ.get("ISOHEX_SHARED_DATA", os.path.join(HERE, "..", "..", "shared", "data")))
     ap.add_argument("--work", default=None)
-    ap.add_argument("--quick", action="store_true", help="leave out ch2bet at 2 mm")
+    ap.add_argument("--quick", action="store_true", help="leave out ch2bet at 2 mm and 1 mm")
+    ap.add_argument("--only", default="", help="run only the cases whose label contains this text")
     a = ap.parse_args()
     work = a.work or tempfile.mkdtemp(prefix="isohex-adaptive-")
     phantoms = os.path.join(work, "phantoms")
@@ -84,6 +87,8 @@ def main():
     print("| input | mode | hexes | wall s | peak MB | min SJ | mean SJ | volume | valid | 1 = 2 threads | hexes per level |")
     print("|---|---|--:|--:|--:|--:|--:|--:|---|---|---|")
     for i, (label, inp, opts) in enumerate(cases(a.data, phantoms, a.quick)):
+        if a.only not in label:
+            continue
         for mode in ("uniform", "adaptive"):
             wall, mb, rep, vtu, hexes, smin, smean, vol = run(a.isohex, inp, opts, mode, work, f"case{i}")
             levels = rep.get("adaptive", {}).get("hexes_per_level", "")
