@@ -167,7 +167,7 @@ AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, c
     if (h != uniform.hexes.size()) throw Error("internal error: the uniform mesh has more hexes than labelled points");
     const NodePlacer place = [&](NodeKey key, Vec3& x, NodeClass& cls) {
         const auto q = keyCoords(key);
-        if (q[0] % 4 || q[1] % 4 || q[2] % 4) return;
+        if (q[0] % kS || q[1] % kS || q[2] % kS) return;  // not a level-0 node
         const Index v = cellNode[cellIndex(q[0] / kS, q[1] / kS, q[2] / kS)];
         if (v == kNone) return;
         x = uniform.nodes[static_cast<std::size_t>(v)];
