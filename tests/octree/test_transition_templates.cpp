@@ -201,7 +201,7 @@ TEST(TransitionTemplates, EachTemplateTilesItsCubeAndShowsItsFacePatterns) {
         {TemplateKind::TwoFace, "two-face"}, {TemplateKind::Full, "full"}};
     const std::map<TemplateKind, double> floor = {
         {TemplateKind::Vertex, 0.577}, {TemplateKind::Edge, 0.408}, {TemplateKind::Face, 0.30},
-        {TemplateKind::TwoFace, 0.24},  {TemplateKind::Full, 1.0}};
+        {TemplateKind::TwoFace, 0.258},  {TemplateKind::Full, 1.0}};
     const std::map<TemplateKind, std::size_t> count = {
         {TemplateKind::Vertex, 7}, {TemplateKind::Edge, 17}, {TemplateKind::Face, 31}, {TemplateKind::TwoFace, 45}, {TemplateKind::Full, 27}};
     for (const auto& [kind, name] : kinds) {
