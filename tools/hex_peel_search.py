@@ -270,7 +270,8 @@ def column_surface():
     import importlib.util
     import os
     import numpy as np
-    spec = importlib.util.spec_from_file_location("tft", os.path.join(os.path.dirname(__file__), "two-face-template.py"))
+    here = os.path.dirname(__file__)
+    spec = importlib.util.spec_from_file_location("tft", os.path.join(here, "two-face-template.py"))
     tft = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tft)
     names = sorted(tft.BOUNDARY)

@@ -81,7 +81,8 @@ def default_core_nodes():
 def oriented(h, X):
     """The hex with corners reordered (mirror) when its corner determinants are negative."""
     p = X[list(h)]
-    det = sum(np.linalg.det(np.array([p[a] - p[c], p[b] - p[c], p[d] - p[c]])) for c, (a, b, d) in enumerate(NEIGHBOURS))
+    det = sum(np.linalg.det(np.array([p[a] - p[c], p[b] - p[c], p[d] - p[c]]))
+              for c, (a, b, d) in enumerate(NEIGHBOURS))
     return h if det > 0 else (h[0], h[3], h[2], h[1], h[4], h[7], h[6], h[5])
 
 

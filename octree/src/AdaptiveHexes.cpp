@@ -55,7 +55,8 @@ struct LeafWalk {
         if (choice.action == TemplateChoice::Action::Plain) {
             std::array<NodeKey, 8> h;
             for (int c = 0; c < 8; ++c)
-                h[c] = nodeKey(kS * (a[0] + side * kRef[c][0]), kS * (a[1] + side * kRef[c][1]), kS * (a[2] + side * kRef[c][2]));
+                h[c] = nodeKey(kS * (a[0] + side * kRef[c][0]), kS * (a[1] + side * kRef[c][1]),
+                               kS * (a[2] + side * kRef[c][2]));
             add(h, m, l);
             return;
         }

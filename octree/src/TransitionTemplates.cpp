@@ -236,7 +236,8 @@ TemplatePoint CubeSymmetry::apply(const TemplatePoint& x) const {
     TemplatePoint y;
     for (int i = 0; i < 3; ++i) {
         const std::int8_t v = x[static_cast<std::size_t>(axis[static_cast<std::size_t>(i)])];
-        y[static_cast<std::size_t>(i)] = flip[static_cast<std::size_t>(i)] ? static_cast<std::int8_t>(kCellSteps - v) : v;
+        y[static_cast<std::size_t>(i)] =
+            flip[static_cast<std::size_t>(i)] ? static_cast<std::int8_t>(kCellSteps - v) : v;
     }
     return y;
 }
@@ -248,7 +249,8 @@ std::uint8_t CubeSymmetry::applyToMask(std::uint8_t mask) const {
         const TemplatePoint p = apply(TemplatePoint{static_cast<std::int8_t>(kCellSteps * (c & 1)),
                                                     static_cast<std::int8_t>(kCellSteps * (c >> 1 & 1)),
                                                     static_cast<std::int8_t>(kCellSteps * (c >> 2 & 1))});
-        out = static_cast<std::uint8_t>(out | 1u << (p[0] / kCellSteps + 2 * (p[1] / kCellSteps) + 4 * (p[2] / kCellSteps)));
+        out = static_cast<std::uint8_t>(out |
+                                        1u << (p[0] / kCellSteps + 2 * (p[1] / kCellSteps) + 4 * (p[2] / kCellSteps)));
     }
     return out;
 }
