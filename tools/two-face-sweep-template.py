@@ -1,6 +1,9 @@
 #!/usr/bin/python3
 """A two-face transition template of the 27-tree built as a sweep along the unsplit edge, and its checks.
 
+Not the template octree/ uses (tools/two-face-template.py: a pillowed corner column, end faces in nine unit
+quads); kept as the record of why a sweep does not fit the other templates.
+
 The cell is [0,3]^3 in child units (quarter lattice: integers 0..12), faces y = 0 and z = 0 marked (six corners),
 the edge y = z = 3 along x unsplit. The cross-section M2 (the y,z plane) is a quad mesh whose cells are swept
 along x in one of three ways:
@@ -23,15 +26,21 @@ Jacobian 0.135 (the T cells; F 0.50, C 0.38).
 
     tools/two-face-sweep-template.py
 """
-import itertools
+import importlib.util
+import os
 
 import numpy as np
 
+# the lattice helpers are shared with the two-face template's own tool
+_spec = importlib.util.spec_from_file_location("two_face_template",
+                                               os.path.join(os.path.dirname(__file__), "two-face-template.py"))
+_tft = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_tft)
+volume = _tft.volume
+
 STRIP = [((0, 0), (4, 0), (4, 1), (0, 2)), ((4, 0), (8, 0), (8, 1), (4, 1)),
          ((8, 0), (12, 0), (12, 2), (8, 1)), ((4, 1), (8, 1), (12, 2), (0, 2))]  # (x, t-node index)
-REF = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
-NEIGHBOURS = [(1, 3, 4), (2, 0, 5), (3, 1, 6), (0, 2, 7), (7, 5, 0), (4, 6, 1), (5, 7, 2), (6, 4, 3)]
-FACES = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+NEIGHBOURS, FACES = _tft.NEIGHBOURS, _tft.FACES
 
 
 def corner_jacobians(h):
@@ -42,20 +51,6 @@ def corner_jacobians(h):
         det = np.linalg.det(m)
         out.append((det, det / np.prod(np.linalg.norm(m, axis=1))))
     return min(d for d, _ in out), min(s for _, s in out)
-
-
-def volume(h):
-    p = np.array(h, float)
-    g = [(1 - 1 / np.sqrt(3)) / 2, (1 + 1 / np.sqrt(3)) / 2]
-    v = 0.0
-    for u in itertools.product(g, g, g):
-        j = np.zeros((3, 3))
-        for i in range(8):
-            w = [u[k] if REF[i][k] else 1 - u[k] for k in range(3)]
-            s = [1 if REF[i][k] else -1 for k in range(3)]
-            j += np.outer(p[i], [s[0] * w[1] * w[2], w[0] * s[1] * w[2], w[0] * w[1] * s[2]])
-        v += np.linalg.det(j) / 8
-    return v
 
 
 def cross_section():

@@ -12,6 +12,7 @@ namespace isohex::octree {
 
 namespace {
 
+constexpr std::int64_t kS = kKeySteps;
 constexpr int kRef[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
 
 // The leaves of the tree, visited depth first from the roots in index order.
@@ -38,7 +39,7 @@ struct LeafWalk {
         const std::int32_t m = labels.material[labels.grid.index(i, j, k)];
         if (m == 0) return;
         std::array<NodeKey, 8> h;
-        for (int c = 0; c < 8; ++c) h[c] = nodeKey(4 * (i + kRef[c][0]), 4 * (j + kRef[c][1]), 4 * (k + kRef[c][2]));
+        for (int c = 0; c < 8; ++c) h[c] = nodeKey(kS * (i + kRef[c][0]), kS * (j + kRef[c][1]), kS * (k + kRef[c][2]));
         add(h, m, 0);
     }
 
@@ -54,16 +55,17 @@ struct LeafWalk {
         if (choice.action == TemplateChoice::Action::Plain) {
             std::array<NodeKey, 8> h;
             for (int c = 0; c < 8; ++c)
-                h[c] = nodeKey(4 * (a[0] + side * kRef[c][0]), 4 * (a[1] + side * kRef[c][1]), 4 * (a[2] + side * kRef[c][2]));
+                h[c] = nodeKey(kS * (a[0] + side * kRef[c][0]), kS * (a[1] + side * kRef[c][1]),
+                               kS * (a[2] + side * kRef[c][2]));
             add(h, m, l);
             return;
         }
-        const std::int64_t child = side / 3;  // template coordinates are quarters of a child
+        const std::int64_t child = side / 3;  // template coordinates are twelfths of a child
         for (const TemplateHex& th : templateHexes(choice.kind)) {
             const TemplateHex t = choice.symmetry.apply(th);
             std::array<NodeKey, 8> h;
             for (int c = 0; c < 8; ++c)
-                h[c] = nodeKey(4 * a[0] + t[c][0] * child, 4 * a[1] + t[c][1] * child, 4 * a[2] + t[c][2] * child);
+                h[c] = nodeKey(kS * a[0] + t[c][0] * child, kS * a[1] + t[c][1] * child, kS * a[2] + t[c][2] * child);
             add(h, m, l);
         }
     }
@@ -91,8 +93,8 @@ struct LeafWalk {
 LeafHexes leafHexes(const RefinementTree& tree, const Labels& labels) {
     if (tree.points != labels.grid.dims) throw Error("internal error: the refinement tree was built for another grid");
     for (int c = 0; c < 3; ++c)
-        if (4 * (static_cast<std::int64_t>(tree.points[c]) + 1) >= (std::int64_t{1} << 21))
-            throw Error("the grid is too large for the adaptive mesher (more than 524,000 points along an axis)");
+        if (kS * (static_cast<std::int64_t>(tree.points[c]) + 1) >= (std::int64_t{1} << 21))
+            throw Error("the grid is too large for the adaptive mesher (more than 174,000 points along an axis)");
     LeafWalk walk{tree, labels, {}};
     const RefinementLevel& roots = tree.levels.back();
     for (int k = 0; k < roots.dims[2]; ++k)
@@ -113,7 +115,7 @@ AdaptiveMesh assembleAdaptive(const LeafHexes& leaves, const Grid& grid, const N
     mesh.nodeClass.assign(keys.size(), NodeClass{});
     tbb::parallel_for(std::size_t{0}, keys.size(), [&](std::size_t n) {
         const auto q = keyCoords(keys[n]);
-        mesh.nodes[n] = grid.point(q[0] / 4.0 - 0.5, q[1] / 4.0 - 0.5, q[2] / 4.0 - 0.5);
+        mesh.nodes[n] = grid.point(q[0] / double(kS) - 0.5, q[1] / double(kS) - 0.5, q[2] / double(kS) - 0.5);
         if (place) place(keys[n], mesh.nodes[n], mesh.nodeClass[n]);
     });
     const bool mirrored = grid.determinant() < 0;
@@ -166,8 +168,8 @@ AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, c
     if (h != uniform.hexes.size()) throw Error("internal error: the uniform mesh has more hexes than labelled points");
     const NodePlacer place = [&](NodeKey key, Vec3& x, NodeClass& cls) {
         const auto q = keyCoords(key);
-        if (q[0] % 4 || q[1] % 4 || q[2] % 4) return;
-        const Index v = cellNode[cellIndex(q[0] / 4, q[1] / 4, q[2] / 4)];
+        if (q[0] % kS || q[1] % kS || q[2] % kS) return;  // not a level-0 node
+        const Index v = cellNode[cellIndex(q[0] / kS, q[1] / kS, q[2] / kS)];
         if (v == kNone) return;
         x = uniform.nodes[static_cast<std::size_t>(v)];
         cls = uniform.nodeClass[static_cast<std::size_t>(v)];

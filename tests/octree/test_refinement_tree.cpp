@@ -163,3 +163,56 @@ TEST(RefinementTree, LabelChangesKeepTheBoundaryAndTheVolumeOfTheUniformMesh) {
         }
     }
 }
+
+namespace {
+
+// Level-1 requests (a root level of 9 x 9 x 9 cells over 27^3 points) for the
+// cells where `refine(i, j, k)` holds.
+template <class F>
+std::vector<std::vector<std::uint8_t>> levelOneRequests(F refine) {
+    std::vector<std::vector<std::uint8_t>> req(2);
+    req[1].resize(9 * 9 * 9);
+    for (int k = 0; k < 9; ++k)
+        for (int j = 0; j < 9; ++j)
+            for (int i = 0; i < 9; ++i) req[1][static_cast<std::size_t>((k * 9 + j) * 9 + i)] = refine(i, j, k);
+    return req;
+}
+
+}  // namespace
+
+TEST(RefinementTree, AnLShapedRefinedRegionKeepsItsCoarseSideWithTwoFaceTemplates) {
+    // Refined cells on two adjacent sides (x < 2 or y < 2) of a coarse region:
+    // the coarse cells along the region's convex edge see refined neighbours
+    // on two adjacent faces (six marked corners) and take the two-face template.
+    const std::array<int, 3> dims{27, 27, 27};
+    const Labels l = solid(dims);
+    const RefinementTree tree = closeRefinement(dims, 1, levelOneRequests([](int i, int j, int) { return i < 2 || j < 2; }));
+    const RefinementLevel& L = tree.levels[1];
+    int twoFace = 0, plain = 0;
+    for (std::size_t c = 0; c < L.refined.size(); ++c) {
+        if (L.refined[c]) continue;
+        const TemplateChoice t = chooseTemplate(L.marks[c]);
+        twoFace += t.action == TemplateChoice::Action::Template && t.kind == TemplateKind::TwoFace;
+        plain += t.action == TemplateChoice::Action::Plain;
+    }
+    EXPECT_EQ(twoFace, 9);  // the column of cells at (2, 2, k)
+    EXPECT_GT(plain, 0);
+    const AdaptiveMesh a = assembleAdaptive(leafHexes(tree, l), l.grid);
+    expectConformalBox(a, {-0.5, -0.5, -0.5}, {26.5, 26.5, 26.5});
+    EXPECT_LT(a.mesh.hexCount(), l.grid.size());
+}
+
+TEST(RefinementTree, ARefinedShellKeepsACoarseInside) {
+    // Every cell of the outer shell refined: without the two-face template the
+    // closure refined the whole inside; now the centre stays one hex.
+    const std::array<int, 3> dims{27, 27, 27};
+    const Labels l = solid(dims);
+    const RefinementTree tree = closeRefinement(
+        dims, 1, levelOneRequests([](int i, int j, int k) { return std::min({i, j, k}) == 0 || std::max({i, j, k}) == 8; }));
+    const RefinementLevel& L = tree.levels[1];
+    EXPECT_FALSE(L.refined[L.index(4, 4, 4)]);
+    EXPECT_EQ(L.marks[L.index(4, 4, 4)], 0);
+    const AdaptiveMesh a = assembleAdaptive(leafHexes(tree, l), l.grid);
+    expectConformalBox(a, {-0.5, -0.5, -0.5}, {26.5, 26.5, 26.5});
+    EXPECT_LT(a.mesh.hexCount(), l.grid.size());
+}

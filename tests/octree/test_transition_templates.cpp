@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <iostream>
 #include <map>
 #include <set>
@@ -27,12 +28,12 @@ using P2 = std::array<int, 2>;
 using Quad2 = std::set<P2>;
 using Pattern = std::set<Quad2>;
 
-// 2-D patterns in quarter units of a 3x3 face, corner (0,0) = bit 0, (12,0) bit 1, (0,12) bit 2, (12,12) bit 3.
+// 2-D patterns in twelfths of a child on a 3x3 face, corner (0,0) = bit 0, (36,0) bit 1, (0,36) bit 2, (36,36) bit 3.
 Pattern quads(std::initializer_list<std::initializer_list<std::array<double, 2>>> qs) {
     Pattern p;
     for (const auto& q : qs) {
         Quad2 s;
-        for (const auto& x : q) s.insert({static_cast<int>(x[0] * 4), static_cast<int>(x[1] * 4)});
+        for (const auto& x : q) s.insert({static_cast<int>(x[0] * kChildSteps), static_cast<int>(x[1] * kChildSteps)});
         p.insert(s);
     }
     return p;
@@ -40,7 +41,10 @@ Pattern quads(std::initializer_list<std::initializer_list<std::array<double, 2>>
 Pattern unitQuads(int rows) {
     Pattern p;
     for (int j = 0; j < rows; ++j)
-        for (int i = 0; i < 3; ++i) p.insert(Quad2{P2{4 * i, 4 * j}, P2{4 * i + 4, 4 * j}, P2{4 * i + 4, 4 * j + 4}, P2{4 * i, 4 * j + 4}});
+        for (int i = 0; i < 3; ++i) {
+            const int u = kChildSteps * i, v = kChildSteps * j, d = kChildSteps;
+            p.insert(Quad2{P2{u, v}, P2{u + d, v}, P2{u + d, v + d}, P2{u, v + d}});
+        }
     return p;
 }
 // The canonical patterns: vertex at corner (0,0), edge along v = 0.
@@ -75,16 +79,16 @@ Pattern expectedPattern(std::uint8_t faceMask) {
         const bool swap = s & 1, fu = s & 2, fv = s & 4;
         const auto map = [&](P2 p) {
             if (swap) std::swap(p[0], p[1]);
-            if (fu) p[0] = 12 - p[0];
-            if (fv) p[1] = 12 - p[1];
+            if (fu) p[0] = kCellSteps - p[0];
+            if (fv) p[1] = kCellSteps - p[1];
             return p;
         };
         for (const auto& [mask, pattern] : canonicalPatterns()) {
             std::uint8_t m = 0;
             for (int c = 0; c < 4; ++c)
                 if (mask >> c & 1) {
-                    const P2 q = map({12 * (c & 1), 12 * (c >> 1)});
-                    m = static_cast<std::uint8_t>(m | 1u << (q[0] / 12 + 2 * (q[1] / 12)));
+                    const P2 q = map({kCellSteps * (c & 1), kCellSteps * (c >> 1)});
+                    m = static_cast<std::uint8_t>(m | 1u << (q[0] / kCellSteps + 2 * (q[1] / kCellSteps)));
                 }
             if (m != faceMask) continue;
             Pattern out;
@@ -99,7 +103,7 @@ Pattern expectedPattern(std::uint8_t faceMask) {
     return {};  // no pattern: such a face must never appear
 }
 
-// The hexes of a placement as a mesh (nodes merged by position, quarter units).
+// The hexes of a placement as a mesh (nodes merged by lattice position, child units).
 HexMesh templateMesh(const std::vector<TemplateHex>& hexes) {
     HexMesh m;
     std::map<TemplatePoint, Index> id;
@@ -107,7 +111,7 @@ HexMesh templateMesh(const std::vector<TemplateHex>& hexes) {
         Hex hex;
         for (int c = 0; c < 8; ++c) {
             auto [it, added] = id.emplace(h[c], static_cast<Index>(m.nodes.size()));
-            if (added) m.addNode({h[c][0] / 4.0, h[c][1] / 4.0, h[c][2] / 4.0});
+            if (added) m.addNode({h[c][0] / double(kChildSteps), h[c][1] / double(kChildSteps), h[c][2] / double(kChildSteps)});
             hex[c] = it->second;
         }
         m.addHex(hex);
@@ -157,7 +161,7 @@ double checkPlacement(const std::vector<TemplateHex>& hexes, std::uint8_t mask) 
         const int a = face / 2, u = a == 0 ? 1 : 0, w = a == 2 ? 1 : 2;
         for (Index n : qn) {
             const Vec3& x = m.nodes[static_cast<std::size_t>(n)];
-            s.insert({static_cast<int>(x[u] * 4), static_cast<int>(x[w] * 4)});
+            s.insert({static_cast<int>(std::lround(x[u] * kChildSteps)), static_cast<int>(std::lround(x[w] * kChildSteps))});
         }
         faces[face].insert(s);
     }
@@ -193,11 +197,13 @@ TEST(TransitionTemplates, FortyEightSymmetriesHalfOfThemMirrors) {
 
 TEST(TransitionTemplates, EachTemplateTilesItsCubeAndShowsItsFacePatterns) {
     const std::pair<TemplateKind, const char*> kinds[] = {
-        {TemplateKind::Vertex, "vertex"}, {TemplateKind::Edge, "edge"}, {TemplateKind::Face, "face"}, {TemplateKind::Full, "full"}};
+        {TemplateKind::Vertex, "vertex"}, {TemplateKind::Edge, "edge"},      {TemplateKind::Face, "face"},
+        {TemplateKind::TwoFace, "two-face"}, {TemplateKind::Full, "full"}};
     const std::map<TemplateKind, double> floor = {
-        {TemplateKind::Vertex, 0.577}, {TemplateKind::Edge, 0.408}, {TemplateKind::Face, 0.30}, {TemplateKind::Full, 1.0}};
+        {TemplateKind::Vertex, 0.577}, {TemplateKind::Edge, 0.408}, {TemplateKind::Face, 0.30},
+        {TemplateKind::TwoFace, 0.258},  {TemplateKind::Full, 1.0}};
     const std::map<TemplateKind, std::size_t> count = {
-        {TemplateKind::Vertex, 7}, {TemplateKind::Edge, 17}, {TemplateKind::Face, 31}, {TemplateKind::Full, 27}};
+        {TemplateKind::Vertex, 7}, {TemplateKind::Edge, 17}, {TemplateKind::Face, 31}, {TemplateKind::TwoFace, 45}, {TemplateKind::Full, 27}};
     for (const auto& [kind, name] : kinds) {
         EXPECT_EQ(templateHexes(kind).size(), count.at(kind)) << name;
         double worst = 1;
@@ -238,9 +244,10 @@ TEST(TransitionTemplates, EveryMaskIsPlainATemplateOrPromotedToTheFewestMoreCorn
         }
         if (n == 1) EXPECT_EQ(c.kind, TemplateKind::Vertex);
         if (n == 7 || n == 8) EXPECT_EQ(c.kind, TemplateKind::Full);
+        if (n == 6) EXPECT_EQ(c.action, TemplateChoice::Action::Template) << m;  // two-face or FULL
     }
     EXPECT_EQ(plain, 1);
-    EXPECT_EQ(templ - full, 8 + 12 + 6);  // corners, edges, faces
+    EXPECT_EQ(templ - full, 8 + 12 + 6 + 12);  // corners, edges, faces, pairs of adjacent faces
     std::cout << "[ masks ] " << full << " take the 27 unit cubes, " << promote << " are promoted\n";
     EXPECT_EQ(plain + templ + promote, 256);
 }

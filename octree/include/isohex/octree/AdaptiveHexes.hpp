@@ -2,11 +2,11 @@
 // The hexes of a closed 27-tree (RefinementTree.hpp): the leaves' hexes,
 // template hexes where corners are marked, as one conformal HexMesh.
 //
-// Nodes are keyed by their place on the quarter lattice of the level-0
+// Nodes are keyed by their place on the lattice of twelfths of the level-0
 // nodes: a level-0 node (the centre of a grid cell, grid coordinate
-// n - 1/2) has key 4n per axis; template nodes fall on quarters of a child
-// cell, and a child of a level-l cell is 3^(l-1) level-0 hexes wide, so
-// every key is an integer. Equal places get equal keys whatever cell made
+// n - 1/2) has key 12n per axis; template nodes fall on twelfths of a child
+// cell (TransitionTemplates.hpp), and a child of a level-l cell is 3^(l-1)
+// level-0 hexes wide, so every key is an integer. Equal places get equal keys whatever cell made
 // them, so sorting the keys once numbers the nodes of a conformal mesh
 // (linear in the hexes, deterministic).
 #include <array>
@@ -17,12 +17,14 @@
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/RefinementTree.hpp"
+#include "isohex/octree/TransitionTemplates.hpp"
 
 namespace isohex::octree {
 
-// 4x the node coordinate per axis, 21 bits each (x lowest), so keys sort in
+// 12x the node coordinate per axis (kKeySteps), 21 bits each (x lowest), so keys sort in
 // z, y, x order like the grid's cells.
 using NodeKey = std::uint64_t;
+inline constexpr std::int64_t kKeySteps = kChildSteps;  // key steps per level-0 hex
 inline NodeKey nodeKey(std::int64_t qx, std::int64_t qy, std::int64_t qz) {
     return static_cast<NodeKey>(qx) | static_cast<NodeKey>(qy) << 21 | static_cast<NodeKey>(qz) << 42;
 }

@@ -18,43 +18,24 @@
 //
 // Closure (marked-node scheme): a refined cell marks its 8 corners; an
 // unrefined cell takes the template of its marked corners
-// (TransitionTemplates.hpp), or is refined when no template fits, until a
-// fixed point. Levels are closed bottom-up: the parent of every level-l cell
+// (TransitionTemplates.hpp), or marks the corners its promotion adds (the
+// fewest that reach a mask with a template), until a fixed point. Levels are closed bottom-up: the parent of every level-l cell
 // that is refined or carries a template is refined at level l + 1, because
 // template hexes are final and deeper refinement must sit inside fully
 // refined parents. So a leaf's level differs from that of any face, edge or
 // corner neighbour by at most one.
 //
-// Known limit of this template set (vertex, edge, face, and the 27 unit
-// cubes for masks that mark an end of every edge): a cell whose two
-// adjacent faces are marked (six corners: the convex edge of a coarse region
-// wrapped by refined cells) has no template, and its promotion adds a corner
-// that its neighbours further inside must take, so a coarse region enclosed
-// by refined cells is eaten from its edges: the closure then refines the
-// whole inside. No other choice of marks avoids this: an exhaustive search
+// Templates (TransitionTemplates.hpp): vertex, edge, face, two-face (the
+// six corners of two adjacent faces: the convex edge of a coarse region that
+// refined cells wrap) and the 27 unit cubes for masks that mark an end of
+// every edge (a convex corner of such a region has seven). Without the
+// two-face template a coarse region enclosed by refined cells was eaten from
+// its edges and the closure refined the whole inside; an exhaustive search
 // over every marking of a block whose outer shell is refined
-// (tools/template-closure-search.py) finds none that keeps the centre cell
-// plain with this template set, and finds one as soon as the two-face masks
-// are allowed; so the two-face template is required, not a closure rule.
-// What it must show: the two marked faces and the two end faces split in
-// nine, the two other faces the EDGE pattern whose 3-to-1 strips meet at
-// the unsplit edge. Its x-chords X1 and X3 are one sheet that turns at that
-// edge, and that sheet meets the middle sheet X2 in a curve whose ends are
-// the two strips' top quads, which share an edge, so the curve must cross
-// other sheets. With only the eight sheets the faces ask for, the crossings
-// checked (the turn dipping past the planes next to the edge) put two strip
-// quads of one face on one hex (a flat hex); an extra closed (pillow) sheet
-// is the likely way out. Nor is it a sweep of the 2-D strip across the
-// cross-section (columns split in three, whole, or strip pieces): that needs
-// at least five cells around the unsplit edge where the end faces have one
-// (tools/two-face-sweep-template.py builds and checks such a sweep: its end
-// faces show 14 quads, so every face with three marked corners would have
-// to, and the seven-corner template would then need an odd count there).
-// It cannot keep unit cubes beside its corner column either (the corner hex
-// would need the two strips' corner quads, which share no edge, as adjacent
-// faces). Deriving it is the next step (Ito, Shih and Soni 2009; Tong and
-// Zhang 2025 for relaxed balance). Until then the adaptive mesh of a closed
-// object keeps the hex count of the uniform one.
+// (tools/template-closure-search.py) shows that no closure rule avoids it
+// without that template, and that one exists with it. Other masks (e.g. two
+// opposite corners, or a face and one more corner) are promoted to the
+// superset with a template and the fewest added corners.
 #include <array>
 #include <cstddef>
 #include <cstdint>
