@@ -66,7 +66,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     // The band's surfaces: its boundary quads in triangle trees (the band's
     // own edge, inside the merged mesh, is fixed below).
     insertion::SheetGeometry geometry;
-    insertion::adoptBoundary(sub, geometry);
+    insertion::adoptBoundary(sub, geometry, kCutBandFeatureAngle);
     for (std::size_t v = 0; v < sub.nodeCount(); ++v) {
         if (!band[static_cast<std::size_t>(from[v])]) sub.nodeClass[v] = {NodeKind::Fixed, -1};
         else ++r.nodes;

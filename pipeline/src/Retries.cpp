@@ -165,7 +165,9 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
         return m;
     }
     // A part: keys from the contoured cells and the sheets, then only the
-    // part's own hexes are optimised, with the nodes on its cuts frozen.
+    // part's own hexes are optimised, with the nodes on its cuts frozen (they
+    // stay frozen through the retries and the relaxation: runMeshPipeline
+    // gives them their classes back).
     std::vector<NodeKey> keys = contourKeys(m.mesh, *m.prepared.part);
     const std::vector<std::int32_t> materials = sortedMaterials(m.mesh);
     std::vector<isohex::PillowResult> passes;
@@ -173,7 +175,6 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     addCopyKeys(keys, passes, materials);
     m.partNodes = keepOwnHexes(m.mesh, std::move(keys), *m.prepared.part);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
-    unfreezeCutNodes(m.mesh, *m.partNodes);
     return m;
 }
 

@@ -16,6 +16,15 @@ namespace isohex::pipeline {
 // Rings of hexes around the cut nodes whose nodes move in the second pass.
 inline constexpr int kCutBandRings = 4;
 
+// Boundary edges whose two quads' normals differ by more than this (degrees)
+// keep their nodes fixed in the band pass; the other boundary nodes slide on
+// the boundary's quads. A scan's isosurface has no creases at the element
+// size: the creases in a band are where the parts froze unoptimised nodes on
+// the cut (at adoptBoundary's usual 30 degrees they pin the sheet hexes there,
+// skull_ct merged from 2 parts: minimum 0.009 against 0.303 at 120 degrees).
+// Only spikes stay fixed.
+inline constexpr double kCutBandFeatureAngle = 120.0;
+
 struct CutBandResult {
     std::size_t nodes = 0, hexes = 0;  // nodes free to move; hexes around them (the band)
     double minBefore = 0, minAfter = 0;  // lowest scaled Jacobian in the band
