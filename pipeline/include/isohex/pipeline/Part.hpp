@@ -40,9 +40,17 @@ struct PartWindow {
     bool cutAbove() const { return spec.index < spec.count; }
 };
 
-// The window of part spec.index of `whole`: slabs of n * k / N layers. Throws
-// SettingError when a slab would be thinner than kPartMinLayers.
-PartWindow partWindow(const octree::Grid& whole, PartSpec spec);
+// The cut axis of `whole`: the one with the most grid points (the first of equals).
+int partAxis(const octree::Grid& whole);
+
+// The window of part spec.index of `whole`. With `layerWeights` (one per grid
+// layer along partAxis: how much of the object each layer holds, e.g. its
+// selected voxels), the cuts balance the weight: cut k is the first layer
+// whose preceding layers hold k/N of it, so the parts hold about equal
+// numbers of hexes (and peak memory) however the object fills the box;
+// without, slabs of n * k / N layers. Every slab keeps kPartMinLayers. Throws
+// SettingError when the grid has fewer than N * kPartMinLayers layers.
+PartWindow partWindow(const octree::Grid& whole, PartSpec spec, const std::vector<std::int64_t>& layerWeights = {});
 
 // Where a node comes from, the same in every part: the whole-grid cell (its
 // lowest corner's whole-grid point index) of the dual-contouring vertex it
