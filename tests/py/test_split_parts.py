@@ -72,7 +72,9 @@ class SplitParts(unittest.TestCase):
         self.assertEqual(sum(read_vtu(f).GetNumberOfCells() for f in files), m.GetNumberOfCells())
         sj, sj1 = vtk_sj(m), vtk_sj(single)
         self.assertGreater(sj.min(), 0.0)
-        self.assertLessEqual(abs(sj.min() - sj1.min()), 0.02)
+        # no worse than the single run by more than 0.02 (the band pass after
+        # the merge may lift the worst hexes above the single run's)
+        self.assertGreaterEqual(sj.min(), sj1.min() - 0.02)
         self.assertLessEqual(abs(sj.mean() - sj1.mean()), 0.02)
         v, v1 = vtk_volumes(m).sum(), vtk_volumes(single).sum()
         self.assertLess(abs(v - v1) / v1, 0.002)
