@@ -8,14 +8,13 @@ parts; the merge refuses incomplete or mixed splits and the options that
 need the whole scan are refused with --part."""
 import json
 import os
-import subprocess
 import sys
 import unittest
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from common import SHARED_DATA, phantoms, run, workdir  # noqa: E402
 from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
 from vtk.util import numpy_support as ns  # noqa: E402
 
@@ -38,9 +37,7 @@ def repeated_points(grid):
 class SplitParts(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.dir = workdir("split")
-        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
-                       check=True, capture_output=True)
+        cls.dir = phantoms("split")
         cls.torus = os.path.join(cls.dir, "torus.nii.gz")
         cls.opts = ["--iso", "50", "--size", "1"]
         cls.single = os.path.join(cls.dir, "single.vtu")
