@@ -43,12 +43,13 @@ std::vector<Index> hexesToWorkOn(const Stuck& stuck, std::optional<std::string>&
     return work;
 }
 
-// A part's grid edits stay kPartGhostLayers / 2 + 2 layers clear of its cuts,
-// where the neighbour part, which does not see them, meshes the same nodes.
+// A part's grid edits stay kPartGhostLayers clear of its cuts, where the
+// neighbour part, which does not see them, meshes the same nodes (what an
+// edit changes can spread as far as what a cut node depends on).
 void dropHexesNearCuts(const RetryState& s, std::vector<std::array<double, 3>>& at, std::vector<Index>& work) {
     const auto& part = s.best.prepared.part;
     if (!part) return;
-    const double margin = kPartGhostLayers / 2 + 2;
+    const double margin = kPartGhostLayers;
     std::size_t kept = 0;
     for (std::size_t i = 0; i < work.size(); ++i) {
         const double layer = at[i][static_cast<std::size_t>(part->axis)] + part->first;

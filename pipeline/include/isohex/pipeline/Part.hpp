@@ -22,8 +22,12 @@ namespace isohex::pipeline {
 // Grid layers a part samples, repairs, contours and pillows beyond each of
 // its cuts. What happens at a cut node depends on the labels within a few
 // layers (the repair's 2x2x2 blocks, the held-back test's neighbour hexes,
-// the sheet's averaged normals); eight leave room for a repair that spreads.
-inline constexpr int kPartGhostLayers = 8;
+// the sheet's averaged normals) and, where the sheet's start inverts hexes,
+// on the pillow's step rounds, whose halvings spread a few hexes a round for
+// up to PillowOptions::maxHalvings rounds: with 8 layers two parts of ch2bet
+// (1 mm, 4 parts) placed 8 sheet copies on a cut differently, by up to
+// 1.2e-3 mm; with 12 they agree.
+inline constexpr int kPartGhostLayers = 12;
 // The thinnest slab a part may own (a node on a cut then belongs to two parts only).
 inline constexpr int kPartMinLayers = 4;
 
