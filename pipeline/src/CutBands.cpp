@@ -55,7 +55,16 @@ HexMesh bandMesh(const HexMesh& mesh, const std::vector<std::uint8_t>& band, std
 CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings) {
     const Stopwatch clock;
     CutBandResult r;
-    const std::vector<std::uint8_t> band = bandNodes(mesh, onCut, rings);
+    // Seeds: the cut nodes and the nodes of every hex below the worst-hex
+    // target, wherever it is (a part's max-min pass leaves hexes far from
+    // its cuts lower than the single run does).
+    std::vector<std::uint8_t> seeds = onCut;
+    const std::vector<double> sj = scaledJacobians(mesh);
+    const double target = smoothing::WorstHexOptions{}.target;
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h)
+        if (!(sj[h] >= target) || sj[h] > 1.0 + 1e-9)
+            for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
+    const std::vector<std::uint8_t> band = bandNodes(mesh, seeds, rings);
     std::vector<Index> from;
     HexMesh sub = bandMesh(mesh, band, from);
     r.hexes = sub.hexCount();
@@ -66,7 +75,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     // The band's surfaces: its boundary quads in triangle trees (the band's
     // own edge, inside the merged mesh, is fixed below).
     insertion::SheetGeometry geometry;
-    insertion::adoptBoundary(sub, geometry);
+    insertion::adoptBoundary(sub, geometry, kCutBandFeatureAngle);
     for (std::size_t v = 0; v < sub.nodeCount(); ++v) {
         if (!band[static_cast<std::size_t>(from[v])]) sub.nodeClass[v] = {NodeKind::Fixed, -1};
         else ++r.nodes;

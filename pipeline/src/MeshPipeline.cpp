@@ -46,6 +46,8 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         r.relaxation = relaxToMinQuality(m.mesh, m.prepared, settings, sink);
         features = removeFineFeatures(m, settings, sink, r.relaxation);
     }
+    // A part's cut nodes stayed frozen through every stage that moves nodes.
+    if (m.partNodes) unfreezeCutNodes(m.mesh, *m.partNodes);
     r.fidelity = timedStage(sink, "fidelity", [&] { return fidelity(m.mesh, m.prepared); });
     r.prepared = m.prepared.facts;
     r.contouredHexes = m.contouredHexes;

@@ -55,25 +55,59 @@ std::vector<std::int32_t> sortedMaterials(const HexMesh& mesh) {
     return mats;
 }
 
-PartWindow partWindow(const octree::Grid& whole, PartSpec spec) {
+int partAxis(const octree::Grid& whole) {
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+        if (whole.dims[a] > whole.dims[axis]) axis = a;
+    return axis;
+}
+
+namespace {
+
+// The first layer of every slab and n (N + 1 entries) for n layers: equal
+// layers, or balanced by the weights (integer sums: every part computes the
+// same cuts), each moved up where needed so that every slab keeps
+// kPartMinLayers.
+std::vector<int> cutLayers(int n, int N, const std::vector<std::int64_t>& weights) {
+    std::int64_t total = 0;
+    for (std::int64_t x : weights) total += x;
+    const bool balanced = static_cast<int>(weights.size()) == n && total > 0;
+    std::vector<int> cuts(static_cast<std::size_t>(N) + 1, 0);
+    cuts[static_cast<std::size_t>(N)] = n;
+    std::int64_t before = 0;  // weight of the layers below c
+    int c = 0;
+    for (int k = 1; k < N; ++k) {
+        int at = static_cast<int>(static_cast<long long>(n) * k / N);
+        if (balanced) {
+            for (; c < n && before * N < total * k; ++c) before += weights[static_cast<std::size_t>(c)];
+            at = c;
+        }
+        cuts[static_cast<std::size_t>(k)] =
+            std::clamp(at, cuts[static_cast<std::size_t>(k) - 1] + kPartMinLayers, n - (N - k) * kPartMinLayers);
+    }
+    return cuts;
+}
+
+}  // namespace
+
+PartWindow partWindow(const octree::Grid& whole, PartSpec spec, const std::vector<std::int64_t>& layerWeights) {
     if (spec.count < 1 || spec.index < 1 || spec.index > spec.count)
         throw Error("part " + std::to_string(spec.index) + "/" + std::to_string(spec.count) +
                     ": K/N needs 1 <= K <= N");
     PartWindow w;
     w.spec = spec;
     w.whole = whole;
-    for (int a = 1; a < 3; ++a)
-        if (whole.dims[a] > whole.dims[w.axis]) w.axis = a;
+    w.axis = partAxis(whole);
     const int n = whole.dims[w.axis];
-    auto cut = [&](int k) { return static_cast<int>(static_cast<long long>(n) * k / spec.count); };
-    w.coreLo = cut(spec.index - 1);
-    w.coreHi = cut(spec.index);
-    if (w.coreHi - w.coreLo < kPartMinLayers)
+    if (n < spec.count * kPartMinLayers)
         throw SettingError({"the grid has " + std::to_string(n) + " layers along its longest axis, too few for " +
                                 std::to_string(spec.count) + " parts of at least " + std::to_string(kPartMinLayers) +
                                 " layers each; use fewer parts (", Setting::Part, ") or a smaller ", Setting::Size});
-    w.first = w.cutBelow() ? w.coreLo - kPartGhostLayers : 0;
-    const int last = w.cutAbove() ? w.coreHi + kPartGhostLayers : n;  // one past the window
+    const std::vector<int> cuts = cutLayers(n, spec.count, layerWeights);
+    w.coreLo = cuts[static_cast<std::size_t>(spec.index) - 1];
+    w.coreHi = cuts[static_cast<std::size_t>(spec.index)];
+    w.first = w.cutBelow() ? std::max(0, w.coreLo - kPartGhostLayers) : 0;
+    const int last = w.cutAbove() ? std::min(n, w.coreHi + kPartGhostLayers) : n;  // one past the window
     w.grid = whole;
     for (int c = 0; c < 3; ++c) w.grid.origin[c] += w.first * whole.axes[w.axis][c];
     w.grid.dims[w.axis] = last - w.first;

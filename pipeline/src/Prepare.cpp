@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "Format.hpp"
@@ -44,6 +45,15 @@ struct PrepareState {
     octree::Labels sampled;                               // the labels as sampled, before any change
 };
 
+// Whether voxel c is inside a selected material.
+bool selected(const imaging::Volume& vol, const imaging::Selection& sel, const openvdb::Coord& c) {
+    if (vol.kind == imaging::VolumeKind::Labels) {
+        const std::int32_t l = vol.labels->tree().getValue(c);
+        return std::any_of(sel.materials.begin(), sel.materials.end(), [&](const auto& m) { return m.id == l; });
+    }
+    return sel.materials.front().field.grid().tree().getValue(c) < 0;
+}
+
 // Index-space box of the voxels inside any selected material.
 openvdb::CoordBBox solidBox(const imaging::Volume& vol, const imaging::Selection& sel) {
     const openvdb::CoordBBox box = vol.box;
@@ -61,18 +71,38 @@ openvdb::CoordBBox solidBox(const imaging::Volume& vol, const imaging::Selection
                 for (int j = box.min().y(); j <= box.max().y(); ++j)
                     for (int i = box.min().x(); i <= box.max().x(); ++i) {
                         const openvdb::Coord c(i, j, k);
-                        bool in = false;
-                        if (vol.kind == imaging::VolumeKind::Labels) {
-                            const std::int32_t l = vol.labels->tree().getValue(c);
-                            for (const auto& m : sel.materials) in = in || m.id == l;
-                        } else {
-                            in = sel.materials.front().field.grid().tree().getValue(c) < 0;
-                        }
-                        if (in) acc.expand(c);
+                        if (selected(vol, sel, c)) acc.expand(c);
                     }
             return acc;
         },
         join);
+}
+
+// The selected voxels nearest each layer of `grid` along `axis` (whose first
+// layer is at voxel index `start` and which is `step` voxels apart): the
+// weights a split balances (partWindow).
+std::vector<std::int64_t> selectedPerLayer(const imaging::Volume& vol, const imaging::Selection& sel, int axis,
+                                           double start, double step, int layers) {
+    const openvdb::CoordBBox box = vol.box;
+    std::vector<std::int64_t> perVoxelLayer(static_cast<std::size_t>(box.dim()[axis]), 0);
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    tbb::parallel_for(tbb::blocked_range<int>(box.min()[axis], box.max()[axis] + 1), [&](const auto& r) {
+        for (int a = r.begin(); a != r.end(); ++a) {
+            std::int64_t n = 0;
+            openvdb::Coord c;
+            c[axis] = a;
+            for (c[v] = box.min()[v]; c[v] <= box.max()[v]; ++c[v])
+                for (c[u] = box.min()[u]; c[u] <= box.max()[u]; ++c[u]) n += selected(vol, sel, c);
+            perVoxelLayer[static_cast<std::size_t>(a - box.min()[axis])] = n;
+        }
+    });
+    std::vector<std::int64_t> weights(static_cast<std::size_t>(layers), 0);
+    for (std::size_t i = 0; i < perVoxelLayer.size(); ++i) {
+        const double at = (static_cast<double>(box.min()[axis]) + static_cast<double>(i) - start) / step;
+        const int l = std::clamp(static_cast<int>(std::floor(at + 0.5)), 0, layers - 1);
+        weights[static_cast<std::size_t>(l)] += perVoxelLayer[i];
+    }
+    return weights;
 }
 
 // The grid of `step` voxels per axis over the solid box, `pad` steps wider on every side.
@@ -199,7 +229,11 @@ void chooseGrid(PrepareState& s) {
     grid.stepVoxels = step;
     grid.grid = gridFor(vol, s.solid, step, pad);
     if (s.settings.part) {  // the same whole grid in every part; this part samples its window of it
-        s.p.part = partWindow(grid.grid, *s.settings.part);
+        const int axis = partAxis(grid.grid);
+        const auto a = static_cast<std::size_t>(axis);
+        s.p.part = partWindow(grid.grid, *s.settings.part,
+                              selectedPerLayer(vol, *s.p.selection, axis, s.solid.min()[axis] - pad * step[a], step[a],
+                                               grid.grid.dims[a]));
         grid.grid = s.p.part->grid;
     }
 }

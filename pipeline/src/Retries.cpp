@@ -46,12 +46,13 @@ std::vector<Index> hexesToWorkOn(const Stuck& stuck, std::optional<std::string>&
     return work;
 }
 
-// A part's grid edits stay kPartGhostLayers / 2 + 2 layers clear of its cuts,
-// where the neighbour part, which does not see them, meshes the same nodes.
+// A part's grid edits stay kPartGhostLayers clear of its cuts, where the
+// neighbour part, which does not see them, meshes the same nodes (what an
+// edit changes can spread as far as what a cut node depends on).
 void dropHexesNearCuts(const RetryState& s, std::vector<std::array<double, 3>>& at, std::vector<Index>& work) {
     const auto& part = s.best.prepared.part;
     if (!part) return;
-    const double margin = kPartGhostLayers / 2 + 2;
+    const double margin = kPartGhostLayers;
     std::size_t kept = 0;
     for (std::size_t i = 0; i < work.size(); ++i) {
         const double layer = at[i][static_cast<std::size_t>(part->axis)] + part->first;
@@ -202,7 +203,9 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
         return m;
     }
     // A part: keys from the contoured cells and the sheets, then only the
-    // part's own hexes are optimised, with the nodes on its cuts frozen.
+    // part's own hexes are optimised, with the nodes on its cuts frozen (they
+    // stay frozen through the retries and the relaxation: runMeshPipeline
+    // gives them their classes back).
     std::vector<NodeKey> keys = contourKeys(m.mesh, *m.prepared.part);
     const std::vector<std::int32_t> materials = sortedMaterials(m.mesh);
     std::vector<isohex::PillowResult> passes;
@@ -210,7 +213,6 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     addCopyKeys(keys, passes, materials);
     m.partNodes = keepOwnHexes(m.mesh, std::move(keys), *m.prepared.part);
     m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
-    unfreezeCutNodes(m.mesh, *m.partNodes);
     return m;
 }
 

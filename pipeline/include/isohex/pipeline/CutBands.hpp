@@ -2,8 +2,8 @@
 // The second pass of a split scan's optimisation (docs/SPLIT-SCANS.md): each
 // part froze the nodes on its cuts while it optimised, so the hexes around a
 // cut were optimised against nodes that never moved. After the merge, the
-// nodes within a few rings of the cuts are optimised again, everything else
-// fixed, with the boundary nodes kept on the mesh's own boundary surface
+// nodes within a few rings of the cuts, and of every hex below the worst-hex
+// target, are optimised again, everything else fixed, with the boundary nodes kept on the mesh's own boundary surface
 // (triangle trees of its quads: the merge has no scan to project onto).
 #include <cstddef>
 #include <cstdint>
@@ -16,6 +16,15 @@ namespace isohex::pipeline {
 // Rings of hexes around the cut nodes whose nodes move in the second pass.
 inline constexpr int kCutBandRings = 4;
 
+// The feature angle the band pass gives adoptBoundary: 180 degrees, so that
+// no boundary node is fixed for a sharp edge and every one slides on the
+// boundary's quads. A scan's isosurface has no creases at the element size:
+// the creases in a band are where the parts froze unoptimised nodes on the
+// cut, and fixing them pins the sheet hexes there (skull_ct merged from 4
+// parts: minimum 0.050 at adoptBoundary's usual 30 degrees and at 120, 0.303
+// with none fixed; the single run's is 0.304).
+inline constexpr double kCutBandFeatureAngle = 180.0;
+
 struct CutBandResult {
     std::size_t nodes = 0, hexes = 0;  // nodes free to move; hexes around them (the band)
     double minBefore = 0, minAfter = 0;  // lowest scaled Jacobian in the band
@@ -25,7 +34,7 @@ struct CutBandResult {
 };
 
 // Optimises the band of `rings` rings around the nodes flagged in `onCut`
-// (one flag per node) in place; keeps the result only if the band has no
+// (one flag per node) and the nodes of the hexes below the worst-hex target in place; keeps the result only if the band has no
 // more inverted hexes and no lower minimum than before.
 CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings = kCutBandRings);
 

@@ -22,8 +22,12 @@ namespace isohex::pipeline {
 // Grid layers a part samples, repairs, contours and pillows beyond each of
 // its cuts. What happens at a cut node depends on the labels within a few
 // layers (the repair's 2x2x2 blocks, the held-back test's neighbour hexes,
-// the sheet's averaged normals); eight leave room for a repair that spreads.
-inline constexpr int kPartGhostLayers = 8;
+// the sheet's averaged normals) and, where the sheet's start inverts hexes,
+// on the pillow's step rounds, whose halvings spread a few hexes a round for
+// up to PillowOptions::maxHalvings rounds: with 8 layers two parts of ch2bet
+// (1 mm, 4 parts) placed 8 sheet copies on a cut differently, by up to
+// 1.2e-3 mm; with 12 they agree.
+inline constexpr int kPartGhostLayers = 12;
 // The thinnest slab a part may own (a node on a cut then belongs to two parts only).
 inline constexpr int kPartMinLayers = 4;
 
@@ -40,9 +44,17 @@ struct PartWindow {
     bool cutAbove() const { return spec.index < spec.count; }
 };
 
-// The window of part spec.index of `whole`: slabs of n * k / N layers. Throws
-// SettingError when a slab would be thinner than kPartMinLayers.
-PartWindow partWindow(const octree::Grid& whole, PartSpec spec);
+// The cut axis of `whole`: the one with the most grid points (the first of equals).
+int partAxis(const octree::Grid& whole);
+
+// The window of part spec.index of `whole`. With `layerWeights` (one per grid
+// layer along partAxis: how much of the object each layer holds, e.g. its
+// selected voxels), the cuts balance the weight: cut k is the first layer
+// whose preceding layers hold k/N of it, so the parts hold about equal
+// numbers of hexes (and peak memory) however the object fills the box;
+// without, slabs of n * k / N layers. Every slab keeps kPartMinLayers. Throws
+// SettingError when the grid has fewer than N * kPartMinLayers layers.
+PartWindow partWindow(const octree::Grid& whole, PartSpec spec, const std::vector<std::int64_t>& layerWeights = {});
 
 // Where a node comes from, the same in every part: the whole-grid cell (its
 // lowest corner's whole-grid point index) of the dual-contouring vertex it

@@ -74,7 +74,8 @@ struct RetryResult {
 };
 
 // Contours, pillows and optimises (without warning of inverted hexes: the
-// retries count and warn after them).
+// retries count and warn after them). A part's cut nodes are left Fixed
+// (unfreezeCutNodes gives them their classes back once nothing moves nodes).
 Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& sink);
 
 // Retries where `best` has stuck hexes (settings.retries times at most, with
