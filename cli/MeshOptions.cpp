@@ -349,9 +349,14 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.fixBoundary; }));
     t.push_back(onOff("no-optimize", g, "Skip untangling and mean-ratio optimisation", "true/false",
                       [](MeshArgs& a) -> auto& { return a.settings.optimize; }, true));
+    t.push_back(onOff("valid-start", g,
+                      "Hand the optimiser an almost untangled mesh: vertices that would invert a hex held back "
+                      "towards their cell centres, the sheet's copies stepped inside every corner (faster on large "
+                      "meshes; on some inputs a lower worst hex, see docs/DESIGN.md)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }, true));
     t.push_back(onOff("tangled-start", g,
-                      "Start the optimiser as isohex did before its valid start: surface vertices on the surface "
-                      "and hexes left inverted for the untangler (for comparisons and tests of untangling)",
+                      "Start the optimiser with surface vertices on the surface and hexes left inverted for the "
+                      "untangler (the default; the opposite of --valid-start)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }));
 }
 

@@ -195,7 +195,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
         for name, src, opts in [("skull", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), ["--iso", "2.9"]),
                                 ("jhu", os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz"),
                                  ["--labels"])]:
-            good, rg = self.mesh(name + "_start", src, *opts)
+            good, rg = self.mesh(name + "_start", src, *opts, "--valid-start")
             bad, rb = self.mesh(name + "_tangled_start", src, *opts, "--tangled-start")
             hexes = rg["hexes"]
             held = rg["pillow"]["held_back"]
