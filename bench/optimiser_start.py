@@ -2,7 +2,9 @@
 """The optimiser's start and what it costs, one build against another (issue 39
 parts 1 and 2), measured on the written files with VTK.
 
-  bench/optimiser_start.py run ISOHEX OUT_DIR [name ...]   # mesh the cases, write OUT_DIR/summary.json
+  bench/optimiser_start.py run ISOHEX OUT_DIR [name ...] [-- OPTION ...]
+                                                           # mesh the cases, write OUT_DIR/summary.json;
+                                                           # options after -- go to every run (e.g. --valid-start)
   bench/optimiser_start.py compare BEFORE_DIR AFTER_DIR    # a markdown table of both summaries
 
 Cases (names): the phantoms sphere, torus, thin_plate, two_spheres (--iso 50
@@ -71,7 +73,7 @@ def time_of(cmd, log):
     return p.returncode, wall, peak
 
 
-def run(binary, out, only):
+def run(binary, out, only, extra=()):
     os.makedirs(out, exist_ok=True)
     ph = os.path.join(out, "phantoms")
     if not os.path.exists(os.path.join(ph, "two_materials.nii.gz")):
@@ -83,7 +85,7 @@ def run(binary, out, only):
         if only and name not in only:
             continue
         vtu, rep = os.path.join(out, name + ".vtu"), os.path.join(out, name + ".json")
-        cmd = [binary, "mesh", inp, *opts, "--threads", "2", "-o", vtu, "--report", rep, "--force", "-q",
+        cmd = [binary, "mesh", inp, *opts, *extra, "--threads", "2", "-o", vtu, "--report", rep, "--force", "-q",
                "--allow-below"]
         rc, wall, peak = time_of(cmd, os.path.join(out, name + ".log"))
         if rc != 0 and not os.path.exists(vtu):
@@ -136,7 +138,9 @@ def compare(before, after):
 
 def main():
     if len(sys.argv) >= 4 and sys.argv[1] == "run":
-        run(sys.argv[2], sys.argv[3], set(sys.argv[4:]))
+        args = sys.argv[4:]
+        cut = args.index("--") if "--" in args else len(args)
+        run(sys.argv[2], sys.argv[3], set(args[:cut]), args[cut + 1:])
     elif len(sys.argv) == 4 and sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
     else:
