@@ -19,6 +19,8 @@ PACKAGES=(
   # a single-node SLURM cluster for workflow/Snakefile's test (tests/py/test_slurm_cohort.py
   # starts its own munged, slurmctld and slurmd; nothing is started here)
   slurmctld slurmd slurm-client munge
+  # the bench's heap profile at peak (bench/memory_peak.py)
+  heaptrack
 )
 
 missing=()
