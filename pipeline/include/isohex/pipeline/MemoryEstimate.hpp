@@ -21,9 +21,10 @@ struct MeshMemoryEstimate {
 
 // The hex count is the selected volume over the element volume (the whole
 // grid when meshing the exterior), plus a sixth for the sheet; each hex costs
-// about 420 bytes at peak on top of what is already in memory (measured at
-// two element sizes); the estimate takes 450 and adds the process's
-// peak so far. The budget is settings.load.maxMemoryMB, or 80% of the
+// about 297 bytes at peak on top of what is already in memory (the slope of
+// bench/memory_sweep.py's fit over six element sizes); the estimate takes 330
+// and adds the process's peak so far and 16 MB that small meshes take
+// whatever their size (test_estimate's phantoms peak 14-17 MB above it). The budget is settings.load.maxMemoryMB, or 80% of the
 // machine's memory.
 MeshMemoryEstimate estimateMeshMemory(const imaging::Volume& vol, const imaging::Selection& sel,
                                       const octree::Grid& grid, const MeshSettings& settings);
