@@ -5,8 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
-#include <iostream>
 #include <set>
 
 #include "AnalyticDomains.hpp"
@@ -38,12 +36,6 @@ Outcome mesh(const Domain& d, const Grid& g, AdaptiveSurfaceSettings s = {}) {
     o.uniform = dualContourHexes(l, d, {}, &stats);
     for (std::size_t i = 0; i < stats.heldBack.size(); ++i) o.uniform.nodes[static_cast<std::size_t>(stats.heldBack[i])] = stats.heldBackAt[i];
     o.adaptive = contourAdaptive(l, d, o.uniform, s);
-    if (std::getenv("ISOHEX_DEBUG_ADAPTIVE")) {
-        for (std::size_t l2 = 1; l2 < o.adaptive.criterionCells.size(); ++l2) std::cerr << "criterion L" << l2 << " " << o.adaptive.criterionCells[l2] << "\n";
-        for (const auto& r : o.adaptive.rounds) std::cerr << "round " << r.cells[0] << " " << r.cells[1] << " " << r.cells[2] << " " << r.cells[3] << "\n";
-        for (auto n : o.adaptive.mesh.hexesPerLevel) std::cerr << "hexes " << n << "\n";
-        std::cerr << "unresolved " << o.adaptive.unresolved << " uniform " << o.uniform.hexCount() << "\n";
-    }
     return o;
 }
 
