@@ -334,10 +334,15 @@ void addMeshRows(std::vector<MeshOption>& t) {
                             [](MeshArgs& a) -> auto& { return a.settings.boundaryLayers; }, between(1, 16)));
     t.back().setting = Setting::BoundaryLayers;
     t.push_back(onOff("adaptive", g,
-                      "Coarse hexes where the labels do not change (a 27-tree with transition templates); the "
-                      "boundary keeps the element size",
+                      "Coarse hexes wherever the surface allows (a 27-tree with transition templates; coarse "
+                      "hexes on smooth, simple parts of the surface, the element size at features and junctions)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }));
     t.back().setting = Setting::Adaptive;
+    t.push_back(number<double>(
+        "adaptive-deviation", g,
+        "With --adaptive: how far, in grid steps, a coarse boundary quad's centre or edge midpoint may lie off the "
+        "surface before its cells are refined (default 0.5)",
+        "0.05..5", [](MeshArgs& a) -> auto& { return a.settings.adaptiveDeviation; }, between(0.05, 5.0)));
     t.push_back(onOff("uniform", g, "One hex per grid point everywhere (the default; the opposite of --adaptive)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.adaptive; }, true));
     t.push_back(onOff("mesh-exterior", g, "Also mesh the background out to a box around the object", "true/false",

@@ -43,12 +43,28 @@ struct LeafWalk {
         add(h, m, 0);
     }
 
-    // An unrefined level-l cell: one hex, or its template's hexes.
+    // The label of the grid point whose level-0 hex holds the centroid of h
+    // (a level-0 hex's own point, a coarse leaf's centre point).
+    std::int32_t centroidLabel(const std::array<NodeKey, 8>& h) const {
+        std::int64_t sum[3] = {0, 0, 0};
+        for (NodeKey k : h) {
+            const auto q = keyCoords(k);
+            for (int c = 0; c < 3; ++c) sum[c] += q[c];
+        }
+        return labels.at(static_cast<int>(sum[0] / (8 * kS)), static_cast<int>(sum[1] / (8 * kS)),
+                         static_cast<int>(sum[2] / (8 * kS)));
+    }
+
+    void addLabelled(const std::array<NodeKey, 8>& h, int level) {
+        const std::int32_t m = centroidLabel(h);
+        if (m != 0) add(h, m, level);
+    }
+
+    // An unrefined level-l cell: one hex, or its template's hexes, each with
+    // the label at its centroid (a leaf may straddle a surface).
     void leaf(int l, int i, int j, int k, std::uint8_t marks) {
         const std::int64_t side = power3(l);
         const std::int64_t a[3] = {side * i, side * j, side * k};
-        const std::int32_t m = labels.at(static_cast<int>(a[0]), static_cast<int>(a[1]), static_cast<int>(a[2]));
-        if (m == 0) return;
         const TemplateChoice choice = chooseTemplate(marks);
         if (choice.action == TemplateChoice::Action::Promote)
             throw Error("internal error: a leaf of the refinement tree has marked corners no template takes");
@@ -57,7 +73,7 @@ struct LeafWalk {
             for (int c = 0; c < 8; ++c)
                 h[c] = nodeKey(kS * (a[0] + side * kRef[c][0]), kS * (a[1] + side * kRef[c][1]),
                                kS * (a[2] + side * kRef[c][2]));
-            add(h, m, l);
+            addLabelled(h, l);
             return;
         }
         const std::int64_t child = side / 3;  // template coordinates are twelfths of a child
@@ -66,7 +82,7 @@ struct LeafWalk {
             std::array<NodeKey, 8> h;
             for (int c = 0; c < 8; ++c)
                 h[c] = nodeKey(kS * a[0] + t[c][0] * child, kS * a[1] + t[c][1] * child, kS * a[2] + t[c][2] * child);
-            add(h, m, l);
+            addLabelled(h, l);
         }
     }
 
@@ -139,18 +155,14 @@ AdaptiveMesh assembleAdaptive(const LeafHexes& leaves, const Grid& grid, const N
     return out;
 }
 
-AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, const HexMesh& uniform) {
+UniformNodes::UniformNodes(const Labels& labels, const HexMesh& uniform) {
     const Grid& g = labels.grid;
     const auto [nx, ny, nz] = g.dims;
-    const auto cellIndex = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
-        return (static_cast<std::size_t>(k) * static_cast<std::size_t>(ny + 1) + static_cast<std::size_t>(j)) *
-                   static_cast<std::size_t>(nx + 1) +
-               static_cast<std::size_t>(i);
-    };
-    // The uniform mesh's node of each grid cell: its hexes are the labelled
-    // points in index order, corner c at cell p + kRef[c] (two corner pairs
-    // swapped on a mirrored grid, as dualContourHexes does).
-    std::vector<Index> cellNode(static_cast<std::size_t>(nx + 1) * (ny + 1) * (nz + 1), kNone);
+    dims = {nx + 1, ny + 1, nz + 1};
+    // The uniform mesh's hexes are the labelled points in index order, corner
+    // c at cell p + kRef[c] (two corner pairs swapped on a mirrored grid, as
+    // dualContourHexes does).
+    node.assign(static_cast<std::size_t>(nx + 1) * (ny + 1) * (nz + 1), kNone);
     const bool mirrored = g.determinant() < 0;
     std::size_t h = 0;
     for (int k = 0; k < nz; ++k)
@@ -163,18 +175,33 @@ AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, c
                     std::swap(hex[1], hex[3]);
                     std::swap(hex[5], hex[7]);
                 }
-                for (int c = 0; c < 8; ++c) cellNode[cellIndex(i + kRef[c][0], j + kRef[c][1], k + kRef[c][2])] = hex[c];
+                for (int c = 0; c < 8; ++c)
+                    node[(static_cast<std::size_t>(k + kRef[c][2]) * dims[1] + static_cast<std::size_t>(j + kRef[c][1])) *
+                             dims[0] +
+                         static_cast<std::size_t>(i + kRef[c][0])] = hex[c];
             }
     if (h != uniform.hexes.size()) throw Error("internal error: the uniform mesh has more hexes than labelled points");
+}
+
+Index UniformNodes::at(NodeKey key) const {
+    const auto q = keyCoords(key);
+    if (q[0] % kS || q[1] % kS || q[2] % kS) return kNone;  // not a level-0 node
+    if (q[0] / kS >= dims[0] || q[1] / kS >= dims[1] || q[2] / kS >= dims[2]) return kNone;
+    return node[(static_cast<std::size_t>(q[2] / kS) * static_cast<std::size_t>(dims[1]) +
+                 static_cast<std::size_t>(q[1] / kS)) *
+                    static_cast<std::size_t>(dims[0]) +
+                static_cast<std::size_t>(q[0] / kS)];
+}
+
+AdaptiveMesh coarsenDualMesh(const Labels& labels, const RefinementTree& tree, const HexMesh& uniform) {
+    const UniformNodes cellNode(labels, uniform);
     const NodePlacer place = [&](NodeKey key, Vec3& x, NodeClass& cls) {
-        const auto q = keyCoords(key);
-        if (q[0] % kS || q[1] % kS || q[2] % kS) return;  // not a level-0 node
-        const Index v = cellNode[cellIndex(q[0] / kS, q[1] / kS, q[2] / kS)];
+        const Index v = cellNode.at(key);
         if (v == kNone) return;
         x = uniform.nodes[static_cast<std::size_t>(v)];
         cls = uniform.nodeClass[static_cast<std::size_t>(v)];
     };
-    AdaptiveMesh out = assembleAdaptive(leafHexes(tree, labels), g, place);
+    AdaptiveMesh out = assembleAdaptive(leafHexes(tree, labels), labels.grid, place);
     out.mesh.surfaces = uniform.surfaces;
     out.mesh.curves = uniform.curves;
     return out;

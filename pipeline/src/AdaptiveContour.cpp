@@ -5,8 +5,7 @@
 #include <limits>
 
 #include "isohex/core/HexCell.hpp"
-#include "isohex/octree/AdaptiveHexes.hpp"
-#include "isohex/octree/RefinementTree.hpp"
+#include "isohex/octree/AdaptiveSurface.hpp"
 
 namespace isohex::pipeline {
 
@@ -33,18 +32,22 @@ void edgeRange(const HexMesh& m, double& shortest, double& longest) {
 }  // namespace
 
 HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
-    octree::RefinementSettings rs;
-    rs.maxLevel = settings.adaptiveLevels;
-    const octree::RefinementTree tree = octree::refineAtLabelChanges(p.labels, rs);
-    octree::AdaptiveMesh a = octree::coarsenDualMesh(p.labels, tree, uniform);
+    octree::AdaptiveSurfaceSettings as;
+    as.maxLevel = settings.adaptiveLevels;
+    as.deviation = settings.adaptiveDeviation;
+    octree::AdaptiveSurfaceResult r = octree::contourAdaptive(p.labels, p.extractionDomain(), uniform, as);
+    const octree::RefinementTree& tree = r.tree;
     facts.topLevel = tree.top();
     facts.uniformHexes = uniform.hexCount();
-    facts.hexesPerLevel = a.hexesPerLevel;
-    facts.cellsAtLabelChanges = tree.requested.size() > 1 ? tree.requested[1] : 0;
+    facts.hexesPerLevel = r.mesh.hexesPerLevel;
+    facts.cellsAtLabelChanges = r.criterionCells.size() > 1 ? r.criterionCells[1] : 0;
+    facts.cellsBySurface.assign(r.criterionCells.begin() + 1, r.criterionCells.end());
+    for (const auto& round : r.rounds) facts.cellsByCheck.push_back(round.cells);
+    facts.unresolved = r.unresolved;
     facts.cellsForBalance.assign(tree.promoted.begin() + 1, tree.promoted.end());
-    facts.hexLevel = std::move(a.hexLevel);
-    edgeRange(a.mesh, facts.smallestEdge, facts.largestEdge);
-    return std::move(a.mesh);
+    facts.hexLevel = std::move(r.mesh.hexLevel);
+    edgeRange(r.mesh.mesh, facts.smallestEdge, facts.largestEdge);
+    return std::move(r.mesh.mesh);
 }
 
 }  // namespace isohex::pipeline

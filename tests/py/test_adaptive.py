@@ -71,7 +71,13 @@ class Adaptive(unittest.TestCase):
         counts = np.bincount(level, minlength=len(per_level))
         self.assertEqual(counts[0] - per_level[0], grid.GetNumberOfCells() - rep["extracted"]["hexes"])
         self.assertEqual(list(counts[1:]), per_level[1:])
-        self.assertGreater(rep["adaptive"]["cells_refined"]["label_change_level_1"], 0)
+        refined = rep["adaptive"]["cells_refined"]
+        self.assertEqual(len(refined["surface_per_level"]), rep["adaptive"]["levels"])
+        self.assertGreater(sum(refined["surface_per_level"]), 0)  # the box's edges and the dent's rim
+        for r in refined["checks_per_round"]:
+            self.assertEqual(set(r), {"junction", "non_manifold", "inverted", "deviation"})
+            self.assertGreater(sum(r.values()), 0)
+        self.assertEqual(refined["unresolved"], 0)
         self.assertLessEqual(rep["adaptive"]["smallest_edge"], rep["adaptive"]["largest_edge"])
 
     def test_default_is_uniform_without_level_or_adaptive_key(self):
@@ -79,6 +85,23 @@ class Adaptive(unittest.TestCase):
         self.assertIsNone(grid.GetCellData().GetArray("level"))
         self.assertNotIn("adaptive", rep)
         self.assertEqual(grid.GetNumberOfCells(), self.out["uniform"][0].GetNumberOfCells())
+
+    def test_coarse_hexes_on_the_boundary(self):
+        # leaves above level 0 carry boundary faces: the mesh is coarser than the uniform one where the box is flat
+        a, ra = self.out["adaptive"]
+        u, _ = self.out["uniform"]
+        self.assertGreater(sum(ra["adaptive"]["hexes_per_level"][1:]), 0)
+        self.assertLess(a.GetNumberOfCells(), u.GetNumberOfCells())
+
+    def test_one_and_two_threads_write_the_same_bytes(self):
+        d = workdir("adaptive_threads")
+        files = []
+        for t in (1, 2):
+            vtu = os.path.join(d, f"t{t}.vtu")
+            run(["mesh", self.scan, "-o", vtu, "--size", "1", "--adaptive", "--quiet", "--threads", str(t)])
+            with open(vtu, "rb") as f:
+                files.append(f.read())
+        self.assertEqual(files[0], files[1])
 
     def test_adaptive_refuses_other_methods(self):
         p = run(["mesh", self.scan, "-o", os.path.join(workdir("adaptive_bad"), "x.vtu"), "--adaptive",

@@ -35,8 +35,11 @@ inline std::array<std::int64_t, 3> keyCoords(NodeKey k) {
 
 // The leaves' hexes before nodes are numbered: one hex per labelled grid
 // point inside refined level-1 cells, one per labelled unrefined leaf without
-// marked corners, a template's hexes per leaf with marked corners. A leaf's
-// material is the label of its points (one label, by the criterion).
+// marked corners, a template's hexes per leaf with marked corners. Each hex's
+// material is the label of the grid point whose level-0 hex holds its
+// centroid (a level-0 hex: its own point), and hexes labelled 0 are left out,
+// so a coarse leaf may straddle a surface and refined regions are the
+// uniform mesh's hexes.
 struct LeafHexes {
     std::vector<std::array<NodeKey, 8>> hexes;  // VTK order, positive on a right-handed grid
     std::vector<std::int32_t> material;
@@ -59,6 +62,16 @@ using NodePlacer = std::function<void(NodeKey key, Vec3& position, NodeClass& cl
 // (default: its lattice position on the grid, interior). On a mirrored grid
 // each hex's corners are reordered so it stays positively oriented.
 AdaptiveMesh assembleAdaptive(const LeafHexes& leaves, const Grid& grid, const NodePlacer& place = {});
+
+// The node of the uniform mesh (dualContourHexes of `labels`, one hex per
+// labelled point, without meshExterior) at each level-0 node key.
+struct UniformNodes {
+    std::array<int, 3> dims{0, 0, 0};  // level-0 nodes per axis (grid points + 1)
+    std::vector<Index> node;           // per level-0 node, kNone where no labelled point touches it
+    UniformNodes(const Labels& labels, const HexMesh& uniform);
+    // kNone for keys that are not level-0 nodes of a labelled point.
+    Index at(NodeKey key) const;
+};
 
 // The adaptive mesh of a tree built over `labels`, taking every node that is
 // a node of `uniform` (dualContourHexes of the same labels, one hex per

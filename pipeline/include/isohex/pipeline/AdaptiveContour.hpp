@@ -1,7 +1,8 @@
 #pragma once
-// The adaptive contouring stage (--adaptive): the uniform dual-contouring
-// mesh coarsened by octree's 27-tree where the labels allow it, with the
-// facts the report and the .vtu carry.
+// The adaptive contouring stage (--adaptive): octree's 27-tree over the
+// uniform dual-contouring grid, coarse leaves on smooth parts of the surface
+// (octree::contourAdaptive), with the facts the report and the .vtu carry.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -16,16 +17,21 @@ struct AdaptiveFacts {
     int topLevel = 0;                           // levels of the 27-tree above the finest hexes
     std::size_t uniformHexes = 0;               // the uniform mesh at the same finest size
     std::vector<std::size_t> hexesPerLevel;     // contoured hexes filling leaves of each level
-    std::size_t cellsAtLabelChanges = 0;        // level-1 cells refined by criterion (a)
+    std::size_t cellsAtLabelChanges = 0;        // level-1 cells refined by the surface criterion
+    std::vector<std::size_t> cellsBySurface;    // per level: cells the surface criterion refined
+    // per check round: leaf cells refined at junctions, non-manifold places,
+    // inverted hexes and quads off the surface (octree::RefineReason order)
+    std::vector<std::array<std::size_t, 4>> cellsByCheck;
+    std::size_t unresolved = 0;                 // problems the rounds left
     std::vector<std::size_t> cellsForBalance;   // per level: cells refined or promoted by the closure
     double smallestEdge = 0, largestEdge = 0;   // world units, of the contoured mesh
     std::vector<std::uint8_t> hexLevel;         // per hex of the mesh (sheet hexes: their boundary hex's, 0)
 };
 
-// Coarsens `uniform` (contour()'s mesh of p.labels, held-back positions
-// applied) by octree::refineAtLabelChanges and octree::coarsenDualMesh: the
-// boundary and interface hexes and their nodes stay as dual contouring made
-// them, uniform regions become coarse hexes and transition templates.
+// The adaptive mesh of p.labels (octree::contourAdaptive over the extraction
+// domain) from `uniform` (contour()'s mesh of p.labels, held-back positions
+// applied): refined regions keep its hexes and nodes, coarse leaves straddle
+// the surface where it is smooth and simple.
 HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 }  // namespace isohex::pipeline

@@ -54,11 +54,14 @@ struct MeshSettings {
     bool pillow = true;
     int boundaryLayers = 1;
     bool meshExterior = false;
-    // Coarse hexes where the labels are uniform (octree's 27-tree with
-    // transition templates); the boundary keeps the finest size. Off: one
-    // hex per grid point (the uniform mesher, the default).
+    // Coarse hexes wherever the surface allows (octree's 27-tree with
+    // transition templates, leaves straddling smooth parts of the surface).
+    // Off: one hex per grid point (the uniform mesher, the default).
     bool adaptive = false;
     int adaptiveLevels = 3;       // levels of the tree above the finest hexes (coarse hexes up to 3^levels steps)
+    // Grid steps a coarse boundary quad's centre or edge midpoint may lie
+    // off its surface before its leaves are refined (octree::AdaptiveSurfaceSettings::deviation).
+    double adaptiveDeviation = 0.5;
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     // Start the sheet and the optimiser as before the valid start: vertices
