@@ -2,6 +2,7 @@
 // mesh needs finer leaves.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <tbb/parallel_for.h>
 
@@ -90,7 +91,9 @@ double distanceTo(const Domain& d, std::int32_t m, const Vec3& x) {
     Vec3 g;
     const double f = d.value(m, x, &g);
     const double len = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-    if (!std::isfinite(f) || !(len > 0)) return 0;
+    if (!std::isfinite(f)) return 0;  // no field there (NaN voxels): nothing to judge
+    // a flat field (a scan's plateau far from its isosurface) says "far"
+    if (!(len > 1e-9 * std::abs(f))) return std::numeric_limits<double>::infinity();
     return std::abs(f) / len;
 }
 

@@ -195,7 +195,8 @@ std::vector<double> shortestEdges(const PlacedMesh& p) {
     return out;
 }
 
-// Moves the moved nodes of inverted hexes back towards their lattice
+// Moves the moved nodes of inverted hexes (all nodes of inverted coarse
+// hexes) back towards their lattice
 // positions (where every hex is valid) until no hex they are in is inverted:
 // halfway at a time, then all the way. The deviation check then judges the
 // quads where they stand.
@@ -204,15 +205,17 @@ void holdBack(PlacedMesh& p) {
     std::vector<std::uint8_t> bad(m.hexCount(), 0);
     for (int round = 0; round < 6; ++round) {
         tbb::parallel_for(std::size_t{0}, m.hexCount(), [&](std::size_t h) {
-            bool moved = false;
+            bool moved = p.a.hexLevel[h] > 0;
             for (Index v : m.hexes[h]) moved = moved || p.moved[static_cast<std::size_t>(v)];
             bad[h] = moved && !(minJacobianDeterminant(hexCoords(m, static_cast<Index>(h))) > 0);
         });
+        // moved nodes, and the uniform nodes of coarse hexes (they are not
+        // the uniform mesh's hexes there, so its node need not fit them)
         std::vector<Index> nodes;
         for (std::size_t h = 0; h < bad.size(); ++h)
             if (bad[h])
                 for (Index v : m.hexes[h])
-                    if (p.moved[static_cast<std::size_t>(v)]) nodes.push_back(v);
+                    if (p.moved[static_cast<std::size_t>(v)] || p.a.hexLevel[h] > 0) nodes.push_back(v);
         if (nodes.empty()) return;
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
@@ -239,7 +242,12 @@ PlacedMesh placeAdaptive(const LeafHexes& leaves, const LeafLocator& locate, con
     p.moved.assign(n, 0);
     p.junction.assign(n, 0);
     std::vector<std::uint8_t> level(n, 0);
-    const std::vector<std::uint8_t> same = sameAsUniform(p, labels);
+    std::vector<std::uint8_t> same = sameAsUniform(p, labels);
+    const std::vector<double> reach = shortestEdges(p);
+    const auto sp = labels.grid.spacing();
+    const double h = std::max({sp[0], sp[1], sp[2]});
+    // a template's hexes thinner than a grid step may share an octant
+    for (std::size_t i = 0; i < n; ++i) same[i] = same[i] && reach[i] > 0.999 * std::min({sp[0], sp[1], sp[2]});
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
         level[i] = static_cast<std::uint8_t>(std::max(0, locate.levelAround(p.a.nodeKeys[i])));
         const Index v = same[i] ? uniformAt.at(p.a.nodeKeys[i]) : kNone;
@@ -262,9 +270,6 @@ PlacedMesh placeAdaptive(const LeafHexes& leaves, const LeafLocator& locate, con
     for (std::size_t qi = 0; qi < p.quads.size(); ++qi)
         for (Index v : p.quads[qi].nodes)
             if (p.moved[static_cast<std::size_t>(v)]) items[fill[static_cast<std::size_t>(v)]++] = qi;
-    const auto sp = labels.grid.spacing();
-    const double h = std::max({sp[0], sp[1], sp[2]});
-    const std::vector<double> reach = shortestEdges(p);
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
         if (start[i] == start[i + 1]) return;
         const std::vector<std::size_t> qs(items.begin() + static_cast<std::ptrdiff_t>(start[i]),
