@@ -7,6 +7,7 @@
 #include "isohex/core/HexCell.hpp"
 #include "isohex/octree/AdaptiveHexes.hpp"
 #include "isohex/octree/RefinementTree.hpp"
+#include "isohex/octree/RequestMasks.hpp"
 
 namespace isohex::pipeline {
 
@@ -33,15 +34,19 @@ void edgeRange(const HexMesh& m, double& shortest, double& longest) {
 }  // namespace
 
 HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
-    octree::RefinementSettings rs;
-    rs.maxLevel = settings.adaptiveLevels;
-    const octree::RefinementTree tree = octree::refineAtLabelChanges(p.labels, rs);
+    const int top = sizingTopLevel(p, settings, facts.sizing);
+    octree::RequestMasks requests = octree::labelChangeRequests(p.labels);
+    facts.cellsAtLabelChanges = octree::countRequests(requests);
+    octree::orRequests(requests, sizingRequests(p, settings, top, facts.sizing));
+    const octree::RefinementTree tree = octree::closeRefinement(p.labels.grid.dims, top, requests, settings.grading);
     octree::AdaptiveMesh a = octree::coarsenDualMesh(p.labels, tree, uniform);
     facts.topLevel = tree.top();
     facts.uniformHexes = uniform.hexCount();
     facts.hexesPerLevel = a.hexesPerLevel;
-    facts.cellsAtLabelChanges = tree.requested.size() > 1 ? tree.requested[1] : 0;
     facts.cellsForBalance.assign(tree.promoted.begin() + 1, tree.promoted.end());
+    facts.cellsForGrading.assign(tree.graded.begin() + 1, tree.graded.end());
+    facts.cellsRequested.assign(tree.requested.begin() + 1, tree.requested.end());
+    facts.grading = settings.grading;
     facts.hexLevel = std::move(a.hexLevel);
     edgeRange(a.mesh, facts.smallestEdge, facts.largestEdge);
     return std::move(a.mesh);
