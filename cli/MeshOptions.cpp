@@ -390,6 +390,8 @@ MeshOption labelSizeRow() {
                     for (const auto& v : items) a.settings.labelSizes.push_back(*parseLabelSize(v));
                 },
                 help)
+            ->allow_extra_args(false)
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
             ->check(CLI::Validator(
                 [](const std::string& v) {
                     return parseLabelSize(v) ? std::string() : "--label-size " + std::string(says) + " (got '" + v + "')";
