@@ -5,6 +5,8 @@
 
 #include <Eigen/Dense>
 
+#include "isohex/core/Error.hpp"
+
 namespace isohex::octree {
 
 std::array<int, 3> levelDims(const std::array<int, 3>& points, int level) {
@@ -29,11 +31,9 @@ void orRequests(RequestMasks& into, const RequestMasks& from) {
     for (std::size_t l = 0; l < from.size(); ++l) {
         if (from[l].empty()) continue;
         auto& to = into[l];
-        if (to.empty()) {
-            to = from[l];
-            continue;
-        }
-        for (std::size_t c = 0; c < to.size() && c < from[l].size(); ++c) to[c] = static_cast<std::uint8_t>(to[c] | from[l][c]);
+        if (to.empty()) to.assign(from[l].size(), 0);
+        if (to.size() != from[l].size()) throw Error("internal error: refinement requests of two sizes for one level");
+        for (std::size_t c = 0; c < to.size(); ++c) to[c] = static_cast<std::uint8_t>(to[c] | from[l][c]);
     }
 }
 

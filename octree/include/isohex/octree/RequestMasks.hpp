@@ -24,7 +24,8 @@ std::array<int, 3> levelDims(const std::array<int, 3>& points, int level);
 RequestMasks emptyRequests(const std::array<int, 3>& points, int top);
 
 // into[l] |= from[l] for every level; an empty mask is all zeros, and `into`
-// grows to hold from's levels.
+// grows to hold from's levels. Masks of one level in two sizes are an
+// internal error.
 void orRequests(RequestMasks& into, const RequestMasks& from);
 
 // Requested cells over every level.
