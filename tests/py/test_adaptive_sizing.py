@@ -112,6 +112,15 @@ class LabelSizesAndSizeImage(unittest.TestCase):
         self.assertGreater(rep["adaptive"]["cells_refined"]["max_size"], 0)
         self.assertEqual(rep["adaptive"]["hexes_per_level"][0], rep["adaptive"]["uniform_hexes"])
 
+    def test_grading_keeps_the_solid_and_is_reported(self):
+        plain, _, _ = mesh(self.sphere, "grading_0", "--adaptive", "--size", "1.5")
+        graded, rep, _ = mesh(self.sphere, "grading_2", "--adaptive", "--size", "1.5", "--grading", "2")
+        self.assertEqual(rep["adaptive"]["grading"], 2)
+        self.assertEqual(len(rep["adaptive"]["cells_refined"]["grading_per_level"]), rep["adaptive"]["levels"])
+        self.assertGreater(vtk_sj(graded).min(), 0.0)
+        vp, vg = vtk_volumes(plain).sum(), vtk_volumes(graded).sum()
+        self.assertLess(abs(vg - vp) / vp, 0.01)
+
     def test_min_size_is_the_adaptive_name_of_size(self):
         _, a, _ = mesh(self.sphere, "min_size", "--adaptive", "--min-size", "2")
         _, b, _ = mesh(self.sphere, "size", "--adaptive", "--size", "2")
