@@ -365,6 +365,87 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }));
 }
 
+// "L=S" as label L and size S > 0; nullopt for anything else.
+std::optional<std::pair<std::int32_t, double>> parseLabelSize(const std::string& text) {
+    const auto eq = text.find('=');
+    if (eq == std::string::npos) return std::nullopt;
+    try {
+        std::size_t a = 0, b = 0;
+        const std::string l = trim(text.substr(0, eq)), s = trim(text.substr(eq + 1));
+        const long label = std::stol(l, &a);
+        const double size = std::stod(s, &b);
+        if (a != l.size() || b != s.size() || !std::isfinite(size) || size <= 0 || size > 1e15) return std::nullopt;
+        return std::pair<std::int32_t, double>{static_cast<std::int32_t>(label), size};
+    } catch (const std::exception&) {
+        return std::nullopt;
+    }
+}
+
+// --label-size L=S, repeatable; a column takes "L=S;L=S".
+MeshOption labelSizeRow() {
+    static const char* help =
+        "Adaptive: cells holding label L no wider than S (world units), e.g. --label-size 3=2 (repeat for more labels)";
+    static const char* says = "must be LABEL=SIZE with a positive size, e.g. 3=2";
+    MeshOption o = row("label-size", "Adaptive sizing", help, "LABEL=SIZE items, e.g. \"3=2;5=4\"");
+    o.addFlag = [](CLI::App& cmd, MeshArgs& a) {
+        return cmd
+            .add_option_function<std::vector<std::string>>(
+                "--label-size",
+                [&a](const std::vector<std::string>& items) {
+                    for (const auto& v : items) a.settings.labelSizes.push_back(*parseLabelSize(v));
+                },
+                help)
+            ->allow_extra_args(false)
+            ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)
+            ->check(CLI::Validator(
+                [](const std::string& v) {
+                    return parseLabelSize(v) ? std::string() : "--label-size " + std::string(says) + " (got '" + v + "')";
+                },
+                "L=S"));
+    };
+    o.setColumn = [](const Field& f, MeshArgs& a) {
+        a.settings.labelSizes.clear();
+        for (const auto& item : f.items("; ")) {
+            const auto ls = parseLabelSize(item);
+            if (!ls) throw FieldError{says};
+            a.settings.labelSizes.push_back(*ls);
+        }
+    };
+    return o;
+}
+
+// The adaptive mesher's sizing rows (pipeline/Sizing.hpp).
+void addSizingRows(std::vector<MeshOption>& t) {
+    const char* g = "Adaptive sizing";
+    t.push_back(number<std::optional<double>>(
+        "max-size", g,
+        "Adaptive: no cell wider than this (world units, mm); the coarsest level of the 27-tree is the widest "
+        "no wider (default: as coarse as the tree's levels allow)",
+        "largest element (mm)", [](MeshArgs& a) -> auto& { return a.settings.maxSize; },
+        above0(1e15, "must be a positive length, at most 1e15")));
+    t.push_back(number<std::optional<double>>(
+        "min-size", g,
+        "Adaptive: the finest element size (world units, mm); the adaptive name of --size, which it replaces",
+        "finest element (mm)", [](MeshArgs& a) -> auto& { return a.minSize; },
+        above0(1e15, "must be a positive length, at most 1e15")));
+    t.back().excludes = {"size", "level"};
+    t.push_back(labelSizeRow());
+    t.push_back(text("size-image", g,
+                     "Adaptive: an image of element sizes in mm on any grid (NIfTI or any scan format); a cell is "
+                     "refined while wider than the image's smallest size over it; outside the image, and where it "
+                     "is 0 or NaN, nothing is asked",
+                     "path of a size image", [](MeshArgs& a) -> auto& { return a.settings.sizeImage; }));
+    t.back().setting = Setting::SizeImage;
+    t.push_back(number<int>("grading", g,
+                            "Adaptive: keep at least this many cells of each level around finer ones before the "
+                            "next coarser level (default 0: the 27-tree's one-level balance alone)",
+                            "0..27", [](MeshArgs& a) -> auto& { return a.settings.grading; }, between(0, 27)));
+    t.push_back(onOff("no-thickness-refinement", g,
+                      "Adaptive: do not refine cells where a material is thinner than two cells (on by default "
+                      "with --adaptive)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.thicknessRefinement; }, true));
+}
+
 // The rows of the max-min pass and the retries, after the optimiser's.
 void addWorstHexRows(std::vector<MeshOption>& t) {
     const char* g = "Mesh";
@@ -473,6 +554,34 @@ void checkOptimiserOptions(const pipeline::MeshSettings& s) {
                     std::string(pipeline::methodName(s.method)) + " has none (leave it out)");
 }
 
+// The adaptive sizing options: each needs --adaptive; --min-size becomes --size.
+void checkSizingOptions(MeshArgs& a) {
+    pipeline::MeshSettings& s = a.settings;
+    std::vector<std::string> given;
+    if (s.maxSize) given.push_back("--max-size");
+    if (a.minSize) given.push_back("--min-size");
+    if (!s.labelSizes.empty()) given.push_back("--label-size");
+    if (!s.sizeImage.empty()) given.push_back("--size-image");
+    if (s.grading > 0) given.push_back("--grading");
+    if (!s.thicknessRefinement) given.push_back("--no-thickness-refinement");
+    if (!s.adaptive && !given.empty())
+        throw Error(given.front() + " sizes the cells of the adaptive mesher; add --adaptive or leave out " +
+                    given.front());
+    if (a.minSize) {
+        if (s.size || s.level)
+            throw Error(std::string("--min-size is the adaptive name of --size (the finest element size); give one of "
+                                    "--min-size and ") + (s.size ? "--size" : "--level"));
+        s.size = a.minSize;
+        a.minSize.reset();
+    }
+    if (s.maxSize && s.size && *s.maxSize < *s.size)
+        throw Error("--max-size (" + numberText(*s.maxSize) + ") is below the finest element size (" +
+                    numberText(*s.size) + ", --size or --min-size); give a --max-size at least as large");
+    if (!s.labelSizes.empty() && !a.labels)
+        throw Error("--label-size sizes the cells of a label map's labels; add --labels (or --label) or leave out "
+                    "--label-size");
+}
+
 }  // namespace
 
 std::string MeshOption::column() const {
@@ -487,6 +596,7 @@ const std::vector<MeshOption>& meshOptions() {
         addSelectionRows(t);
         addInputRows(t);
         addMeshRows(t);
+        addSizingRows(t);
         addWorstHexRows(t);
         addMinQualityRows(t);
         return t;
@@ -521,6 +631,7 @@ void checkSettings(MeshArgs& a) {
     if (a.labels && s.select.iso)
         throw Error("--iso applies to intensity images; with --labels/--label the surfaces are the label boundaries");
     checkOptimiserOptions(s);
+    checkSizingOptions(a);
     if (s.adaptive && (s.method != pipeline::Method::Dual || s.meshExterior))
         throw Error("--adaptive coarsens the hexes of --method dual inside the object; leave out --method " +
                     std::string(pipeline::methodName(s.method)) + (s.meshExterior ? " and --mesh-exterior" : "") +

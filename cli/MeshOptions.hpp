@@ -26,6 +26,7 @@ struct MeshArgs {
     std::string labelList;  // "3,7": parsed into settings.select.labels by checkSettings
     bool labels = false;    // read as label map, all labels
     std::vector<double> sliceSpacing;
+    std::optional<double> minSize;  // --min-size: --size under its adaptive name, set by checkSettings
     RunArgs run;
 };
 

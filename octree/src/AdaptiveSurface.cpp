@@ -9,7 +9,7 @@ namespace isohex::octree {
 namespace {
 
 // Asks for the leaf at `h` to be refined; whether that is new.
-bool request(LevelRequests& req, const RefinementTree& tree, const Leaf& leaf) {
+bool request(RequestMasks& req, const RefinementTree& tree, const Leaf& leaf) {
     if (leaf.level < 1) return false;
     const RefinementLevel& L = tree.levels[static_cast<std::size_t>(leaf.level)];
     std::uint8_t& r = req[static_cast<std::size_t>(leaf.level)][L.index(leaf.cell[0], leaf.cell[1], leaf.cell[2])];
@@ -22,7 +22,7 @@ bool request(LevelRequests& req, const RefinementTree& tree, const Leaf& leaf) {
 // the leaves of their hexes, in reason and index order. Returns the round's
 // new requests; `unfixable` counts problems with no coarse leaf to refine.
 AdaptiveRound requestRefinement(const PlacedMesh& p, const Problems& problems, const LeafLocator& locate,
-                                const RefinementTree& tree, LevelRequests& req, std::size_t& unfixable) {
+                                const RefinementTree& tree, RequestMasks& req, std::size_t& unfixable) {
     AdaptiveRound round;
     const auto& keys = p.a.nodeKeys;
     for (int r = 0; r < kRefineReasons; ++r) {
@@ -53,11 +53,11 @@ AdaptiveRound requestRefinement(const PlacedMesh& p, const Problems& problems, c
 }  // namespace
 
 AdaptiveSurfaceResult contourAdaptive(const Labels& labels, const Domain& domain, const HexMesh& uniform,
-                                      const AdaptiveSurfaceSettings& settings, const LevelRequests& extra) {
+                                      const AdaptiveSurfaceSettings& settings, const RequestMasks& extra) {
     AdaptiveSurfaceResult out;
     const auto points = labels.grid.dims;
-    const int top = treeTop(points, settings.maxLevel);
-    LevelRequests req = surfaceRequests(labels, top);
+    const int top = topLevelFor(points, settings.maxLevel);
+    RequestMasks req = surfaceRequests(labels, top);
     out.criterionCells.assign(static_cast<std::size_t>(top) + 1, 0);
     for (std::size_t l = 1; l < req.size(); ++l)
         out.criterionCells[l] = static_cast<std::size_t>(std::count(req[l].begin(), req[l].end(), 1));
@@ -66,7 +66,7 @@ AdaptiveSurfaceResult contourAdaptive(const Labels& labels, const Domain& domain
     const auto sp = labels.grid.spacing();
     const double tolerance = settings.deviation * std::max({sp[0], sp[1], sp[2]});
     for (int round = 0;; ++round) {
-        out.tree = closeRefinement(points, top, req);
+        out.tree = closeRefinement(points, top, req, settings.grading);
         const LeafLocator locate(out.tree);
         PlacedMesh p = placeAdaptive(leafHexes(out.tree, labels), locate, labels, uniformAt, uniform, domain);
         const Problems problems = findProblems(p, domain, tolerance);

@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Error.hpp"
+#include "isohex/octree/Grading.hpp"
 #include "isohex/octree/TransitionTemplates.hpp"
 
 namespace isohex::octree {
@@ -91,13 +92,14 @@ std::size_t refineParents(const RefinementLevel& child, RefinementLevel& parent)
 }  // namespace
 
 RefinementTree closeRefinement(const std::array<int, 3>& points, int top,
-                               const std::vector<std::vector<std::uint8_t>>& requests) {
+                               const std::vector<std::vector<std::uint8_t>>& requests, int grading) {
     if (top < 1) throw Error("the refinement tree needs at least one level above the finest hexes");
     RefinementTree tree;
     tree.points = points;
     tree.levels.resize(static_cast<std::size_t>(top) + 1);
     tree.promoted.assign(static_cast<std::size_t>(top) + 1, 0);
     tree.requested.assign(static_cast<std::size_t>(top) + 1, 0);
+    tree.graded.assign(static_cast<std::size_t>(top) + 1, 0);
     int step = 1;
     for (int l = 1; l <= top; ++l) {
         step *= 3;
@@ -120,16 +122,23 @@ RefinementTree closeRefinement(const std::array<int, 3>& points, int top,
         RefinementLevel& L = tree.levels[static_cast<std::size_t>(l)];
         std::size_t& promoted = tree.promoted[static_cast<std::size_t>(l)];
         if (l >= 2) promoted += refineParents(tree.levels[static_cast<std::size_t>(l) - 1], L);
+        if (l >= 2 && grading > 0)
+            tree.graded[static_cast<std::size_t>(l)] =
+                refineGradedParents(tree.levels[static_cast<std::size_t>(l) - 1], L, grading);
         promoted += closeLevel(L);
     }
     return tree;
 }
 
-RefinementTree refineAtLabelChanges(const Labels& labels, const RefinementSettings& settings) {
-    const auto dims = labels.grid.dims;
-    const int widest = std::max({dims[0], dims[1], dims[2]});
+int topLevelFor(const std::array<int, 3>& points, int maxLevel) {
+    const int widest = std::max({points[0], points[1], points[2]});
     int top = 1;  // the highest level whose cells are not wider than the grid
-    for (int side = 9; top < settings.maxLevel && side <= widest; side *= 3) ++top;
+    for (int side = 9; top < maxLevel && side <= widest; side *= 3) ++top;
+    return top;
+}
+
+std::vector<std::vector<std::uint8_t>> labelChangeRequests(const Labels& labels) {
+    const auto dims = labels.grid.dims;
     std::array<int, 3> cells;
     for (int c = 0; c < 3; ++c) cells[c] = std::max(1, (dims[c] + 2) / 3);
     std::vector<std::vector<std::uint8_t>> requests(2);
@@ -146,7 +155,12 @@ RefinementTree refineAtLabelChanges(const Labels& labels, const RefinementSettin
                 want[(static_cast<std::size_t>(ck) * cells[1] + cj) * cells[0] + ci] = uniform ? 0 : 1;
             }
     });
-    return closeRefinement(dims, top, requests);
+    return requests;
+}
+
+RefinementTree refineAtLabelChanges(const Labels& labels, const RefinementSettings& settings) {
+    return closeRefinement(labels.grid.dims, topLevelFor(labels.grid.dims, settings.maxLevel),
+                           labelChangeRequests(labels));
 }
 
 }  // namespace isohex::octree

@@ -103,29 +103,14 @@ bool mustRefine(Block& b, DisjointSets<std::int32_t>& sets) {
 
 }  // namespace
 
-int treeTop(const std::array<int, 3>& points, int maxLevel) {
-    const int widest = std::max({points[0], points[1], points[2]});
-    int top = 1;
-    for (int side = 9; top < maxLevel && side <= widest; side *= 3) ++top;
-    return top;
-}
-
-std::array<int, 3> levelCells(const std::array<int, 3>& points, int level) {
-    int side = 1;
-    for (int l = 0; l < level; ++l) side *= 3;
-    std::array<int, 3> cells;
-    for (int c = 0; c < 3; ++c) cells[c] = std::max(1, (points[c] + side - 1) / side);
-    return cells;
-}
-
-LevelRequests surfaceRequests(const Labels& labels, int top) {
-    LevelRequests req(static_cast<std::size_t>(top) + 1);
+RequestMasks surfaceRequests(const Labels& labels, int top) {
+    RequestMasks req(static_cast<std::size_t>(top) + 1);
     const auto points = labels.grid.dims;
     int side = 1;
     for (int l = 1; l <= top; ++l) {
         side *= 3;
-        const auto cells = levelCells(points, l);
-        const auto childCells = levelCells(points, l - 1);
+        const auto cells = levelDims(points, l);
+        const auto childCells = levelDims(points, l - 1);
         auto& want = req[static_cast<std::size_t>(l)];
         want.assign(static_cast<std::size_t>(cells[0]) * cells[1] * cells[2], 0);
         const std::vector<std::uint8_t>* below = l >= 2 ? &req[static_cast<std::size_t>(l) - 1] : nullptr;
@@ -151,16 +136,6 @@ LevelRequests surfaceRequests(const Labels& labels, int top) {
         });
     }
     return req;
-}
-
-void orRequests(LevelRequests& into, const LevelRequests& from) {
-    if (into.size() < from.size()) into.resize(from.size());
-    for (std::size_t l = 0; l < from.size(); ++l) {
-        if (from[l].empty()) continue;
-        if (into[l].empty()) into[l].assign(from[l].size(), 0);
-        if (into[l].size() != from[l].size()) throw Error("internal error: refinement requests of two sizes for one level");
-        for (std::size_t c = 0; c < from[l].size(); ++c) into[l][c] = static_cast<std::uint8_t>(into[l][c] | from[l][c]);
-    }
 }
 
 }  // namespace isohex::octree

@@ -6,6 +6,7 @@
 
 #include "isohex/core/HexCell.hpp"
 #include "isohex/octree/AdaptiveSurface.hpp"
+#include "isohex/pipeline/Sizing.hpp"
 
 namespace isohex::pipeline {
 
@@ -33,9 +34,11 @@ void edgeRange(const HexMesh& m, double& shortest, double& longest) {
 
 HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
     octree::AdaptiveSurfaceSettings as;
-    as.maxLevel = settings.adaptiveLevels;
+    as.maxLevel = sizingTopLevel(p, settings, facts.sizing);
     as.deviation = settings.adaptiveDeviation;
-    octree::AdaptiveSurfaceResult r = octree::contourAdaptive(p.labels, p.extractionDomain(), uniform, as);
+    as.grading = settings.grading;
+    const octree::RequestMasks sizing = sizingRequests(p, settings, as.maxLevel, facts.sizing);
+    octree::AdaptiveSurfaceResult r = octree::contourAdaptive(p.labels, p.extractionDomain(), uniform, as, sizing);
     const octree::RefinementTree& tree = r.tree;
     facts.topLevel = tree.top();
     facts.uniformHexes = uniform.hexCount();
@@ -45,6 +48,9 @@ HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& s
     for (const auto& round : r.rounds) facts.cellsByCheck.push_back(round.cells);
     facts.unresolved = r.unresolved;
     facts.cellsForBalance.assign(tree.promoted.begin() + 1, tree.promoted.end());
+    facts.cellsForGrading.assign(tree.graded.begin() + 1, tree.graded.end());
+    facts.cellsRequested.assign(tree.requested.begin() + 1, tree.requested.end());
+    facts.grading = settings.grading;
     facts.hexLevel = std::move(r.mesh.hexLevel);
     edgeRange(r.mesh.mesh, facts.smallestEdge, facts.largestEdge);
     return std::move(r.mesh.mesh);

@@ -361,17 +361,26 @@ nlohmann::json toJson(const AdaptiveFacts& a) {
     nlohmann::json checks = nlohmann::json::array();
     for (const auto& c : a.cellsByCheck)
         checks.push_back({{"junction", c[0]}, {"non_manifold", c[1]}, {"inverted", c[2]}, {"deviation", c[3]}});
-    return {{"levels", a.topLevel},
-            {"hexes_per_level", a.hexesPerLevel},
-            {"uniform_hexes", a.uniformHexes},
-            {"smallest_edge", a.smallestEdge},
-            {"largest_edge", a.largestEdge},
-            {"cells_refined",
-             {{"label_change_level_1", a.cellsAtLabelChanges},
-              {"balance_per_level", a.cellsForBalance},
-              {"surface_per_level", a.cellsBySurface},
-              {"checks_per_round", checks},
-              {"unresolved", a.unresolved}}}};
+    nlohmann::json j = {{"levels", a.topLevel},
+                        {"hexes_per_level", a.hexesPerLevel},
+                        {"uniform_hexes", a.uniformHexes},
+                        {"smallest_edge", a.smallestEdge},
+                        {"largest_edge", a.largestEdge},
+                        {"grading", a.grading},
+                        {"cells_refined",
+                         {{"label_change_level_1", a.cellsAtLabelChanges},
+                          {"balance_per_level", a.cellsForBalance},
+                          {"surface_per_level", a.cellsBySurface},
+                          {"checks_per_round", checks},
+                          {"unresolved", a.unresolved},
+                          {"max_size", a.sizing.maxSize},
+                          {"label_size", a.sizing.labelSize},
+                          {"size_image", a.sizing.sizeImage},
+                          {"thickness", a.sizing.thickness},
+                          {"grading_per_level", a.cellsForGrading},
+                          {"requested_per_level", a.cellsRequested}}}};
+    if (a.sizing.maxSizeLevel) j["max_size_level"] = *a.sizing.maxSizeLevel;
+    return j;
 }
 
 nlohmann::json toJson(const MeshReport& r) {

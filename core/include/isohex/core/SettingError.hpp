@@ -33,6 +33,7 @@ enum class Setting : std::uint8_t {
     MeshExterior,        // mesh the background out to a box too
     BoundaryLayers,      // layers of hexes in the boundary sheet
     Adaptive,            // the adaptive 27-tree instead of the uniform grid
+    SizeImage,           // the adaptive mesher's image of element sizes
 };
 
 // A plain name for `s`, for a message read outside any front end.
@@ -55,6 +56,7 @@ inline std::string_view settingName(Setting s) {
         case Setting::MeshExterior: return "mesh-exterior";
         case Setting::BoundaryLayers: return "boundary layers";
         case Setting::Adaptive: return "adaptive";
+        case Setting::SizeImage: return "size image";
     }
     return "setting";
 }

@@ -47,6 +47,7 @@ struct AdaptiveSurfaceSettings {
     int maxLevel = 3;         // coarse hexes up to 3^maxLevel grid steps
     double deviation = 0.5;   // grid steps: farthest a coarse boundary quad's centre or edge midpoint may be from its surface
     int maxRounds = 12;       // check rounds after the first assembly
+    int grading = 0;          // closeRefinement's grading (Grading.hpp)
 };
 
 enum class RefineReason : std::uint8_t { Junction, NonManifold, Inverted, Deviation };
@@ -69,6 +70,6 @@ struct AdaptiveSurfaceResult {
 // domain: its signs follow the labels). `extra` requests are OR-ed with the
 // surface criterion's.
 AdaptiveSurfaceResult contourAdaptive(const Labels& labels, const Domain& domain, const HexMesh& uniform,
-                                      const AdaptiveSurfaceSettings& settings, const LevelRequests& extra = {});
+                                      const AdaptiveSurfaceSettings& settings, const RequestMasks& extra = {});
 
 }  // namespace isohex::octree

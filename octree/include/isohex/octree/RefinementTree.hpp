@@ -70,19 +70,34 @@ struct RefinementTree {
     std::vector<std::size_t> promoted;
     // Cells a request (a refinement criterion) asked to refine, per level.
     std::vector<std::size_t> requested;
+    // Cells refined at each level by the grading's dilation (Grading.hpp) that
+    // neither a request nor the closure refined.
+    std::vector<std::size_t> graded;
 };
 
 // The closed tree over `points` grid points per axis with `top` levels
 // (3^top points per root side, top >= 1). requests[l] (l = 1 .. top, may be
-// empty) flags the level-l cells that must be refined.
+// empty) flags the level-l cells that must be refined. `grading` > 0 keeps
+// that many cells of every level around its refined and templated cells
+// before the next coarser level (refineGradedParents, Grading.hpp); 0 is the
+// closure's own one-level balance.
 RefinementTree closeRefinement(const std::array<int, 3>& points, int top,
-                               const std::vector<std::vector<std::uint8_t>>& requests);
+                               const std::vector<std::vector<std::uint8_t>>& requests, int grading = 0);
 
 // The refinement criteria of the adaptive mesher.
 struct RefinementSettings {
     // Levels above the finest: coarse cells are up to 3^maxLevel grid steps wide.
     int maxLevel = 3;
 };
+
+// The top level of a tree over `points` grid points per axis: at most
+// maxLevel (and at least 1), and no higher than the level whose cells are
+// not wider than the grid.
+int topLevelFor(const std::array<int, 3>& points, int maxLevel);
+
+// Criterion (a) as a request: the level-1 mask (index 1 of the result; index
+// 0 empty) of the cells refineAtLabelChanges refines.
+std::vector<std::vector<std::uint8_t>> labelChangeRequests(const Labels& labels);
 
 // Criterion (a): a level-1 cell is refined (down to the finest hexes) unless
 // every grid point in it and one point around it has one label, so every

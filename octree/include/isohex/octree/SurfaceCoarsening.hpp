@@ -21,24 +21,11 @@
 #include <vector>
 
 #include "isohex/octree/Labels.hpp"
+#include "isohex/octree/RequestMasks.hpp"
 
 namespace isohex::octree {
 
-// Per level l (index l = 1 .. top; index 0 empty): one flag per level-l cell.
-using LevelRequests = std::vector<std::vector<std::uint8_t>>;
-
-// The highest level (<= maxLevel, >= 1) whose cells are not wider than the
-// grid: the top of the tree the adaptive mesher builds over `points`.
-int treeTop(const std::array<int, 3>& points, int maxLevel);
-
-// Cells per axis of level l over `points` grid points per axis.
-std::array<int, 3> levelCells(const std::array<int, 3>& points, int level);
-
 // The surface criterion: flags the cells of levels 1 .. top that must be refined.
-LevelRequests surfaceRequests(const Labels& labels, int top);
-
-// Sets every flag of `from` in `into` (levels and sizes must agree where both
-// have a level; `into` grows to hold `from`'s levels).
-void orRequests(LevelRequests& into, const LevelRequests& from);
+RequestMasks surfaceRequests(const Labels& labels, int top);
 
 }  // namespace isohex::octree

@@ -10,6 +10,7 @@
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/Sizing.hpp"
 
 namespace isohex::pipeline {
 
@@ -24,14 +25,19 @@ struct AdaptiveFacts {
     std::vector<std::array<std::size_t, 4>> cellsByCheck;
     std::size_t unresolved = 0;                 // problems the rounds left
     std::vector<std::size_t> cellsForBalance;   // per level: cells refined or promoted by the closure
+    std::vector<std::size_t> cellsForGrading;   // per level: parents refined by the grading's dilation
+    std::vector<std::size_t> cellsRequested;    // per level: cells any criterion asked for
+    int grading = 0;
+    SizingFacts sizing;                         // the user sizing and thickness criteria
     double smallestEdge = 0, largestEdge = 0;   // world units, of the contoured mesh
     std::vector<std::uint8_t> hexLevel;         // per hex of the mesh (sheet hexes: their boundary hex's, 0)
 };
 
 // The adaptive mesh of p.labels (octree::contourAdaptive over the extraction
 // domain) from `uniform` (contour()'s mesh of p.labels, held-back positions
-// applied): refined regions keep its hexes and nodes, coarse leaves straddle
-// the surface where it is smooth and simple.
+// applied), with the user sizing's requests (Sizing.hpp) ORed into the
+// surface criterion's: refined regions keep its hexes and nodes, coarse
+// leaves straddle the surface where it is smooth and simple.
 HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 }  // namespace isohex::pipeline

@@ -2,8 +2,12 @@
 // What decides a mesh: the settings every stage of the pipeline reads, and
 // their defaults. The command line fills them (cli/MeshOptions.cpp).
 #include <cstddef>
+#include <cstdint>
 #include <optional>
+#include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "isohex/imaging/Selection.hpp"
 #include "isohex/imaging/Volume.hpp"
@@ -62,6 +66,12 @@ struct MeshSettings {
     // Grid steps a coarse boundary quad's centre or edge midpoint may lie
     // off its surface before its leaves are refined (octree::AdaptiveSurfaceSettings::deviation).
     double adaptiveDeviation = 0.5;
+    // The adaptive mesher's sizing (pipeline/Sizing.hpp); the finest size is `size` (or `level`).
+    std::optional<double> maxSize;                            // no cell wider (world units)
+    std::vector<std::pair<std::int32_t, double>> labelSizes;  // cells holding label L no wider than S
+    std::string sizeImage;                                    // an image of sizes (mm); empty: none
+    int grading = 0;                // cells of a level kept around finer ones before a coarser level
+    bool thicknessRefinement = true;  // refine where a material is thinner than two cells
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     // Start the sheet and the optimiser as before the valid start: vertices
