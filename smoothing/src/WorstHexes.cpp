@@ -336,6 +336,12 @@ void WorstHexPass::ascendSteps(NodeSearch& s) {
 
 void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
     const std::size_t sv = s.sv;
+    // A surface node that starts the visit farther off its surface than the
+    // round allows (a vertex contouring held back) may still move, as long as
+    // it gets no farther off than it was: else it could never move at all.
+    const double offAtStart = s.surface && (s.release || s.offSurface) ? offBy(sv, mesh_.nodes[sv]) : 0.0;
+    const double releaseBound = std::max(opt_.releaseDistance * s.L, offAtStart);
+    const double slackBound = std::max(opt_.surfaceSlack, offAtStart);
     while (s.step >= opt_.lastStep * s.L && s.moves < s.maxMoves) {
         Vec3 bestPos = mesh_.nodes[sv];
         Around bestValue = s.best;
@@ -345,8 +351,8 @@ void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
             // a curve node: the 3-D trial point onto its curve (both ways along it)
             if (s.curve) p = projector_->projectToCurve(mesh_.nodeClass[sv].id, p);
             if (!finite(p)) continue;
-            if (s.surface && s.release && !(offBy(sv, p) <= opt_.releaseDistance * s.L)) continue;
-            if (s.offSurface && !(offBy(sv, p) <= opt_.surfaceSlack)) continue;
+            if (s.surface && s.release && !(offBy(sv, p) <= releaseBound)) continue;
+            if (s.offSurface && !(offBy(sv, p) <= slackBound)) continue;
             if (!s.edgesOk(p)) continue;
             const Around f = s.evaluateTrial(p, bestValue);
             if (s.improves(f, bestValue)) {
