@@ -118,6 +118,9 @@ private:
     WorstHexResult res_;
     std::size_t N_ = 0;
     std::vector<double> sj_;  // usable scaled Jacobian per hex, kept current
+    // The mean rounds' floor for a hex above it: the target, or the worst
+    // hex when the mean rounds start if that is higher (meanRestore).
+    double meanFloor_ = 0;
     bool meanRounds_ = false;  // the mean rounds have work (a hex below meanBelow)
     std::vector<std::uint8_t> everMoved_, released_;
     // A compass visit is a function of where the nodes of the node's hexes
