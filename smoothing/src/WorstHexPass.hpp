@@ -118,8 +118,8 @@ private:
     WorstHexResult res_;
     std::size_t N_ = 0;
     std::vector<double> sj_;  // usable scaled Jacobian per hex, kept current
-    // The mean rounds' floor for a hex above it: the target, or the worst
-    // hex when the mean rounds start if that is higher (meanRestore).
+    // The worst hex when the mean rounds start (meanRestore); from then on a
+    // floor above the target where it is higher (floorsOf).
     double meanFloor_ = 0;
     bool meanRounds_ = false;  // the mean rounds have work (a hex below meanBelow)
     std::vector<std::uint8_t> everMoved_, released_;

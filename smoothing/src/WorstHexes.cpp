@@ -173,13 +173,13 @@ double WorstHexPass::offBy(std::size_t v, const Vec3& p) const {
     return norm(projector_->project(mesh_.nodeClass[v].id, p) - p);
 }
 
-// Its value now, or the mean rounds' floor (meanFloor_) if it is above that; a valid hex stays valid
+// Its value now, or the target (once the mean rounds start, the worst hex then if higher) if it is above that; a valid hex stays valid
 // even with a target of 0.
 std::vector<double> WorstHexPass::floorsOf(const NodeHexes& nh) const {
     std::vector<double> floors(nh.size());
     for (std::size_t k = 0; k < nh.size(); ++k) {
         const double s0 = sj_[static_cast<std::size_t>(nh.hex(k))];
-        floors[k] = s0 > 0 ? std::max(std::min(s0, meanFloor_), std::numeric_limits<double>::min()) : s0;
+        floors[k] = s0 > 0 ? std::max(std::min(s0, std::max(opt_.target, meanFloor_)), std::numeric_limits<double>::min()) : s0;
     }
     return floors;
 }
