@@ -67,8 +67,9 @@ struct MeshSettings {
     // the untangler (octree::ExtractOptions::validStart, PillowOptions::
     // turnIntoCorners, SmoothingOptions::offSurfaceNodesOntoSurface off, no
     // return of held-back vertices). For comparisons and tests of untangling;
-    // off by default (the valid start, --valid-start: 0.04-0.36% of hexes
-    // inverted when the optimiser starts instead of 2-10%, bench/RESULTS.md).
+    // off by default (the valid start, --valid-start: at most 0.36% of hexes
+    // inverted when the optimiser starts on the bench inputs but two_spheres,
+    // instead of 2-8%; bench/RESULTS.md).
     bool tangledStart = false;
     bool fixBoundary = false;
     // compare fixes the boundary unless --move-boundary (its warnings say so)
