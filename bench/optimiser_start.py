@@ -10,8 +10,8 @@ parts 1 and 2), measured on the written files with VTK.
 Cases (names): the phantoms sphere, torus, thin_plate, two_spheres (--iso 50
 --size 1.5), two_materials (--labels --size 1.5), skull (--iso 2.9), jhu
 (--labels), femur, and ch2bet_S for S in 6, 4, 3, 2, 1.5, 1.25 (--size S
---keep-largest), as bench/run meshes them. Per case: wall time (GNU time),
-the report's optimisation time, hexes inverted when the optimiser starts
+--keep-largest), as bench/run meshes them. Per case: wall time (GNU time), CPU time
+(user + system, GNU time; steadier than wall on a loaded machine), the report's optimisation time, hexes inverted when the optimiser starts
 (`optimization.inverted_before`), untangling sweeps, retries (meshed again,
 grid points edited), VTK's scaled Jacobian (min, mean, inverted) on the .vtu
 and VTK's distance from the boundary nodes to the scan's full-resolution
@@ -65,12 +65,14 @@ def time_of(cmd, log):
         t = time.perf_counter()
         p = subprocess.run(["/usr/bin/time", "-v", "-o", tfile, *cmd], stdout=f, stderr=subprocess.STDOUT)
         wall = time.perf_counter() - t
-    peak = None
+    peak, cpu = None, 0.0
     with open(tfile) as f:
         for line in f:
             if "Maximum resident set size" in line:
                 peak = int(line.split(":")[1]) / 1024.0
-    return p.returncode, wall, peak
+            elif "User time (seconds)" in line or "System time (seconds)" in line:
+                cpu += float(line.split(":")[1])
+    return p.returncode, wall, peak, cpu
 
 
 def run(binary, out, only, extra=()):
@@ -87,7 +89,7 @@ def run(binary, out, only, extra=()):
         vtu, rep = os.path.join(out, name + ".vtu"), os.path.join(out, name + ".json")
         cmd = [binary, "mesh", inp, *opts, *extra, "--threads", "2", "-o", vtu, "--report", rep, "--force", "-q",
                "--allow-below"]
-        rc, wall, peak = time_of(cmd, os.path.join(out, name + ".log"))
+        rc, wall, peak, cpu = time_of(cmd, os.path.join(out, name + ".log"))
         if rc != 0 and not os.path.exists(vtu):
             print(f"{name}: exit {rc}, see {name}.log", flush=True)
             summary[name] = {"error": rc}
@@ -97,7 +99,7 @@ def run(binary, out, only, extra=()):
         q = measure.quality(grid)
         d = measure.boundary_distance(grid, reference_surface(inp, kind, largest, r))
         o, rt = r.get("optimization", {}), r.get("retries", {})
-        s = {"hexes": q["hexes"], "wall": wall, "peak_mb": peak, "optimize_s": r["timings_s"].get("optimize"),
+        s = {"hexes": q["hexes"], "wall": wall, "cpu_s": cpu, "peak_mb": peak, "optimize_s": r["timings_s"].get("optimize"),
              "retries_s": rt.get("seconds"), "inverted_at_start": o.get("inverted_before"),
              "untangle_sweeps": o.get("untangle_sweeps"), "sweeps": o.get("sweeps"),
              "meshed_again": rt.get("meshed_again"), "points_edited": rt.get("points_edited"),
@@ -117,9 +119,9 @@ def run(binary, out, only, extra=()):
 def compare(before, after):
     a = json.load(open(os.path.join(before, "summary.json")))
     b = json.load(open(os.path.join(after, "summary.json")))
-    print("| input | hexes | inverted at start | untangle sweeps | meshed again | optimise s | wall s | SJ min | "
-          "SJ mean | VTK distance mean | VTK distance max |")
-    print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
+    print("| input | hexes | inverted at start | untangle sweeps | meshed again | optimise s | wall s | CPU s | "
+          "SJ min | SJ mean | VTK distance mean | VTK distance max |")
+    print("|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|")
 
     def pair(x, y, k, fmt):
         vx, vy = x.get(k), y.get(k)
@@ -131,7 +133,7 @@ def compare(before, after):
         pct = lambda s: f"{s['inverted_at_start']} ({100.0 * s['inverted_at_start'] / s['hexes']:.2f}%)"
         print(f"| {name} | {x['hexes']:,} / {y['hexes']:,} | {pct(x)} / {pct(y)} | "
               f"{pair(x, y, 'untangle_sweeps', '{}')} | {pair(x, y, 'meshed_again', '{}')} | "
-              f"{pair(x, y, 'optimize_s', '{:.2f}')} | {pair(x, y, 'wall', '{:.1f}')} | "
+              f"{pair(x, y, 'optimize_s', '{:.2f}')} | {pair(x, y, 'wall', '{:.1f}')} | {pair(x, y, 'cpu_s', '{:.1f}')} | "
               f"{pair(x, y, 'sj_min', '{:.4f}')} | {pair(x, y, 'sj_mean', '{:.4f}')} | "
               f"{pair(x, y, 'vtk_distance_mean', '{:.5f}')} | {pair(x, y, 'vtk_distance_max', '{:.3f}')} |")
 

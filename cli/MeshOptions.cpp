@@ -356,12 +356,12 @@ void addMeshRows(std::vector<MeshOption>& t) {
                       [](MeshArgs& a) -> auto& { return a.settings.optimize; }, true));
     t.push_back(onOff("valid-start", g,
                       "Hand the optimiser an almost untangled mesh: vertices that would invert a hex held back "
-                      "towards their cell centres, the sheet's copies stepped inside every corner (faster on large "
-                      "meshes; on some inputs a lower worst hex, see docs/DESIGN.md)",
+                      "towards their cell centres, the sheet's copies stepped inside every corner (the default; the "
+                      "opposite of --tangled-start)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }, true));
     t.push_back(onOff("tangled-start", g,
                       "Start the optimiser with surface vertices on the surface and hexes left inverted for the "
-                      "untangler (the default; the opposite of --valid-start)",
+                      "untangler, as before the valid start (for comparisons; the opposite of --valid-start)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.tangledStart; }));
 }
 

@@ -118,6 +118,9 @@ private:
     WorstHexResult res_;
     std::size_t N_ = 0;
     std::vector<double> sj_;  // usable scaled Jacobian per hex, kept current
+    // The worst hex when the mean rounds start (meanRestore); from then on a
+    // floor above the target where it is higher (floorsOf).
+    double meanFloor_ = 0;
     bool meanRounds_ = false;  // the mean rounds have work (a hex below meanBelow)
     std::vector<std::uint8_t> everMoved_, released_;
     // A compass visit is a function of where the nodes of the node's hexes

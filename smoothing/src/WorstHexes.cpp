@@ -139,6 +139,10 @@ void WorstHexPass::meanRestore() {
     const Stopwatch watch;
     double before = 0;
     for (double v : sj_) before += v;
+    // The mean rounds trade a hex above the target for the sum; they never
+    // take one below the worst hex they start from (a mesh whose worst hex is
+    // above the target keeps it: the torus phantom lost 0.011 of it).
+    meanFloor_ = std::max(opt_.target, sj_.empty() ? 0.0 : *std::min_element(sj_.begin(), sj_.end()));
     for (int round = 0; round < opt_.meanRounds && runRound({.mean = true}); ++round) {
         ++res_.meanRounds;
     }
@@ -169,13 +173,13 @@ double WorstHexPass::offBy(std::size_t v, const Vec3& p) const {
     return norm(projector_->project(mesh_.nodeClass[v].id, p) - p);
 }
 
-// Its value now, or the target if it is above that; a valid hex stays valid
+// Its value now, or the target (once the mean rounds start, the worst hex then if higher) if it is above that; a valid hex stays valid
 // even with a target of 0.
 std::vector<double> WorstHexPass::floorsOf(const NodeHexes& nh) const {
     std::vector<double> floors(nh.size());
     for (std::size_t k = 0; k < nh.size(); ++k) {
         const double s0 = sj_[static_cast<std::size_t>(nh.hex(k))];
-        floors[k] = s0 > 0 ? std::max(std::min(s0, opt_.target), std::numeric_limits<double>::min()) : s0;
+        floors[k] = s0 > 0 ? std::max(std::min(s0, std::max(opt_.target, meanFloor_)), std::numeric_limits<double>::min()) : s0;
     }
     return floors;
 }
@@ -336,6 +340,12 @@ void WorstHexPass::ascendSteps(NodeSearch& s) {
 
 void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
     const std::size_t sv = s.sv;
+    // A surface node that starts the visit farther off its surface than the
+    // round allows (a vertex contouring held back) may still move, as long as
+    // it gets no farther off than it was: else it could never move at all.
+    const double offAtStart = s.surface && (s.release || s.offSurface) ? offBy(sv, mesh_.nodes[sv]) : 0.0;
+    const double releaseBound = std::max(opt_.releaseDistance * s.L, offAtStart);
+    const double slackBound = std::max(opt_.surfaceSlack, offAtStart);
     while (s.step >= opt_.lastStep * s.L && s.moves < s.maxMoves) {
         Vec3 bestPos = mesh_.nodes[sv];
         Around bestValue = s.best;
@@ -345,8 +355,8 @@ void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
             // a curve node: the 3-D trial point onto its curve (both ways along it)
             if (s.curve) p = projector_->projectToCurve(mesh_.nodeClass[sv].id, p);
             if (!finite(p)) continue;
-            if (s.surface && s.release && !(offBy(sv, p) <= opt_.releaseDistance * s.L)) continue;
-            if (s.offSurface && !(offBy(sv, p) <= opt_.surfaceSlack)) continue;
+            if (s.surface && s.release && !(offBy(sv, p) <= releaseBound)) continue;
+            if (s.offSurface && !(offBy(sv, p) <= slackBound)) continue;
             if (!s.edgesOk(p)) continue;
             const Around f = s.evaluateTrial(p, bestValue);
             if (s.improves(f, bestValue)) {

@@ -80,7 +80,7 @@ Extracted extractOnly(const std::string& input, pipeline::MeshSettings s) {
     if (!std::filesystem::exists(input)) throw std::runtime_error("missing input " + input);
     s.pillow = false;
     s.optimize = false;
-    s.tangledStart = false;  // these tests check the valid start's held-back positions (--valid-start)
+    s.tangledStart = false;  // these tests check the valid start's held-back positions, whatever the default
     QuietSink sink;
     Extracted r;
     r.p = pipeline::prepare(input, s, sink);
