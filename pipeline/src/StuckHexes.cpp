@@ -59,8 +59,9 @@ std::string warnInverted(StageSink& sink, const HexMesh& mesh, const std::vector
     msg += "; first at (" + std::to_string(c[0]) + ", " + std::to_string(c[1]) + ", " + std::to_string(c[2]) + ")" +
            more +
            (!fixedBoundary ? "; another --size may avoid them"
-            : byCompare ? "; compare keeps every surface node where extraction put it (the seed's protocol), and hexes "
-                          "on a folded surface can only be untangled by moving those: --move-boundary lets them move"
+            : byCompare ? "; compare fixes every surface node once the surface quads are smoothed (the seed's "
+                          "protocol), and hexes on a folded surface can only be untangled by moving those: "
+                          "--move-boundary lets them move"
                         : "; --fix-boundary keeps every surface node where extraction put it, and hexes on a folded "
                           "surface can only be untangled by moving those: drop it, or try another --size");
     sink.note("warning", msg);

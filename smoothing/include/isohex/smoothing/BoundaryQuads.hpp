@@ -2,13 +2,17 @@
 // The seed's protocol for comparing meshes with the boundary fixed (chapter
 // 5): before the boundary nodes are fixed, the boundary quadrilaterals are
 // smoothed on the isosurface (the seed's meshes had their boundary improved
-// by geometric flow), so that the comparison measures the interior's hexes,
-// not the extraction's raw quads. Each surface node moves, in node order
-// (deterministic), towards the mean of the centres of its surface quads and
-// is projected back onto its surface; a move that would invert a hex around
-// the node, or lower the smallest scaled Jacobian there below min(its value,
-// 0.2), is halved up to three times and then dropped. Curve and fixed nodes
-// stay.
+// by geometric flow, whose tangential step improves the quads' aspect
+// ratio), so that the comparison measures the interior's hexes, not the
+// extraction's raw quads. The quads alone decide: each surface node moves on
+// its surface to lower the 2-D condition number of the quad corners it
+// shapes (measured against the surface normal there, so a folded corner is
+// the worst), by a compass search (the centre of its quads and four tangent
+// steps, each projected back onto the surface), in node order
+// (deterministic), for a fixed number of sweeps (or until no node moves;
+// the compass search keeps finding small gains, so the count decides). The hexes are not looked at: the surface
+// mesh is a property of the extraction, shared by every mesh made from it.
+// Curve and fixed nodes stay.
 #include <cstddef>
 
 #include "isohex/core/HexMesh.hpp"
@@ -23,8 +27,12 @@ struct BoundaryQuadResult {
     double seconds = 0;
 };
 
+struct BoundaryQuadOptions {
+    int sweeps = 20;
+};
+
 // `topology`: buildTopology(mesh) (nodes move only, so it stays valid).
 BoundaryQuadResult smoothBoundaryQuads(HexMesh& mesh, const SurfaceProjector& projector, const Topology& topology,
-                                       int sweeps = 10);
+                                       const BoundaryQuadOptions& options = {});
 
 }  // namespace isohex::smoothing

@@ -1,0 +1,62 @@
+#pragma once
+// The seed's experiment (dissertation, chapter 5.3): one extraction meshed
+// four ways and optimised by one protocol, so that the variants differ only
+// in their sheets:
+//   a  no sheet
+//   b  the fundamental sheet pillowed in
+//   c  no sheet, random sheets diced in until the hex count matches b
+//   d  the fundamental sheet, random other sheets extracted until the count
+//      matches a
+// The protocol (settings.fixBoundary, the seed's): the boundary and interface
+// quads are smoothed on the isosurface once, on the extraction, before any
+// sheet is added, so every variant has the same surface mesh (the seed's
+// LBIE meshes had their surface improved by geometric flow, and pillowing
+// left it unchanged); then each variant's surface nodes are fixed and its
+// other nodes optimised (pipeline::optimize). Without fixBoundary (compare
+// --move-boundary) nothing is smoothed first and surface nodes slide on the
+// isosurface while each variant is optimised.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "isohex/core/HexMesh.hpp"
+#include "isohex/pipeline/MeshSettings.hpp"
+#include "isohex/pipeline/Optimize.hpp"
+#include "isohex/pipeline/Prepare.hpp"
+#include "isohex/pipeline/StageSink.hpp"
+#include "isohex/smoothing/BoundaryQuads.hpp"
+
+namespace isohex::pipeline {
+
+enum class CompareVariantKind : std::uint8_t { NoSheet, Sheet, NoSheetDiced, SheetExtracted };
+
+struct CompareVariant {
+    CompareVariantKind kind = CompareVariantKind::NoSheet;
+    HexMesh mesh;
+    nlohmann::json operations;  // the sheet operations that made it (report JSON)
+    double seconds = 0;         // the time of those operations, and then of its optimisation
+};
+
+const char* variantKey(CompareVariantKind kind);    // "a" ... "d"
+const char* variantLabel(CompareVariantKind kind);  // "no sheet", ...
+
+struct CompareVariants {
+    // The surface smoothing every variant shares (with settings.fixBoundary).
+    std::optional<smoothing::BoundaryQuadResult> boundaryQuads;
+    std::vector<CompareVariant> variants;  // a, b, c, d
+};
+
+// The four variants before optimisation, from one extraction (smoothed on the
+// isosurface first with settings.fixBoundary); `seed` draws the random sheets.
+CompareVariants makeCompareVariants(const Prepared& p, const MeshSettings& settings, std::uint64_t seed,
+                                    StageSink& sink);
+
+// One variant optimised by the protocol (pipeline::optimize with the
+// settings' fixBoundary); its seconds grow by the time taken.
+OptimizeResult optimizeCompareVariant(CompareVariant& v, const Prepared& p, const MeshSettings& settings,
+                                      StageSink& sink);
+
+}  // namespace isohex::pipeline

@@ -1,0 +1,130 @@
+#include "isohex/pipeline/Compare.hpp"
+
+#include "isohex/core/Collapse.hpp"
+#include "isohex/core/Dice.hpp"
+#include "isohex/core/Error.hpp"
+#include "isohex/core/SheetSelection.hpp"
+#include "isohex/core/Stopwatch.hpp"
+#include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/Pillow.hpp"
+#include "isohex/pipeline/ReportJson.hpp"
+
+namespace isohex::pipeline {
+
+namespace {
+
+// Dices randomly drawn sheets once each until the mesh has at least `target` hexes.
+nlohmann::json diceUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
+    nlohmann::json j;
+    std::size_t diced = 0;
+    for (std::uint64_t round = 0; mesh.hexCount() < target && round < 100000; ++round) {
+        const Topology t = buildTopology(mesh);
+        const DualSheets s = buildSheets(mesh, t);
+        const auto pick = randomSheets(s, 1, seed + round);
+        if (pick.empty()) break;
+        try {
+            dice(mesh, t, s, pick[0], 1);
+            ++diced;
+        } catch (const Error&) {
+            // a self-intersecting sheet: draw another
+        }
+    }
+    j["sheets_diced"] = diced;
+    return j;
+}
+
+// Extracts randomly drawn non-fundamental sheets until at most `target` hexes
+// remain; sheets whose extraction is refused are skipped.
+nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
+    nlohmann::json j;
+    std::size_t extracted = 0, refused = 0;
+    for (std::uint64_t round = 0; mesh.hexCount() > target && round < 100000; ++round) {
+        const Topology t = buildTopology(mesh);
+        const DualSheets s = buildSheets(mesh, t);
+        const auto fundamental = fundamentalSheets(mesh, t, s);
+        const auto pick = randomSheets(s, 1, seed + round, fundamental);
+        if (pick.empty()) break;
+        try {
+            collapse(mesh, t, s, pick[0]);
+            ++extracted;
+        } catch (const Error&) {
+            ++refused;
+            if (refused > 50 + 10 * extracted) break;  // nothing left that can go
+        }
+    }
+    j["sheets_extracted"] = extracted;
+    j["extractions_refused"] = refused;
+    return j;
+}
+
+}  // namespace
+
+const char* variantKey(CompareVariantKind kind) {
+    switch (kind) {
+        case CompareVariantKind::NoSheet: return "a";
+        case CompareVariantKind::Sheet: return "b";
+        case CompareVariantKind::NoSheetDiced: return "c";
+        case CompareVariantKind::SheetExtracted: return "d";
+    }
+    return "?";
+}
+
+const char* variantLabel(CompareVariantKind kind) {
+    switch (kind) {
+        case CompareVariantKind::NoSheet: return "no sheet";
+        case CompareVariantKind::Sheet: return "fundamental sheet";
+        case CompareVariantKind::NoSheetDiced: return "no sheet, random sheets diced in";
+        case CompareVariantKind::SheetExtracted: return "fundamental sheet, random sheets extracted";
+    }
+    return "?";
+}
+
+// a as extracted (and smoothed), b pillowed, c diced up to b's count, d (from
+// b) extracted down to a's. Each variant's seconds are the time of its sheet
+// operations (d's include b's pillowing).
+CompareVariants makeCompareVariants(const Prepared& p, const MeshSettings& settings, std::uint64_t seed,
+                                    StageSink& sink) {
+    CompareVariants out;
+    HexMesh base = contour(p, settings, sink);
+    // Once, before any sheet, so that all four variants share one surface mesh.
+    if (settings.fixBoundary) out.boundaryQuads = smoothBoundaryOnIsosurface(base, p, sink);
+    auto& v = out.variants;
+    v.resize(4);
+    v[0] = {CompareVariantKind::NoSheet, base, {}, 0};
+    v[1] = {CompareVariantKind::Sheet, base, {}, 0};
+    MeshSettings pillowed = settings;
+    pillowed.pillow = true;
+    {
+        const Stopwatch t;
+        v[1].operations = toJson(pillowBoundary(v[1].mesh, pillowed, sink));
+        v[1].seconds += t.seconds();
+    }
+    v[2] = {CompareVariantKind::NoSheetDiced, base, {}, 0};
+    {
+        sink.begin("dice");
+        const Stopwatch t;
+        v[2].operations = diceUntil(v[2].mesh, v[1].mesh.hexCount(), seed);
+        v[2].seconds += t.seconds();
+        sink.end("dice", v[2].seconds);
+    }
+    v[3] = {CompareVariantKind::SheetExtracted, v[1].mesh, {}, 0};
+    {
+        sink.begin("extract sheets");
+        const Stopwatch t;
+        v[3].operations = extractUntil(v[3].mesh, base.hexCount(), seed);
+        v[3].seconds += t.seconds() + v[1].seconds;
+        sink.end("extract sheets", t.seconds());
+    }
+    return out;
+}
+
+OptimizeResult optimizeCompareVariant(CompareVariant& v, const Prepared& p, const MeshSettings& settings,
+                                      StageSink& sink) {
+    const Stopwatch t;
+    OptimizeResult r = optimize(v.mesh, p, settings, sink);
+    v.seconds += t.seconds();
+    return r;
+}
+
+}  // namespace isohex::pipeline
