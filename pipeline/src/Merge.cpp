@@ -278,6 +278,17 @@ MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands
         const CutBandScan band{&projector,
                                scan.surfaceToleranceVoxels * p.selection->materials.front().field.voxelSize()};
         s.r.scanBands = optimiseCutBands(s.r.mesh, s.r.onCut, &band);
+        for (int i = 1; i < kCutBandScanPasses; ++i) {
+            const CutBandResult more = optimiseCutBands(s.r.mesh, s.r.onCut, &band);
+            CutBandResult& b = *s.r.scanBands;
+            b.seconds += more.seconds;
+            if (!more.kept) continue;
+            b.nodes = std::max(b.nodes, more.nodes);
+            b.hexes = std::max(b.hexes, more.hexes);
+            b.minAfter = more.minAfter;
+            b.invertedAfter = more.invertedAfter;
+            b.kept = true;
+        }
     }
     s.r.seconds = clock.seconds();
     return std::move(s.r);
