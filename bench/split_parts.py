@@ -4,10 +4,14 @@ of the same input and options (docs/SPLIT-SCANS.md): conformity of the merged
 mesh (no repeated point, every interior face in exactly two hexes, as many
 boundary faces as the single mesh), scaled Jacobian from VTK's vtkMeshQuality,
 exact hex volume and boundary distance to the scan's VTK isosurface (bench/
-measure.py), peak memory of every process (/usr/bin/time -v).
+measure.py), peak memory of every process (/usr/bin/time -v). The merge is
+given the scan and the mesh options (isohex merge --scan SCAN [options]).
 
   bench/split_parts.py --isohex build/cli/isohex --work DIR --name NAME \\
-      --input SCAN --parts 2 4 -- [mesh options]
+      --input SCAN --parts 2 4 [--reuse-single] [--reuse-parts] -- [mesh options]
+
+--reuse-parts keeps the part files (and their logs) this script wrote before
+and runs only the merges: the parts do not depend on the merge's code.
 """
 import argparse
 import json
@@ -33,6 +37,14 @@ def timed(cmd, log):
     secs = sum(float(x) * 60 ** i for i, x in enumerate(reversed(wall.split(":"))))
     rss = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1))
     return secs, rss / 1024.0
+
+
+def logged(log):
+    """(wall s, peak MB) of a run timed() logged before."""
+    text = open(log).read()
+    wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", text).group(1)
+    secs = sum(float(x) * 60 ** i for i, x in enumerate(reversed(wall.split(":"))))
+    return secs, int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", text).group(1)) / 1024.0
 
 
 def faces_check(grid):
@@ -64,6 +76,7 @@ def main():
     ap.add_argument("--parts", type=int, nargs="+", default=[2, 4])
     ap.add_argument("--threads", default="2")
     ap.add_argument("--reuse-single", action="store_true", help="keep the single run this script measured before")
+    ap.add_argument("--reuse-parts", action="store_true", help="keep the part files this script wrote before")
     ap.add_argument("opts", nargs=argparse.REMAINDER)
     a = ap.parse_args()
     opts = [o for o in a.opts if o != "--"]
@@ -73,10 +86,7 @@ def main():
     out = {"name": a.name, "input": a.input, "options": opts}
     single = w(f"{a.name}_single.vtu")
     if a.reuse_single and os.path.exists(single + ".json"):  # measured before by this script
-        log = open(w(f"{a.name}_single.log")).read()
-        wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", log).group(1)
-        out["single_wall_s"] = sum(float(x) * 60 ** i for i, x in enumerate(reversed(wall.split(":"))))
-        out["single_peak_mb"] = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", log).group(1)) / 1024.0
+        out["single_wall_s"], out["single_peak_mb"] = logged(w(f"{a.name}_single.log"))
     else:
         out["single_wall_s"], out["single_peak_mb"] = timed(run + ["-o", single, "--report", single + ".json"],
                                                            w(f"{a.name}_single.log"))
@@ -91,14 +101,19 @@ def main():
         files = []
         for k in range(1, n + 1):
             f = w(f"{a.name}_{k}of{n}.vtu")
-            secs, mb = timed(run + ["--part", f"{k}/{n}", "-o", f], w(f"{a.name}_{k}of{n}.log"))
+            log = w(f"{a.name}_{k}of{n}.log")
+            if a.reuse_parts and os.path.exists(f) and os.path.exists(log):
+                secs, mb = logged(log)
+            else:
+                secs, mb = timed(run + ["--part", f"{k}/{n}", "-o", f], log)
             s["part_wall_s"].append(secs)
             s["part_peak_mb"].append(mb)
             files.append(f)
         s["part_file_mb"] = [os.path.getsize(f) / 2**20 for f in files]
         merged = w(f"{a.name}_merged{n}.vtu")
         s["merge_wall_s"], s["merge_peak_mb"] = timed(
-            [a.isohex, "merge", *files, "-o", merged, "--report", merged + ".json", "--force", "--threads", a.threads],
+            [a.isohex, "merge", *files, "-o", merged, "--report", merged + ".json", "--force", "--threads", a.threads,
+             "--scan", a.input, *opts],
             w(f"{a.name}_merge{n}.log"))
         s["merge_report"] = json.load(open(merged + ".json"))["merge"]
         s["merged_valid"] = json.load(open(merged + ".json"))["validity"]["ok"]

@@ -8,6 +8,8 @@
 #include "Isolate.hpp"
 #include "JobStage.hpp"
 #include "Jobs.hpp"
+#include "MeshOptions.hpp"
+#include "Progress.hpp"
 #include "Report.hpp"
 #include "RunOptions.hpp"
 #include "Threads.hpp"
@@ -17,6 +19,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/pipeline/Merge.hpp"
+#include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/ReportJson.hpp"
 
 namespace isohex::cli {
@@ -28,13 +31,37 @@ struct MergeArgs {
     std::string report;
     bool noBandPass = false;
     bool allowBelow = false;
+    std::string scan;  // the scan the parts were meshed from, with the parts' options in `mesh`
+    MeshArgs mesh;
     RunArgs run;
 };
+
+// The mesh options merge takes with --scan: every one but those merge has
+// itself (--allow-below) or that name a part (--part).
+std::vector<std::string> scanOptionNames() {
+    std::vector<std::string> names;
+    for (const MeshOption& o : meshOptions())
+        if (o.name != "allow-below" && o.name != "part") names.push_back(o.name);
+    return names;
+}
+
+// Joins the parts; with --scan, the band pass projects onto the scan's isosurface.
+pipeline::MergeResult merge(const MergeArgs& a) {
+    if (a.scan.empty()) return pipeline::mergeParts(a.parts, !a.noBandPass);
+    nowReading(a.scan);
+    ProgressSink sink(ProgressSink::Mode::Quiet);
+    const pipeline::Prepared p = pipeline::prepareGrid(a.scan, a.mesh.settings, sink);
+    nowReading(a.parts.front());
+    pipeline::MergeScan scan;
+    scan.prepared = &p;
+    scan.surfaceToleranceVoxels = a.mesh.settings.surfaceTolerance.value_or(pipeline::kDefaultSurfaceTolerance);
+    return pipeline::mergeParts(a.parts, !a.noBandPass, scan);
+}
 
 // Joins, measures and writes; the report as JSON.
 nlohmann::json mergeAndWrite(const MergeArgs& a) {
     nowReading(a.parts.front());
-    pipeline::MergeResult m = pipeline::mergeParts(a.parts, !a.noBandPass);
+    pipeline::MergeResult m = merge(a);
     const HexQuality q = computeQuality(m.mesh);
     const QualitySummary s = summarize(m.mesh, q);
     const ValidityReport v = validate(m.mesh);
@@ -43,6 +70,7 @@ nlohmann::json mergeAndWrite(const MergeArgs& a) {
     for (const auto& [k, val] : quality.items()) report[k] = val;
     report["validity"] = toJson(v);
     report["outputs"] = a.outputs;
+    report["scan"] = a.scan.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.scan);
     // No mesh with inverted hexes or defects is written without a word (as
     // `mesh` does below its minimum quality): refused unless --allow-below.
     if ((s.inverted > 0 || !v.ok()) && !a.allowBelow)
@@ -83,13 +111,24 @@ void addMergeCommand(CLI::App& app) {
                   "Write the merged mesh even when it has inverted hexes or defects (a warning says so)");
     cmd->add_flag("--no-band-pass", a->noBandPass,
                   "Do not optimise the nodes around the cuts again (each part froze its cut nodes)");
+    cmd->add_option("--scan", a->scan,
+                    "The scan the parts were meshed from, with the parts' mesh options: the band pass then keeps "
+                    "boundary nodes on its isosurface (without, on the merged mesh's boundary)");
+    const std::vector<std::string> scanOptions = scanOptionNames();
+    addMeshOptions(cmd, a->mesh, scanOptions);
     addRunOptions(cmd, a->run, {RunOption::Threads, RunOption::Force});
-    cmd->callback([a] {
+    cmd->callback([a, cmd, scanOptions] {
         applyThreads(a->run.threads);
+        for (const auto& name : scanOptions)
+            if (a->scan.empty() && cmd->count("--" + name) > 0)
+                throw CLI::ValidationError("--" + name, "a mesh option needs --scan (the scan the parts were meshed from)");
+        if (!a->scan.empty()) checkSettings(a->mesh);
         for (const auto& o : a->outputs) io::formatFromPath(o);
         std::vector<std::string> files = a->outputs;
         if (!a->report.empty()) files.push_back(a->report);
-        checkOutputPaths(files, a->parts, a->run.force);
+        std::vector<std::string> inputs = a->parts;
+        if (!a->scan.empty()) inputs.push_back(a->scan);
+        checkOutputPaths(files, inputs, a->run.force);
         runIsolated(a->parts.front(), files, [&] { return mergeAndWrite(*a); });
     });
 }

@@ -52,7 +52,8 @@ HexMesh bandMesh(const HexMesh& mesh, const std::vector<std::uint8_t>& band, std
 
 }  // namespace
 
-CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings) {
+CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, const CutBandScan* scan,
+                               int rings) {
     const Stopwatch clock;
     CutBandResult r;
     // Seeds: the cut nodes and the nodes of every hex below the worst-hex
@@ -72,21 +73,35 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     const QualitySummary before = summarize(sub, computeQuality(sub));
     r.minBefore = before.scaledJacobian.min;
     r.invertedBefore = before.inverted;
-    // The band's surfaces: its boundary quads in triangle trees (the band's
-    // own edge, inside the merged mesh, is fixed below).
+    // The band's surfaces: the scan's isosurface, or else its boundary quads
+    // in triangle trees (the band's own edge, inside the merged mesh, is
+    // fixed below). The band keeps the merged mesh's surface and curve ids,
+    // which the scan's projector was made with.
     insertion::SheetGeometry geometry;
-    insertion::adoptBoundary(sub, geometry, kCutBandFeatureAngle);
+    const smoothing::SurfaceProjector* projector = &geometry;
+    smoothing::WorstHexOptions worst;
+    if (scan) {
+        projector = scan->projector;
+        worst.surfaceSlack = scan->surfaceSlack;
+    } else {
+        insertion::adoptBoundary(sub, geometry, kCutBandFeatureAngle);
+    }
     for (std::size_t v = 0; v < sub.nodeCount(); ++v) {
         if (!band[static_cast<std::size_t>(from[v])]) sub.nodeClass[v] = {NodeKind::Fixed, -1};
         else ++r.nodes;
     }
-    smoothing::optimizeMesh(sub, &geometry, smoothing::SmoothingOptions{});
-    smoothing::raiseWorstHexes(sub, &geometry, smoothing::WorstHexOptions{});
+    smoothing::optimizeMesh(sub, projector, smoothing::SmoothingOptions{});
+    smoothing::raiseWorstHexes(sub, projector, worst);
     const QualitySummary after = summarize(sub, computeQuality(sub));
     r.minAfter = after.scaledJacobian.min;
     r.invertedAfter = after.inverted;
+    // Kept unless it inverts more hexes or lowers the minimum below the
+    // smaller of the band's minimum before and the worst-hex target (the
+    // max-min pass's own promise: with the scan it may trade a little of a
+    // minimum above the target for boundary nodes back on the isosurface).
+    const double floor = std::min(before.scaledJacobian.min, worst.target);
     r.kept = after.inverted < before.inverted ||
-             (after.inverted == before.inverted && after.scaledJacobian.min >= before.scaledJacobian.min);
+             (after.inverted == before.inverted && after.scaledJacobian.min >= floor);
     if (r.kept)
         for (std::size_t v = 0; v < sub.nodeCount(); ++v)
             if (band[static_cast<std::size_t>(from[v])]) mesh.nodes[static_cast<std::size_t>(from[v])] = sub.nodes[v];

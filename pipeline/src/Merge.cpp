@@ -8,7 +8,10 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/FieldProjector.hpp"
 #include "isohex/pipeline/Part.hpp"
+#include "isohex/pipeline/SelectionDomain.hpp"
 
 namespace isohex::pipeline {
 
@@ -213,10 +216,21 @@ void checkMatched(const MergeState& s) {
                 "version (please report it if they were)");
 }
 
-}  // namespace
+// The scan's whole grid must be the one the parts were cut from.
+void checkScanGrid(const MergeState& s, const std::string& scanPath, const octree::Grid& g) {
+    const PartFile& f = s.parts.front();
+    const auto sp = g.spacing();
+    const double step = std::min({sp[0], sp[1], sp[2]});
+    if (g.dims == f.dims && std::abs(step - f.step) <= 1e-9 * f.step) return;
+    throw Error(scanPath + ": with these options its grid is " + std::to_string(g.dims[0]) + " x " +
+                std::to_string(g.dims[1]) + " x " + std::to_string(g.dims[2]) + " points of step " +
+                std::to_string(step) + ", but " + f.path + " was cut from " + std::to_string(f.dims[0]) + " x " +
+                std::to_string(f.dims[1]) + " x " + std::to_string(f.dims[2]) + " of step " + std::to_string(f.step) +
+                "; give merge --scan the scan and the mesh options of the parts");
+}
 
-MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands) {
-    const Stopwatch clock;
+// Reads and joins the parts (the band pass left to the caller).
+MergeState joinParts(const std::vector<std::string>& paths) {
     MergeState s;
     readParts(s, paths);
     mergeSurfaces(s);
@@ -234,7 +248,48 @@ MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands
         f.mesh = {};  // what is merged is not needed twice
     }
     checkMatched(s);
+    return s;
+}
+
+}  // namespace
+
+MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands) {
+    const Stopwatch clock;
+    MergeState s = joinParts(paths);
     if (optimiseBands) s.r.bands = optimiseCutBands(s.r.mesh, s.r.onCut);
+    s.r.seconds = clock.seconds();
+    return std::move(s.r);
+}
+
+MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands, const MergeScan& scan) {
+    const Stopwatch clock;
+    MergeState s = joinParts(paths);
+    const Prepared& p = *scan.prepared;
+    checkScanGrid(s, p.facts.input.path, p.facts.grid.grid);
+    if (optimiseBands) {
+        // First on the merged boundary (its nodes slide freely out of where
+        // the frozen cuts left them), then on the scan's isosurface, with the
+        // projector the single run's optimiser uses over the merged mesh's
+        // surfaces and curves: the boundary nodes go back onto the isosurface
+        // (MergeResult::scanBands).
+        s.r.bands = optimiseCutBands(s.r.mesh, s.r.onCut);
+        const FieldProjector projector(*static_cast<const SelectionDomain*>(p.domain.get()), s.r.mesh,
+                                       static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+        const CutBandScan band{&projector,
+                               scan.surfaceToleranceVoxels * p.selection->materials.front().field.voxelSize()};
+        s.r.scanBands = optimiseCutBands(s.r.mesh, s.r.onCut, &band);
+        for (int i = 1; i < kCutBandScanPasses; ++i) {
+            const CutBandResult more = optimiseCutBands(s.r.mesh, s.r.onCut, &band);
+            CutBandResult& b = *s.r.scanBands;
+            b.seconds += more.seconds;
+            if (!more.kept) continue;
+            b.nodes = std::max(b.nodes, more.nodes);
+            b.hexes = std::max(b.hexes, more.hexes);
+            b.minAfter = more.minAfter;
+            b.invertedAfter = more.invertedAfter;
+            b.kept = true;
+        }
+    }
     s.r.seconds = clock.seconds();
     return std::move(s.r);
 }

@@ -416,26 +416,31 @@ nlohmann::json toJson(const PartFacts& p) {
             {"cut_nodes", p.cutNodes}};
 }
 
+namespace {
+nlohmann::json toJson(const std::optional<CutBandResult>& b) {
+    if (!b) return nullptr;
+    return {{"rings", kCutBandRings},
+            {"nodes", b->nodes},
+            {"hexes", b->hexes},
+            {"scaled_jacobian_min_before", b->minBefore},
+            {"scaled_jacobian_min_after", b->minAfter},
+            {"inverted_before", b->invertedBefore},
+            {"inverted_after", b->invertedAfter},
+            {"kept", b->kept},
+            {"seconds", b->seconds}};
+}
+}  // namespace
+
 nlohmann::json toJson(const MergeResult& m) {
     nlohmann::json cuts = nlohmann::json::array();
     for (const auto& c : m.cuts)
         cuts.push_back({{"parts", {c.below, c.below + 1}}, {"matched_nodes", c.nodes}, {"max_offset", c.maxOffset}});
-    nlohmann::json bands = nullptr;
-    if (m.bands)
-        bands = {{"rings", kCutBandRings},
-                 {"nodes", m.bands->nodes},
-                 {"hexes", m.bands->hexes},
-                 {"scaled_jacobian_min_before", m.bands->minBefore},
-                 {"scaled_jacobian_min_after", m.bands->minAfter},
-                 {"inverted_before", m.bands->invertedBefore},
-                 {"inverted_after", m.bands->invertedAfter},
-                 {"kept", m.bands->kept},
-                 {"seconds", m.bands->seconds}};
     return {{"parts", m.parts},
             {"hexes_per_part", m.hexesPerPart},
             {"nodes_per_part", m.nodesPerPart},
             {"cuts", cuts},
-            {"band_pass", bands},
+            {"band_pass", toJson(m.bands)},
+            {"band_pass_on_scan", toJson(m.scanBands)},
             {"seconds", m.seconds}};
 }
 

@@ -242,8 +242,10 @@ class SlurmCohort(unittest.TestCase):
             self.assertEqual(on_cut[k], matched, f"part {k + 1}: cut nodes without a partner across its cuts")
         self.assertEqual(len(merged.points), sum(len(p.points) for p in parts) - sum(shared))
         with open(os.path.join(self.out, SPLIT + ".report.json")) as f:
-            cuts = json.load(f)["merge"]["cuts"]
-        self.assertEqual([c["matched_nodes"] for c in cuts], shared)
+            merge = json.load(f)["merge"]
+        self.assertEqual([c["matched_nodes"] for c in merge["cuts"]], shared)
+        # the merge job was given the scan: its band pass ran on the scan's isosurface
+        self.assertIsNotNone(merge["band_pass_on_scan"], merge)
 
     def test_3_rerun_submits_nothing_then_only_what_is_missing(self):
         files = [os.path.join(self.out, n + ".vtu") for n in [*GOOD, SPLIT]]
