@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "AdaptiveSurfaceParts.hpp"
+#include "SegmentRoot.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 
@@ -21,27 +22,12 @@ Vec3 lerp(const Vec3& a, const Vec3& b, double t) {
     return {a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])};
 }
 
-// Where f (material m's function) changes sign on a..b (regula falsi with
-// the Illinois step); false when it does not.
+// Where f (material m's function) changes sign on a..b (rootOnSegment);
+// false when it does not.
 bool crossing(const Domain& d, std::int32_t m, const Vec3& a, const Vec3& b, Vec3& out) {
-    double t0 = 0, t1 = 1, f0 = d.value(m, a), f1 = d.value(m, b);
+    const double f0 = d.value(m, a), f1 = d.value(m, b);
     if (!std::isfinite(f0) || !std::isfinite(f1) || (f0 < 0) == (f1 < 0)) return false;
-    int side = 0;
-    for (int it = 0; it < 24; ++it) {
-        const double t = (t0 * f1 - t1 * f0) / (f1 - f0);
-        const double f = d.value(m, lerp(a, b, t));
-        if ((f < 0) == (f0 < 0)) {
-            t0 = t, f0 = f;
-            if (side == -1) f1 *= 0.5;
-            side = -1;
-        } else {
-            t1 = t, f1 = f;
-            if (side == 1) f0 *= 0.5;
-            side = 1;
-        }
-        if (std::abs(t1 - t0) < 1e-6) break;
-    }
-    out = lerp(a, b, 0.5 * (t0 + t1));
+    out = lerp(a, b, rootOnSegment([&](const Vec3& x) { return d.value(m, x); }, a, b, f0, f1));
     return true;
 }
 

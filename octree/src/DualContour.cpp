@@ -18,6 +18,7 @@
 #include "isohex/octree/DualContour.hpp"
 #include "isohex/octree/Grid.hpp"
 #include "isohex/octree/Labels.hpp"
+#include "SegmentRoot.hpp"
 
 namespace isohex::octree {
 
@@ -47,39 +48,6 @@ double edgeFunction(const Domain& dom, std::int32_t a, std::int32_t b, const Vec
     if (b != 0) f -= dom.value(b, x, grad ? &gb : nullptr);
     if (grad) *grad = sub(ga, gb);
     return f;
-}
-
-// Root of F on the segment p..q given F(p) = f0 < 0 < F(q) = f1 (or the other
-// way round): Illinois false position, superlinear and never leaving the
-// bracket. Returns the parameter t in [0, 1].
-template <class Fn>
-double rootOnSegment(const Fn& F, const Vec3& p, const Vec3& q, double f0, double f1) {
-    const double sign = f0 > 0 ? -1.0 : 1.0;  // orient so that f0 < 0 < f1
-    f0 *= sign;
-    f1 *= sign;
-    const Vec3 d = sub(q, p);
-    // |F| this small is the surface to about 1e-8 of the segment's length
-    const double ftol = 1e-8 * std::max(-f0, f1);
-    double t0 = 0, t1 = 1, t = 0.5;
-    int side = 0;
-    for (int it = 0; it < 40; ++it) {
-        t = (t0 * f1 - t1 * f0) / (f1 - f0);
-        const Vec3 x{p[0] + t * d[0], p[1] + t * d[1], p[2] + t * d[2]};
-        const double f = sign * F(x);
-        if (std::abs(t1 - t0) < 1e-9 || std::abs(f) <= ftol) break;
-        if (f < 0) {
-            t0 = t;
-            f0 = f;
-            if (side == -1) f1 *= 0.5;
-            side = -1;
-        } else {
-            t1 = t;
-            f1 = f;
-            if (side == 1) f0 *= 0.5;
-            side = 1;
-        }
-    }
-    return t;
 }
 
 // Hermite datum on the segment p (material a) - q (material b). Where the
