@@ -110,7 +110,7 @@ HexMesh collapsedMesh(const HexMesh& mesh, const Topology& topo, const DualSheet
 }
 
 // Defect kinds of a validity report other than inverted hexes.
-std::set<std::string> topologicalDefects(const ValidityReport& r) {
+std::set<std::string> defectKinds(const ValidityReport& r) {
     std::set<std::string> out;
     for (const auto& [key, d] : r.defects)
         if (key != "inverted_hex") out.insert(key);
@@ -119,16 +119,16 @@ std::set<std::string> topologicalDefects(const ValidityReport& r) {
 
 // Throws if the collapse removed every hex of a material, or made a kind of
 // topological defect the mesh did not have.
-void requireSound(const HexMesh& before, const HexMesh& after, Index sheet) {
+void requireSound(const HexMesh& before, const std::set<std::string>& defectsBefore, const HexMesh& after,
+                  Index sheet) {
     const std::set<std::int32_t> was(before.material.begin(), before.material.end());
     const std::set<std::int32_t> is(after.material.begin(), after.material.end());
     for (std::int32_t m : was)
         if (!is.count(m))
             throw Error("cannot collapse sheet " + std::to_string(sheet) + ": it holds every hex of material " +
                         std::to_string(m));
-    const auto defectsBefore = topologicalDefects(validate(before));
     const ValidityReport rep = validate(after);
-    for (const auto& key : topologicalDefects(rep))
+    for (const auto& key : defectKinds(rep))
         if (!defectsBefore.count(key))
             throw Error("cannot collapse sheet " + std::to_string(sheet) + ": the result would have " +
                         std::to_string(rep.count(key)) + " defect(s) of kind " + key);
@@ -136,12 +136,19 @@ void requireSound(const HexMesh& before, const HexMesh& after, Index sheet) {
 
 }  // namespace
 
+std::set<std::string> topologicalDefects(const HexMesh& mesh) { return defectKinds(validate(mesh)); }
+
 std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet) {
+    return collapse(mesh, topo, sheets, sheet, topologicalDefects(mesh));
+}
+
+std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet,
+                     const std::set<std::string>& defectsBefore) {
     if (sheet < 0 || static_cast<std::size_t>(sheet) >= sheets.count())
         throw Error("collapse: no sheet " + std::to_string(sheet));
     const CollapsePlan plan = planEdgeCollapses(mesh, topo, sheets, sheet);
     HexMesh out = collapsedMesh(mesh, topo, sheets, sheet, plan);
-    requireSound(mesh, out, sheet);
+    requireSound(mesh, defectsBefore, out, sheet);
     const std::size_t removed = mesh.hexCount() - out.hexCount();
     mesh = std::move(out);
     return removed;

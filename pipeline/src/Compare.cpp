@@ -1,5 +1,9 @@
 #include "isohex/pipeline/Compare.hpp"
 
+#include <set>
+#include <string>
+#include <vector>
+
 #include "isohex/core/Collapse.hpp"
 #include "isohex/core/Dice.hpp"
 #include "isohex/core/Error.hpp"
@@ -14,18 +18,39 @@ namespace isohex::pipeline {
 
 namespace {
 
+// The connectivity of a mesh between two sheet operations. A refused
+// operation leaves the mesh untouched, so the next attempt reuses it: a loop
+// of attempts costs one rebuild per sheet that changed the mesh.
+struct SheetEditState {
+    Topology topo;
+    DualSheets sheets;
+    std::vector<Index> fundamental;        // only when extracting
+    std::set<std::string> defects;         // only when extracting
+};
+
+SheetEditState sheetEditState(const HexMesh& mesh, bool extracting) {
+    SheetEditState st;
+    st.topo = buildTopology(mesh);
+    st.sheets = buildSheets(mesh, st.topo);
+    if (extracting) {
+        st.fundamental = fundamentalSheets(mesh, st.topo, st.sheets);
+        st.defects = topologicalDefects(mesh);
+    }
+    return st;
+}
+
 // Dices randomly drawn sheets once each until the mesh has at least `target` hexes.
 nlohmann::json diceUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
     nlohmann::json j;
     std::size_t diced = 0;
+    SheetEditState st = sheetEditState(mesh, false);
     for (std::uint64_t round = 0; mesh.hexCount() < target && round < 100000; ++round) {
-        const Topology t = buildTopology(mesh);
-        const DualSheets s = buildSheets(mesh, t);
-        const auto pick = randomSheets(s, 1, seed + round);
+        const auto pick = randomSheets(st.sheets, 1, seed + round);
         if (pick.empty()) break;
         try {
-            dice(mesh, t, s, pick[0], 1);
+            dice(mesh, st.topo, st.sheets, pick[0], 1);
             ++diced;
+            st = sheetEditState(mesh, false);
         } catch (const Error&) {
             // a self-intersecting sheet: draw another
         }
@@ -39,15 +64,14 @@ nlohmann::json diceUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) 
 nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t seed) {
     nlohmann::json j;
     std::size_t extracted = 0, refused = 0;
+    SheetEditState st = sheetEditState(mesh, true);
     for (std::uint64_t round = 0; mesh.hexCount() > target && round < 100000; ++round) {
-        const Topology t = buildTopology(mesh);
-        const DualSheets s = buildSheets(mesh, t);
-        const auto fundamental = fundamentalSheets(mesh, t, s);
-        const auto pick = randomSheets(s, 1, seed + round, fundamental);
+        const auto pick = randomSheets(st.sheets, 1, seed + round, st.fundamental);
         if (pick.empty()) break;
         try {
-            collapse(mesh, t, s, pick[0]);
+            collapse(mesh, st.topo, st.sheets, pick[0], st.defects);
             ++extracted;
+            st = sheetEditState(mesh, true);
         } catch (const Error&) {
             ++refused;
             if (refused > 50 + 10 * extracted) break;  // nothing left that can go

@@ -2,6 +2,8 @@
 // Collapsing a dual sheet: removing one layer of hexes by merging the two
 // ends of each of its edges.
 #include <cstddef>
+#include <set>
+#include <string>
 
 #include "isohex/core/Dual.hpp"
 #include "isohex/core/HexMesh.hpp"
@@ -16,5 +18,14 @@ namespace isohex {
 // or leave an invalid mesh. Returns the number of hexes removed. `topo` and
 // `sheets` are those of `mesh` and are out of date afterwards.
 std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet);
+
+// The kinds of topological defect (validate()'s keys other than inverted
+// hexes) `mesh` has: what a collapse may keep but not add.
+std::set<std::string> topologicalDefects(const HexMesh& mesh);
+
+// The same, given topologicalDefects(mesh): a caller that tries several
+// sheets of one mesh validates it once instead of once per attempt.
+std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet,
+                     const std::set<std::string>& defectsBefore);
 
 }  // namespace isohex
