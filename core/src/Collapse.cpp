@@ -1,5 +1,6 @@
 #include "isohex/core/Collapse.hpp"
 
+#include <algorithm>
 #include <numeric>
 #include <set>
 #include <string>
@@ -117,6 +118,16 @@ std::set<std::string> defectKinds(const ValidityReport& r) {
     return out;
 }
 
+// Hexes with the same eight nodes as another (validate()'s duplicate_hex
+// count), by sorting the hexes' node sets: the refusal most random sheets of
+// a pillowed mesh meet, found without a full validation.
+std::size_t duplicateHexes(const HexMesh& mesh) {
+    std::vector<Hex> keys(mesh.hexes.begin(), mesh.hexes.end());
+    for (Hex& k : keys) std::sort(k.begin(), k.end());
+    std::sort(keys.begin(), keys.end());
+    return static_cast<std::size_t>(keys.end() - std::unique(keys.begin(), keys.end()));
+}
+
 // Throws if the collapse removed every hex of a material, or made a kind of
 // topological defect the mesh did not have.
 void requireSound(const HexMesh& before, const std::set<std::string>& defectsBefore, const HexMesh& after,
@@ -127,6 +138,10 @@ void requireSound(const HexMesh& before, const std::set<std::string>& defectsBef
         if (!is.count(m))
             throw Error("cannot collapse sheet " + std::to_string(sheet) + ": it holds every hex of material " +
                         std::to_string(m));
+    if (!defectsBefore.count("duplicate_hex"))
+        if (const std::size_t d = duplicateHexes(after); d > 0)
+            throw Error("cannot collapse sheet " + std::to_string(sheet) + ": the result would have " +
+                        std::to_string(d) + " defect(s) of kind duplicate_hex");
     const ValidityReport rep = validate(after);
     for (const auto& key : defectKinds(rep))
         if (!defectsBefore.count(key))
