@@ -29,17 +29,28 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 #define ISOHEX_LANES inline __attribute__((always_inline))
 
-// inverseCubeRoot, lane by lane.
-ISOHEX_LANES Lanes inverseCubeRoots(Lanes t) {
-    Mask bits;
-    std::memcpy(&bits, &t, sizeof bits);
-    bits = 0x553ef0ff289dd796LL - bits / 3;
-    Lanes y;
-    std::memcpy(&y, &bits, sizeof y);
-    for (int k = 0; k < 4; ++k) y = y * (4.0 - t * y * y * y) * (1.0 / 3.0);
-    for (int k = 0; k < kLanes; ++k)
-        if (!(t[k] > 1e-18 && t[k] < 1e18)) y[k] = 1.0 / std::cbrt(t[k]);
-    return y;
+constexpr std::size_t kMaxBlocks = (ImrState::kCapacity + kLanes - 1) / kLanes;
+
+// inverseCubeRoot, lane by lane, of `blocks` blocks of lanes at once. Each
+// Newton step is a chain of six dependent multiplications; taking step k of
+// every block before step k + 1 of any lets the blocks' chains overlap
+// (block by block, the cube roots were most of a value()).
+ISOHEX_LANES void inverseCubeRoots(const Lanes* t, Lanes* y, std::size_t blocks) {
+    for (std::size_t b = 0; b < blocks; ++b) {
+        Mask bits;
+        std::memcpy(&bits, &t[b], sizeof bits);
+        bits = 0x553ef0ff289dd796LL - bits / 3;
+        std::memcpy(&y[b], &bits, sizeof y[b]);
+    }
+    for (int k = 0; k < 4; ++k)
+        for (std::size_t b = 0; b < blocks; ++b) y[b] = y[b] * (4.0 - t[b] * y[b] * y[b] * y[b]) * (1.0 / 3.0);
+    const Lanes lo = {1e-18, 1e-18, 1e-18, 1e-18}, hi = {1e18, 1e18, 1e18, 1e18};
+    for (std::size_t b = 0; b < blocks; ++b) {
+        const Mask inRange = (t[b] > lo) & (t[b] < hi);
+        if (inRange[0] && inRange[1] && inRange[2] && inRange[3]) continue;
+        for (int k = 0; k < kLanes; ++k)
+            if (!inRange[k]) y[b][k] = 1.0 / std::cbrt(t[b][k]);
+    }
 }
 
 constexpr int kRow[6] = {0, 0, 0, 1, 1, 2}, kCol[6] = {0, 1, 2, 1, 2, 2};  // Hessian entries xx xy xz yy yz zz
@@ -134,10 +145,14 @@ ISOHEX_LANES double derivativesBody(const CornerTerm* terms, std::size_t count, 
     // on each other until the sums, so their cube roots overlap.
     double sum = 0;
     double gs[3] = {0, 0, 0}, hs[6] = {0, 0, 0, 0, 0, 0};
+    const std::size_t blocks = (count + kLanes - 1) / kLanes;
+    Lanes ts[kMaxBlocks], ys[kMaxBlocks];
+    std::memcpy(ts, s.t, blocks * sizeof(Lanes));
+    inverseCubeRoots(ts, ys, blocks);
     for (std::size_t i = 0; i < count; i += kLanes) {
         Lanes n, t, w2, gn[3], gt[3];
         loadState(s, i, n, t, w2, gn, gt);
-        const Lanes y = inverseCubeRoots(t);
+        const Lanes y = ys[i / kLanes];
         const Lanes sc = y * y * (1.0 / 3.0);
         const Lanes invT = y * y * y;
         const Lanes value = n * sc;
@@ -162,14 +177,20 @@ ISOHEX_LANES double derivativesBody(const CornerTerm* terms, std::size_t count, 
     return sum;
 }
 
-// InverseMeanRatio::fromNormDet of the first `lanes` lanes, added to sum in
-// lane order; false (sum meaningless) at a lane with t <= 0, the barrier.
-ISOHEX_LANES bool addValues(const Lanes& n, const Lanes& t, std::size_t lanes, double& sum) {
-    const Lanes y = inverseCubeRoots(t);
-    const Lanes v = n * (y * y) * (1.0 / 3.0);
-    for (std::size_t k = 0; k < lanes; ++k) {
-        if (!(t[k] > 0)) return false;
-        sum += v[k];
+// InverseMeanRatio::fromNormDet of `count` terms (at most kCapacity), from
+// their n and t in blocks of lanes, added to sum in term order; false (sum
+// meaningless) at a term with t <= 0, the barrier.
+ISOHEX_LANES bool addValues(const Lanes* n, const Lanes* t, std::size_t count, double& sum) {
+    const std::size_t blocks = (count + kLanes - 1) / kLanes;
+    Lanes y[kMaxBlocks];
+    inverseCubeRoots(t, y, blocks);
+    for (std::size_t b = 0; b < blocks; ++b) {
+        const Lanes v = n[b] * (y[b] * y[b]) * (1.0 / 3.0);
+        const std::size_t lanes = std::min<std::size_t>(kLanes, count - b * kLanes);
+        for (std::size_t k = 0; k < lanes; ++k) {
+            if (!(t[b][k] > 0)) return false;
+            sum += v[k];
+        }
     }
     return true;
 }
@@ -177,24 +198,24 @@ ISOHEX_LANES bool addValues(const Lanes& n, const Lanes& t, std::size_t lanes, d
 ISOHEX_LANES double valueBody(const ImrState& s, std::size_t count, const Vector3& d) {
     const double d0 = d[0], d1 = d[1], d2 = d[2];
     const double dd = d0 * d0 + d1 * d1 + d2 * d2;
-    double sum = 0;
+    Lanes nn[kMaxBlocks], tt[kMaxBlocks];
     for (std::size_t i = 0; i < count; i += kLanes) {
         Lanes n, t, w2, gn[3], gt[3];
         loadState(s, i, n, t, w2, gn, gt);
         // (lanes past `count` hold stale numbers and are not read below)
-        const Lanes nn = n + (gn[0] * d0 + gn[1] * d1 + gn[2] * d2) + w2 * dd;
-        const Lanes tt = t + (gt[0] * d0 + gt[1] * d1 + gt[2] * d2);
-        if (!addValues(nn, tt, std::min<std::size_t>(kLanes, count - i), sum)) return kInf;
+        nn[i / kLanes] = n + (gn[0] * d0 + gn[1] * d1 + gn[2] * d2) + w2 * dd;
+        tt[i / kLanes] = t + (gt[0] * d0 + gt[1] * d1 + gt[2] * d2);
     }
-    return sum;
+    double sum = 0;
+    return addValues(nn, tt, count, sum) ? sum : kInf;
 }
 
-// InverseMeanRatio::value of each frame displaced by d (displaceFrame, then
-// the squared norm and cornerDeterminant of the moved frame), summed in order.
-ISOHEX_LANES double frameValueBody(const CornerTerm* terms, std::size_t count, const Vector3& d) {
-    const Lanes dv[3] = {{d[0], d[0], d[0], d[0]}, {d[1], d[1], d[1], d[1]}, {d[2], d[2], d[2], d[2]}};
-    double sum = 0;
-    for (std::size_t i = 0; i < count; i += kLanes) {
+// n and t of the frames of terms c0 .. c1-1 (blocks of lanes from c0, a
+// multiple of four) displaced by d: displaceFrame, then the squared norm and
+// cornerDeterminant of the moved frame.
+ISOHEX_LANES void displacedNormDets(const CornerTerm* terms, std::size_t count, std::size_t c0, std::size_t c1,
+                                    const Lanes* dv, Lanes* ns, Lanes* ts) {
+    for (std::size_t i = c0; i < c1; i += kLanes) {
         Frames f;
         loadFrames(terms, count, i, f);
         for (int j = 0; j < 3; ++j) {
@@ -208,9 +229,21 @@ ISOHEX_LANES double frameValueBody(const CornerTerm* terms, std::size_t count, c
         }
         Lanes X[3];
         cross(f.e + 3, f.e + 6, X);
-        const Lanes t = dot(f.e, X);
-        const Lanes n = squaredNorm(f.e);
-        if (!addValues(n, t, std::min<std::size_t>(kLanes, count - i), sum)) return kInf;
+        ts[(i - c0) / kLanes] = dot(f.e, X);
+        ns[(i - c0) / kLanes] = squaredNorm(f.e);
+    }
+}
+
+// InverseMeanRatio::value of each frame displaced by d, summed in order; any
+// number of terms, in chunks of what the lanes hold.
+ISOHEX_LANES double frameValueBody(const CornerTerm* terms, std::size_t count, const Vector3& d) {
+    const Lanes dv[3] = {{d[0], d[0], d[0], d[0]}, {d[1], d[1], d[1], d[1]}, {d[2], d[2], d[2], d[2]}};
+    Lanes ns[kMaxBlocks], ts[kMaxBlocks];
+    double sum = 0;
+    for (std::size_t c0 = 0; c0 < count; c0 += ImrState::kCapacity) {
+        const std::size_t c1 = std::min(count, c0 + ImrState::kCapacity);
+        displacedNormDets(terms, count, c0, c1, dv, ns, ts);
+        if (!addValues(ns, ts, c1 - c0, sum)) return kInf;
     }
     return sum;
 }

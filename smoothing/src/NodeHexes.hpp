@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -62,21 +63,34 @@ public:
     // searches' hot path: it evaluates the same 5 frames as forMovingFrames
     // without their columns and coefficients, which made the pass 15-20%
     // slower when it went through it.)
+    // It also notes, for summedGradient at the same p, which moving frame
+    // gave the minimum (the gradient ascent of the mean rounds asks for the
+    // gradient where the last value()s were taken: at the start of a visit
+    // and after each accepted step).
     double value(std::size_t k, const Vec3& p) const {
         const Entry& e = entries_[k];
         if (e.collapsed) return -2.0;
         HexCoords x = e.x;
         x[static_cast<std::size_t>(e.local)] = p;
+        e.lowestAt = p;
+        e.lowest = kCollapsedFrame;
         const std::array<Vec3, 3> axes = centreAxes(x);
         double f = frameScaledJacobian(axes[0], axes[1], axes[2]);
         if (f == kScaledJacobianCollapsed) return -2.0;
+        // (std::min(best, f) is f exactly when f < best: the frame that gives
+        // best is the first strictly below the ones before it, as in
+        // summedGradient's search.)
+        int lowest = kFixedFrames;
+        if (f < e.fixedMin) lowest = kCentreFrame;
         double best = std::min(e.fixedMin, f);
         for (int c = 0; c < 8; ++c) {
             if (!involves(c, e.local)) continue;
             f = cornerFrame(x, c);
             if (f == kScaledJacobianCollapsed) return -2.0;
+            if (f < best) lowest = c;
             best = std::min(best, f);
         }
+        e.lowest = lowest;
         const double sj = clampScaledJacobian(best);
         return sj > 1.0 + 1e-9 ? -2.0 : sj;
     }
@@ -90,16 +104,23 @@ public:
         for (const Entry& e : entries_) {
             if (e.collapsed) continue;
             Frame lowest{};
-            double bestValue = e.fixedMin;
-            bool moving = false;
-            const bool ok = forMovingFrames(e, p, [&](const Frame& fr) {
-                if (fr.value < bestValue) {
-                    bestValue = fr.value;
-                    lowest = fr;
-                    moving = true;
-                }
-                return true;
-            });
+            bool ok = true, moving = false;
+            if (e.lowest != kUnknownFrame && std::memcmp(&e.lowestAt, &p, sizeof p) == 0) {
+                // value() at p found the frame already: build that one only
+                ok = e.lowest != kCollapsedFrame;
+                moving = ok && e.lowest != kFixedFrames;
+                if (moving) lowest = movingFrame(e, p, e.lowest);
+            } else {
+                double bestValue = e.fixedMin;
+                ok = forMovingFrames(e, p, [&](const Frame& fr) {
+                    if (fr.value < bestValue) {
+                        bestValue = fr.value;
+                        lowest = fr;
+                        moving = true;
+                    }
+                    return true;
+                });
+            }
             if (!ok || !moving) continue;
             const Vec3& a = lowest.col[0];
             const Vec3& b = lowest.col[1];
@@ -127,12 +148,17 @@ public:
     }
 
 private:
+    // Which frame of an entry gave its minimum at lowestAt: a corner 0..7,
+    // the centre, none of the moving ones, a collapsed frame, or not known.
+    static constexpr int kCentreFrame = 8, kFixedFrames = -1, kCollapsedFrame = -2, kUnknownFrame = -3;
     struct Entry {
         Index hex = kNone;
         HexCoords x;
         int local = -1;
         double fixedMin = kScaledJacobianCollapsed;
         bool collapsed = false;
+        mutable int lowest = kUnknownFrame;  // as of the last value() of this entry
+        mutable Vec3 lowestAt{};
     };
     static bool involves(int corner, int node) {
         if (corner == node) return true;
@@ -151,6 +177,30 @@ private:
         std::array<double, 3> coef;
         double value;
     };
+    // One of those frames (kCentreFrame or a corner), as forMovingFrames
+    // builds it, without its value.
+    static Frame movingFrame(const Entry& e, const Vec3& p, int which) {
+        HexCoords x = e.x;
+        const int l = e.local;
+        x[static_cast<std::size_t>(l)] = p;
+        Frame fr{};
+        if (which == kCentreFrame) {
+            fr.col = centreAxes(x);
+            fr.coef = centreCoefficients(l);
+            return fr;
+        }
+        const auto& nb = hexcell::kCornerNeighbours[static_cast<std::size_t>(which)];
+        const auto sc = static_cast<std::size_t>(which);
+        for (std::size_t j = 0; j < 3; ++j) {
+            fr.col[j] = x[static_cast<std::size_t>(nb[j])] - x[sc];
+            fr.coef[j] = which == l ? -1.0 : (nb[j] == l ? 1.0 : 0.0);
+        }
+        return fr;
+    }
+    static std::array<double, 3> centreCoefficients(int l) {
+        return {(l == 1 || l == 2 || l == 5 || l == 6) ? 1.0 : -1.0, (l == 2 || l == 3 || l == 6 || l == 7) ? 1.0 : -1.0,
+                l >= 4 ? 1.0 : -1.0};
+    }
     // Calls f for the 5 frames of entry e that move with the node, with the
     // node at p: the centre, then the corners in order (the frames value()
     // takes the minimum of). Stops and returns false at a collapsed frame, or
@@ -162,8 +212,7 @@ private:
         x[static_cast<std::size_t>(l)] = p;
         Frame fr;
         fr.col = centreAxes(x);
-        fr.coef = {(l == 1 || l == 2 || l == 5 || l == 6) ? 1.0 : -1.0, (l == 2 || l == 3 || l == 6 || l == 7) ? 1.0 : -1.0,
-                   l >= 4 ? 1.0 : -1.0};
+        fr.coef = centreCoefficients(l);
         fr.value = frameScaledJacobian(fr.col[0], fr.col[1], fr.col[2]);
         if (fr.value == kScaledJacobianCollapsed || !f(fr)) return false;
         for (int c = 0; c < 8; ++c) {

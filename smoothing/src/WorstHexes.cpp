@@ -324,9 +324,11 @@ void WorstHexPass::ascendSteps(NodeSearch& s) {
         for (; s.step >= opt_.lastStep * s.L; s.step *= 0.5) {
             Vec3 p = mesh_.nodes[sv] + s.step * d;
             if (s.onSurface) p = projector_->project(mesh_.nodeClass[sv].id, p);
-            if (!finite(p) || !s.edgesOk(p)) continue;
+            if (!finite(p)) continue;
+            // The hexes first: most trials fail there, after a hex or two
+            // (see compassSteps).
             const Around f = s.evaluateTrial(p, s.best);
-            if (s.improves(f, s.best)) {
+            if (s.improves(f, s.best) && s.edgesOk(p)) {
                 mesh_.nodes[sv] = p;
                 s.best = f;
                 ++s.moves;
@@ -355,14 +357,20 @@ void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
             // a curve node: the 3-D trial point onto its curve (both ways along it)
             if (s.curve) p = projector_->projectToCurve(mesh_.nodeClass[sv].id, p);
             if (!finite(p)) continue;
+            // Whether the hexes get better is asked first: most trials fail
+            // there, often after one hex (evaluateTrial stops at the first
+            // hex that refuses them), which costs less than the shortest edge
+            // and far less than a projection for the surface bounds. The
+            // tests have no side effects on the outcome (evaluateTrial's
+            // remembered hex only orders its own work), so the search takes
+            // the same path as with the bounds first.
+            const Around f = s.evaluateTrial(p, bestValue);
+            if (!s.improves(f, bestValue)) continue;
             if (s.surface && s.release && !(offBy(sv, p) <= releaseBound)) continue;
             if (s.offSurface && !(offBy(sv, p) <= slackBound)) continue;
             if (!s.edgesOk(p)) continue;
-            const Around f = s.evaluateTrial(p, bestValue);
-            if (s.improves(f, bestValue)) {
-                bestValue = f;
-                bestPos = p;
-            }
+            bestValue = f;
+            bestPos = p;
         }
         if (s.improves(bestValue, s.best)) {
             mesh_.nodes[sv] = bestPos;

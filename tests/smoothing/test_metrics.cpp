@@ -243,7 +243,8 @@ double referenceFrameValue(const std::vector<CornerTerm>& terms, const Vector3& 
 
 // The four-lane kernels give the scalar code's numbers bit for bit, with AVX2
 // and without, for every role, for term counts that leave partial blocks, for
-// determinants outside the fast cube root's range and for infeasible terms;
+// determinants outside the fast cube root's range, for infeasible terms and
+// for nodes with more terms than the lanes hold;
 // so the smoother's path (and every mesh) is the same on any processor.
 TEST(NodeObjective, FourLaneKernelsAreTheScalarCodeBitForBit) {
     std::mt19937_64 rng(7);
@@ -251,11 +252,14 @@ TEST(NodeObjective, FourLaneKernelsAreTheScalarCodeBitForBit) {
     std::uniform_int_distribution<int> roleOf(0, kCentreRole + 7);
     std::uniform_int_distribution<int> countOf(1, 61);
     std::uniform_real_distribution<double> logScale(-7.0, 7.0);
-    int infeasible = 0, compared = 0;
+    int infeasible = 0, compared = 0, manyTerms = 0;
     for (const bool avx2 : {false, true}) {
         detail::useAvx2(avx2);
         for (int trial = 0; trial < 3000; ++trial) {
-            std::vector<CornerTerm> terms(static_cast<std::size_t>(countOf(rng)));
+            // every 50th node has more terms than the lanes hold at once
+            // (the frame values then go through them in chunks)
+            const int drawn = countOf(rng);
+            std::vector<CornerTerm> terms(static_cast<std::size_t>(trial % 50 == 1 ? 150 + 3 * drawn : drawn));
             // mostly near-cubes at one scale; sometimes wild frames (inverted
             // ones included) and scales whose determinants leave [1e-18, 1e18]
             const double scale = trial % 7 == 0 ? std::pow(10.0, logScale(rng)) : 1.0 + 0.5 * u(rng);
@@ -269,9 +273,13 @@ TEST(NodeObjective, FourLaneKernelsAreTheScalarCodeBitForBit) {
             const Reference ref = referenceDerivatives(terms);
             NodeObjective<InverseMeanRatio> obj(InverseMeanRatio{}, terms.data(), terms.size());
             {
-                const Vector3 d = 0.3 * scale * Vector3(u(rng), u(rng), u(rng));
+                // (a shorter move for the many-term nodes, so that they are
+                // mostly feasible and the chunks' sums are compared)
+                const double reach = terms.size() > 150 ? 0.02 : 0.3;
+                const Vector3 d = reach * scale * Vector3(u(rng), u(rng), u(rng));
                 const double v = obj.value(d), rv = referenceFrameValue(terms, d);
                 ASSERT_TRUE(sameBits(v, rv)) << "trial " << trial << " frames: " << v << " vs " << rv;
+                manyTerms += terms.size() > detail::ImrState::kCapacity && std::isfinite(v);
             }
             Vector3 g;
             Matrix3 H;
@@ -296,4 +304,5 @@ TEST(NodeObjective, FourLaneKernelsAreTheScalarCodeBitForBit) {
     detail::useAvx2(true);
     EXPECT_GT(infeasible, 100);  // the barrier's +inf was exercised
     EXPECT_GT(compared, 3000);
+    EXPECT_GT(manyTerms, 20);
 }
