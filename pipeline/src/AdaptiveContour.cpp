@@ -57,8 +57,9 @@ HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSett
     return std::move(r.mesh.mesh);
 }
 
-bool keepTree(const HexMesh& tree, const HexMesh& uniform, AdaptiveFacts& facts) {
-    if (static_cast<double>(tree.hexCount()) <= kTreeKeptAtMost * static_cast<double>(uniform.hexCount())) return true;
+bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
+    if (settings.keepTree ||
+        static_cast<double>(tree.hexCount()) <= kTreeKeptAtMost * static_cast<double>(uniform.hexCount())) return true;
     facts.uniformKept = true;
     facts.hexLevel.assign(uniform.hexCount(), 0);
     facts.hexesPerLevel = {uniform.hexCount()};

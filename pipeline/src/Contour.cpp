@@ -48,7 +48,7 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
         if (settings.method != Method::Dual || settings.meshExterior)
             throw SettingError({Setting::Method, " must be 'dual' without meshing the exterior for the adaptive mesher"});
         HexMesh tree = coarsenContour(p, mesh, settings, *adaptive);
-        if (keepTree(tree, mesh, *adaptive)) {
+        if (keepTree(tree, mesh, settings, *adaptive)) {
             mesh = std::move(tree);
             if (heldBack) *heldBack = {};  // the coarsened mesh numbers its nodes anew
         }

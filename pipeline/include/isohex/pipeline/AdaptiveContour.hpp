@@ -47,8 +47,8 @@ inline constexpr double kTreeKeptAtMost = 0.9;
 // leaves straddle the surface where it is smooth and simple.
 HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
-// Whether the tree's mesh replaces the uniform one (kTreeKeptAtMost); when
-// not, `facts` says so and gives every hex level 0.
-bool keepTree(const HexMesh& tree, const HexMesh& uniform, AdaptiveFacts& facts);
+// Whether the tree's mesh replaces the uniform one (kTreeKeptAtMost, or
+// settings.keepTree); when not, `facts` says so and gives every hex level 0.
+bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 }  // namespace isohex::pipeline
