@@ -444,6 +444,10 @@ void addSizingRows(std::vector<MeshOption>& t) {
                       "Adaptive: do not refine cells where a material is thinner than two cells (on by default "
                       "with --adaptive)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.thicknessRefinement; }, true));
+    t.push_back(onOff("keep-tree", g,
+                      "Adaptive: write the tree's mesh even when it has more than 90% of the uniform mesh's hexes "
+                      "(by default the uniform mesh is written then, and the report says adaptive.uniform_kept)",
+                      "true/false", [](MeshArgs& a) -> auto& { return a.settings.keepTree; }));
 }
 
 // The rows of the max-min pass and the retries, after the optimiser's.
@@ -564,6 +568,7 @@ void checkSizingOptions(MeshArgs& a) {
     if (!s.sizeImage.empty()) given.push_back("--size-image");
     if (s.grading > 0) given.push_back("--grading");
     if (!s.thicknessRefinement) given.push_back("--no-thickness-refinement");
+    if (s.keepTree) given.push_back("--keep-tree");
     if (!s.adaptive && !given.empty())
         throw Error(given.front() + " sizes the cells of the adaptive mesher; add --adaptive or leave out " +
                     given.front());

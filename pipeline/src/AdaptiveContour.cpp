@@ -32,7 +32,7 @@ void edgeRange(const HexMesh& m, double& shortest, double& longest) {
 
 }  // namespace
 
-HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
+HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
     octree::AdaptiveSurfaceSettings as;
     as.maxLevel = sizingTopLevel(p, settings, facts.sizing);
     as.deviation = settings.adaptiveDeviation;
@@ -53,7 +53,18 @@ HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& s
     facts.grading = settings.grading;
     facts.hexLevel = std::move(r.mesh.hexLevel);
     edgeRange(r.mesh.mesh, facts.smallestEdge, facts.largestEdge);
+    facts.treeHexes = r.mesh.mesh.hexCount();
     return std::move(r.mesh.mesh);
+}
+
+bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts) {
+    if (settings.keepTree ||
+        static_cast<double>(tree.hexCount()) <= kTreeKeptAtMost * static_cast<double>(uniform.hexCount())) return true;
+    facts.uniformKept = true;
+    facts.hexLevel.assign(uniform.hexCount(), 0);
+    facts.hexesPerLevel = {uniform.hexCount()};
+    edgeRange(uniform, facts.smallestEdge, facts.largestEdge);
+    return false;
 }
 
 }  // namespace isohex::pipeline

@@ -47,8 +47,11 @@ HexMesh contour(const Prepared& p, const MeshSettings& settings, StageSink& sink
         if (!adaptive) throw Error("internal error: adaptive contouring without a place for its facts");
         if (settings.method != Method::Dual || settings.meshExterior)
             throw SettingError({Setting::Method, " must be 'dual' without meshing the exterior for the adaptive mesher"});
-        mesh = coarsenContour(p, std::move(mesh), settings, *adaptive);
-        if (heldBack) *heldBack = {};  // the coarsened mesh numbers its nodes anew
+        HexMesh tree = coarsenContour(p, mesh, settings, *adaptive);
+        if (keepTree(tree, mesh, settings, *adaptive)) {
+            mesh = std::move(tree);
+            if (heldBack) *heldBack = {};  // the coarsened mesh numbers its nodes anew
+        }
     }
     st.finish();
     return mesh;

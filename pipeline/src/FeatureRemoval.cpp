@@ -83,10 +83,15 @@ Meshing meshWithout(const Meshing& m, const std::vector<FineFeature>& features, 
 
 }  // namespace
 
-std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const MeshSettings& settings, StageSink& sink,
+std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const MeshSettings& given, StageSink& sink,
                                                        std::optional<RelaxationResult>& relaxation) {
+    // the uniform mesh --adaptive kept (AdaptiveContour.hpp, keepTree) is
+    // treated as the uniform mesher's, its adaptive facts kept
+    const bool uniformKept = best.adaptive && best.adaptive->uniformKept;
+    MeshSettings settings = given;
+    if (uniformKept) settings.adaptive = false;
     if (!settings.optimize || !settings.removeFeatures || settings.method != Method::Dual || best.prepared.part ||
-        best.adaptive)
+        (best.adaptive && !uniformKept))
         return std::nullopt;
     const double target = minQualityFor(best.prepared.facts.input.path, settings);
     const Below before = belowOf(best.mesh, target);
@@ -122,6 +127,10 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
     if (r.kept) {
         again.contouredHexes = again.mesh.hexCount();
         again.contouredNodes = again.mesh.nodeCount();
+        if (uniformKept) {
+            again.adaptive = std::move(best.adaptive);
+            again.adaptive->hexLevel.assign(again.mesh.hexCount(), 0);
+        }
         best = std::move(again);
         relaxation = std::move(relaxedAgain);
     }

@@ -379,6 +379,8 @@ nlohmann::json toJson(const AdaptiveFacts& a) {
                           {"thickness", a.sizing.thickness},
                           {"grading_per_level", a.cellsForGrading},
                           {"requested_per_level", a.cellsRequested}}}};
+    j["tree_hexes"] = a.treeHexes;
+    j["uniform_kept"] = a.uniformKept;
     if (a.sizing.maxSizeLevel) j["max_size_level"] = *a.sizing.maxSizeLevel;
     return j;
 }

@@ -222,7 +222,14 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
     const bool dual = settings.method == Method::Dual;
     const int maxRetries = dual ? settings.retries.value_or(kDefaultRetries) : 0;
     const double floor = dual ? settings.retryBelow.value_or(kDefaultRetryBelow) : 0.0;
-    RetryState s{best, settings, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best.prepared, settings), {}};
+    // the uniform mesh --adaptive kept (AdaptiveContour.hpp, keepTree) is
+    // retried as the uniform mesher retries it, its adaptive facts kept
+    MeshSettings asUniform = settings;
+    asUniform.adaptive = false;
+    std::optional<AdaptiveFacts> keptFacts;
+    if (best.adaptive && best.adaptive->uniformKept) keptFacts = best.adaptive;
+    const MeshSettings& used = keptFacts ? asUniform : settings;
+    RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best.prepared, used), {}};
     s.result.allowed = maxRetries;
     s.result.floor = floor;
     if (floor > 0) s.result.stuck = stuckHexes(best.mesh, floor);
@@ -240,6 +247,10 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
         sink.note("info", "changed the material of " + std::to_string(s.result.pointsEdited) +
                               " grid point(s) where hexes stayed inverted or below scaled Jacobian " +
                               shortNumber(floor) + " and meshed again (topology kept; retries in the report)");
+    }
+    if (keptFacts && !best.adaptive) {
+        best.adaptive = std::move(keptFacts);
+        best.adaptive->hexLevel.assign(best.mesh.hexCount(), 0);
     }
     s.result.seconds = clock.seconds();
     warnLeft(s, maxRetries, floor, warnings);

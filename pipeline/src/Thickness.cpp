@@ -60,9 +60,12 @@ std::vector<std::uint8_t> boundaryPoints(const Labels& labels) {
         for (int j = 0; j < d[1]; ++j)
             for (int i = 0; i < d[0]; ++i) {
                 const std::int32_t m = labels.material[labels.grid.index(i, j, k)];
-                b[labels.grid.index(i, j, k)] =
-                    labels.at(i - 1, j, k) != m || labels.at(i + 1, j, k) != m || labels.at(i, j - 1, k) != m ||
-                    labels.at(i, j + 1, k) != m || labels.at(i, j, k - 1) != m || labels.at(i, j, k + 1) != m;
+                // off the grid counts as the same label: the box is not a surface
+                const auto differs = [&](int a, int b2, int c) {
+                    return a >= 0 && b2 >= 0 && c >= 0 && a < d[0] && b2 < d[1] && c < d[2] && labels.at(a, b2, c) != m;
+                };
+                b[labels.grid.index(i, j, k)] = differs(i - 1, j, k) || differs(i + 1, j, k) || differs(i, j - 1, k) ||
+                                                differs(i, j + 1, k) || differs(i, j, k - 1) || differs(i, j, k + 1);
             }
     });
     return b;

@@ -85,3 +85,28 @@ TEST(SizeImage, TheLimitIsTheSmallestSizeOverTheCellAndNothingOutsideTheImage) {
     EXPECT_EQ(c.limit[c.index(4, 4, 4)], 4.0f);
     EXPECT_EQ(c.limit[c.index(1, 1, 1)], std::numeric_limits<float>::infinity());
 }
+
+TEST(Thickness, TheGridsBoxIsNotASurface) {
+    // label 1 fills z < 40 up to the box on five sides: 40 steps thick, its only surface the face z = 40
+    octree::Labels l;
+    l.grid.dims = {81, 81, 81};
+    l.material.assign(l.grid.size(), 0);
+    for (int k = 0; k < 40; ++k)
+        for (int j = 0; j < 81; ++j)
+            for (int i = 0; i < 81; ++i) l.material[l.grid.index(i, j, k)] = 1;
+    const auto& p = l.grid.dims;
+    const octree::RequestMasks m = pipeline::thicknessRequests(l, 3);
+    // the material goes on past the box: not thin for any cell, not at the box's corners and edges either
+    for (int level = 1; level <= 3; ++level) {
+        EXPECT_FALSE(requested(m, p, level, 0, 0, 0)) << "the box's corner, level " << level;
+        EXPECT_FALSE(requested(m, p, level, 40, 0, 20)) << "the box's face, level " << level;
+        EXPECT_FALSE(requested(m, p, level, 0, 0, 39)) << "where the surface meets the box, level " << level;
+    }
+    // a plate 4 steps thick across the box (x 39..42) is thin for 3-step cells, at the box too
+    for (int k = 0; k < 81; ++k)
+        for (int j = 0; j < 81; ++j)
+            for (int i = 0; i < 81; ++i) l.material[l.grid.index(i, j, k)] = (i >= 39 && i < 43) ? 1 : 0;
+    const octree::RequestMasks thin = pipeline::thicknessRequests(l, 1);
+    EXPECT_TRUE(requested(thin, p, 1, 40, 40, 40));
+    EXPECT_TRUE(requested(thin, p, 1, 40, 0, 0));
+}

@@ -11,7 +11,7 @@ import numpy as np
 from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import SOURCE, run, workdir  # noqa: E402
+from common import SOURCE, phantoms, run, workdir  # noqa: E402
 from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "samples"))
@@ -38,7 +38,9 @@ class Adaptive(unittest.TestCase):
             vtu, rep = os.path.join(d, mode + ".vtu"), os.path.join(d, mode + ".json")
             # the surface criterion and its checks alone: the thickness criterion
             # (test_adaptive_sizing.py) also refines the box's rounded edges
-            extra = ["--no-thickness-refinement"] if mode == "adaptive" else []
+            # --keep-tree: the tree's mesh, whatever it saves (on this small box its transitions cost what the
+            # coarse cells save, and the uniform mesh would be written)
+            extra = ["--no-thickness-refinement", "--keep-tree"] if mode == "adaptive" else []
             run(["mesh", cls.scan, "-o", vtu, "--report", rep, "--size", "1", "--" + mode, *extra, "--quiet"])
             with open(rep) as f:
                 cls.out[mode] = (read_vtu(vtu), json.load(f))
@@ -102,7 +104,8 @@ class Adaptive(unittest.TestCase):
         files = []
         for t in (1, 2):
             vtu = os.path.join(d, f"t{t}.vtu")
-            run(["mesh", self.scan, "-o", vtu, "--size", "1", "--adaptive", "--quiet", "--threads", str(t)])
+            run(["mesh", self.scan, "-o", vtu, "--size", "1", "--adaptive", "--keep-tree", "--quiet", "--threads",
+                 str(t)])
             with open(vtu, "rb") as f:
                 files.append(f.read())
         self.assertEqual(files[0], files[1])
@@ -113,6 +116,44 @@ class Adaptive(unittest.TestCase):
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("--adaptive", p.stderr)
         self.assertEqual(len(p.stderr.strip().splitlines()), 1)
+
+
+class NeverWorseThanUniform(unittest.TestCase):
+    """The sphere phantom at 1.5 mm (bench/adaptive_vs_uniform.py's first input), where the tree saves nothing:
+    --adaptive writes the uniform mesh (no more hexes, no lower minimum than --uniform, counted and measured by VTK
+    on the written files), and --keep-tree writes the tree's."""
+
+    @classmethod
+    def setUpClass(cls):
+        d = phantoms("adaptive_never_worse")
+        cls.out = {}
+        for name, opts in (("uniform", ["--uniform"]), ("adaptive", ["--adaptive"]),
+                           ("tree", ["--adaptive", "--keep-tree"])):
+            vtu, rep = os.path.join(d, name + ".vtu"), os.path.join(d, name + ".json")
+            run(["mesh", os.path.join(d, "sphere.nii.gz"), "-o", vtu, "--report", rep, "--size", "1.5", "--quiet",
+                 *opts])
+            with open(rep) as f:
+                cls.out[name] = (read_vtu(vtu), json.load(f))
+
+    def test_no_more_hexes_and_no_lower_minimum(self):
+        a, ra = self.out["adaptive"]
+        u, _ = self.out["uniform"]
+        self.assertLessEqual(a.GetNumberOfCells(), u.GetNumberOfCells())
+        self.assertGreaterEqual(vtk_sj(a).min(), vtk_sj(u).min() - 1e-9)
+        self.assertGreater(vtk_sj(a).min(), 0.0)
+
+    def test_the_report_says_which_mesh_was_written(self):
+        _, ra = self.out["adaptive"]
+        a = ra["adaptive"]
+        kept = a["tree_hexes"] <= 0.9 * a["uniform_hexes"]
+        self.assertEqual(a["uniform_kept"], not kept)
+        self.assertEqual(ra["extracted"]["hexes"], a["tree_hexes"] if kept else a["uniform_hexes"])
+        grid, rt = self.out["tree"]
+        self.assertFalse(rt["adaptive"]["uniform_kept"])
+        self.assertEqual(rt["extracted"]["hexes"], rt["adaptive"]["tree_hexes"])
+        self.assertEqual(rt["adaptive"]["tree_hexes"], a["tree_hexes"])
+        if not kept:  # the uniform mesh: every hex at level 0
+            self.assertEqual(ns.vtk_to_numpy(self.out["adaptive"][0].GetCellData().GetArray("level")).max(), 0)
 
 
 if __name__ == "__main__":

@@ -86,7 +86,7 @@ class LabelSizesAndSizeImage(unittest.TestCase):
         cls.dir = d
 
     def test_a_label_size_keeps_that_label_fine(self):
-        grid, rep, _ = mesh(self.labels, "free", "--labels", "--adaptive", "--size", "1")
+        grid, rep, _ = mesh(self.labels, "free", "--labels", "--adaptive", "--size", "1", "--keep-tree")
         material, level = cell_array(grid, "material"), cell_array(grid, "level")
         self.assertGreater((level[material == 3] > 0).sum(), 0)  # the cube's inside coarsens on its own
         grid, rep, _ = mesh(self.labels, "sized", "--labels", "--adaptive", "--size", "1", "--label-size", "3=1")

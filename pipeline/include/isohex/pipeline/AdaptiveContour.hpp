@@ -31,13 +31,24 @@ struct AdaptiveFacts {
     SizingFacts sizing;                         // the user sizing and thickness criteria
     double smallestEdge = 0, largestEdge = 0;   // world units, of the contoured mesh
     std::vector<std::uint8_t> hexLevel;         // per hex of the mesh (sheet hexes: their boundary hex's, 0)
+    std::size_t treeHexes = 0;                  // contoured hexes of the tree's mesh
+    bool uniformKept = false;                   // the tree saved too little: the uniform mesh is the result
 };
+
+// The tree's mesh is kept when it has at most this fraction of the uniform
+// mesh's contoured hexes; otherwise the uniform mesh is (its quality is not
+// bounded by the transition templates' floor).
+inline constexpr double kTreeKeptAtMost = 0.9;
 
 // The adaptive mesh of p.labels (octree::contourAdaptive over the extraction
 // domain) from `uniform` (contour()'s mesh of p.labels, held-back positions
 // applied), with the user sizing's requests (Sizing.hpp) ORed into the
 // surface criterion's: refined regions keep its hexes and nodes, coarse
 // leaves straddle the surface where it is smooth and simple.
-HexMesh coarsenContour(const Prepared& p, HexMesh uniform, const MeshSettings& settings, AdaptiveFacts& facts);
+HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
+
+// Whether the tree's mesh replaces the uniform one (kTreeKeptAtMost, or
+// settings.keepTree); when not, `facts` says so and gives every hex level 0.
+bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 }  // namespace isohex::pipeline

@@ -72,6 +72,9 @@ struct MeshSettings {
     std::string sizeImage;                                    // an image of sizes (mm); empty: none
     int grading = 0;                // cells of a level kept around finer ones before a coarser level
     bool thicknessRefinement = true;  // refine where a material is thinner than two cells
+    // Write the tree's mesh even when it saves too little against the uniform
+    // one (pipeline::kTreeKeptAtMost); off: the uniform mesh is written then.
+    bool keepTree = false;
     int exteriorMargin = 3;       // grid steps of background around the object when meshing the exterior
     bool optimize = true;
     // Start the sheet and the optimiser as before the valid start: vertices
