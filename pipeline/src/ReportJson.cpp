@@ -170,6 +170,16 @@ nlohmann::json toJson(const InputFacts& in) {
     j["coordinates"] = "LPS (ITK physical space), world units of the scan (mm for medical images)";
     if (!in.seriesUid.empty()) j["dicom_series"] = in.seriesUid;
     if (in.surface) j["surface"] = toJson(*in.surface);
+    if (!in.surface) {
+        const ReadFacts& r = in.read;
+        j["read"] = {{"window", r.window},
+                     {"streamed", r.streamed},
+                     {"voxels", r.voxels},
+                     {"box", r.box},
+                     {"summary_passes", r.summaryPasses},
+                     {"summary_reads", r.summaryReads}};
+        if (!r.whole.empty()) j["read"]["whole_because"] = r.whole;
+    }
     return j;
 }
 
