@@ -125,6 +125,7 @@ void distancesJson(const FidelityResult& f, nlohmann::json& j) {
     j["boundary_nodes_beyond_0_1_voxel"] = f.boundary.beyond;
     j["boundary_distance_mean"] = f.boundary.mean;
     j["boundary_distance_max"] = f.boundary.max;
+    j["boundary_distance_p95"] = f.boundary.p95;
     j["boundary_distance_mean_voxels"] = f.boundary.mean / voxel;
     j["boundary_distance_max_voxels"] = f.boundary.max / voxel;
     if (f.repaired) {
