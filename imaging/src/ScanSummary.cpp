@@ -16,7 +16,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A file ITK's reader may stream, by its name; the reads say whether it did.
+// A file ITK's reader may stream, by its name (uncompressed NIfTI-1 and
+// MetaImage; ITK's NRRD reader reads the whole file for any region); the
+// reads say whether it did (a compressed MetaImage does not).
 bool mayStream(const fs::path& path) {
     std::string name = path.filename().string();
     for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -25,7 +27,7 @@ bool mayStream(const fs::path& path) {
     };
     std::error_code ec;
     if (fs::is_directory(path, ec) || detail::isNifti2(path)) return false;
-    return endsWith(".nii") || endsWith(".mha") || endsWith(".mhd") || endsWith(".nrrd") || endsWith(".nhdr");
+    return endsWith(".nii") || endsWith(".mha") || endsWith(".mhd");
 }
 
 // Slab by slab along z through the file; false when a read was not a

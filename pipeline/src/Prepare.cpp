@@ -222,7 +222,7 @@ bool loadPartWindow(PrepareState& s) {
     lo.reading = [&](const std::string& file) { s.sink.reading(file); };
     s.summary = imaging::summarizeScan(s.input, lo, s.settings.select);
     if (!s.summary) {
-        read.whole = "the format does not stream (uncompressed NIfTI-1, MetaImage and raw NRRD do), or the selection "
+        read.whole = "the format does not stream (uncompressed NIfTI-1 and MetaImage do), or the selection "
                      "needs every voxel (labels, smoothing, non-finite voxels kept)";
         return false;
     }

@@ -39,7 +39,7 @@ struct ScanSummary {
 // Summarises an intensity scan slab by slab. Empty when the scan cannot be
 // read that way without reading it whole each time: a folder, a .vdb, a
 // NIfTI-2 file, a format whose reader does not stream (gzip-compressed
-// NIfTI or MetaImage, TIFF, DICOM; see LoadOptions::region), label maps,
+// NIfTI or MetaImage, NRRD, TIFF, DICOM; see LoadOptions::region), label maps,
 // Gaussian smoothing, non-finite voxels kept (nanAsOutside). The selection
 // scans select() would refuse (an iso value outside the value range, no voxel
 // selected, no Otsu threshold, non-finite voxels) are empty too, so that the

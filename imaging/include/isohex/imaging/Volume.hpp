@@ -59,7 +59,7 @@ struct LoadOptions {
     // Read only these voxels (index box of the file's voxels; empty = all).
     // The Volume's box is then this box (clipped to the file), in the file's
     // own voxel indices. ITK's readers read only the region from formats that
-    // stream (uncompressed NIfTI-1, MetaImage, raw NRRD: RawVolume::streamed);
+    // stream (uncompressed NIfTI-1 and MetaImage: Volume::regionStreamed);
     // every other input is read whole and cropped. A NIfTI file's non-finite
     // voxels read as 0 then (ITK zeroes them; the whole read restores them).
     openvdb::CoordBBox region;
