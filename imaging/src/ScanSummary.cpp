@@ -18,7 +18,9 @@ namespace fs = std::filesystem;
 
 // A file ITK's reader may stream, by its name (uncompressed NIfTI-1 and
 // MetaImage; ITK's NRRD reader reads the whole file for any region); the
-// reads say whether it did (a compressed MetaImage does not).
+// reads say whether it did (a compressed MetaImage does not). Not .nii.gz:
+// ITK reads a region of it by decompressing from the file's start, so the
+// passes would decompress the file once per slab.
 bool mayStream(const fs::path& path) {
     std::string name = path.filename().string();
     for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

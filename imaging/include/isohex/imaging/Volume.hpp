@@ -59,8 +59,10 @@ struct LoadOptions {
     // Read only these voxels (index box of the file's voxels; empty = all).
     // The Volume's box is then this box (clipped to the file), in the file's
     // own voxel indices. ITK's readers read only the region from formats that
-    // stream (uncompressed NIfTI-1 and MetaImage: Volume::regionStreamed);
-    // every other input is read whole and cropped. A NIfTI file's non-finite
+    // stream (NIfTI-1, also gzipped, decompressed from the file's start up to
+    // the region; uncompressed MetaImage: Volume::regionStreamed);
+    // every other input is read whole and cropped (a .vdb is read whole and
+    // not cropped). A NIfTI file's non-finite
     // voxels read as 0 then (ITK zeroes them; the whole read restores them).
     openvdb::CoordBBox region;
 };
