@@ -2,6 +2,7 @@
 // joined into one conformal mesh (pipeline/Merge.hpp).
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "Commands.hpp"
@@ -18,6 +19,7 @@
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/Merge.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/ReportJson.hpp"
@@ -45,15 +47,15 @@ std::vector<std::string> scanOptionNames() {
     return names;
 }
 
-// Joins the parts; with --scan, the band pass projects onto the scan's isosurface.
-pipeline::MergeResult merge(const MergeArgs& a) {
+// Joins the parts; with --scan (loaded into `p`), the band pass projects onto the scan's isosurface.
+pipeline::MergeResult merge(const MergeArgs& a, std::optional<pipeline::Prepared>& p) {
     if (a.scan.empty()) return pipeline::mergeParts(a.parts, !a.noBandPass);
     nowReading(a.scan);
     ProgressSink sink(ProgressSink::Mode::Quiet);
-    const pipeline::Prepared p = pipeline::prepareGrid(a.scan, a.mesh.settings, sink);
+    p = pipeline::prepareGrid(a.scan, a.mesh.settings, sink);
     nowReading(a.parts.front());
     pipeline::MergeScan scan;
-    scan.prepared = &p;
+    scan.prepared = &*p;
     scan.surfaceToleranceVoxels = a.mesh.settings.surfaceTolerance.value_or(pipeline::kDefaultSurfaceTolerance);
     return pipeline::mergeParts(a.parts, !a.noBandPass, scan);
 }
@@ -61,11 +63,18 @@ pipeline::MergeResult merge(const MergeArgs& a) {
 // Joins, measures and writes; the report as JSON.
 nlohmann::json mergeAndWrite(const MergeArgs& a) {
     nowReading(a.parts.front());
-    pipeline::MergeResult m = merge(a);
+    std::optional<pipeline::Prepared> scan;
+    pipeline::MergeResult m = merge(a, scan);
     const HexQuality q = computeQuality(m.mesh);
     const QualitySummary s = summarize(m.mesh, q);
     const ValidityReport v = validate(m.mesh);
     nlohmann::json report = {{"merge", pipeline::toJson(m)}};
+    // With the scan: the merged mesh against its isosurface, as mesh's report measures a whole run.
+    std::optional<pipeline::FidelityResult> fid;
+    if (scan) {
+        fid = pipeline::fidelity(m.mesh, *scan);
+        report["fidelity"] = pipeline::toJson(*fid);
+    }
     const nlohmann::json quality = toJson(s);  // (items() of a temporary would dangle)
     for (const auto& [k, val] : quality.items()) report[k] = val;
     report["validity"] = toJson(v);
@@ -90,6 +99,9 @@ nlohmann::json mergeAndWrite(const MergeArgs& a) {
                 m.parts, m.mesh.hexCount(), m.mesh.nodeCount(), s.scaledJacobian.min, s.scaledJacobian.mean,
                 s.inverted);
     for (const auto& c : m.cuts) std::printf("; cut %d|%d: %zu nodes matched", c.below, c.below + 1, c.nodes);
+    if (fid)
+        std::printf("; boundary distance mean %.3g p95 %.3g max %.3g, volume %.6g (isosurface %.6g)",
+                    fid->boundary.mean, fid->boundary.p95, fid->boundary.max, fid->volumeMesh, fid->volumeIsosurface);
     std::printf("\n");
     for (const auto& o : a.outputs) std::printf("wrote %s\n", o.c_str());
     if (!v.ok()) std::fprintf(stderr, "warning: the merged mesh: %s\n", describeDefects(v).c_str());

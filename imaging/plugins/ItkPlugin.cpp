@@ -74,7 +74,8 @@ RawVolume readTiffSlices(const std::vector<std::filesystem::path>& files, const 
     return heldRead(readTiffSlicesItk, files, options);
 }
 
-const ItkReaders kApi{ItkReaders::kAbi, readImageFile, readDicomFolder, readTiffSlices, otsuThresholdItk};
+const ItkReaders kApi{ItkReaders::kAbi, readImageFile, readDicomFolder, readTiffSlices, otsuThresholdItk,
+                     otsuFromHistogramItk};
 
 }  // namespace
 

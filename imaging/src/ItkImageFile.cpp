@@ -192,7 +192,10 @@ void checkVolumeChoice(ImageFileRead& r) {
 // Before the bulk read: the memory budget, and the voxel data's size against
 // the header where ITK would zero-fill or warn only.
 void checkDataSize(const ImageFileRead& r) {
-    checkMemoryBudget(r.file, r.header, r.options.maxMemoryMB);
+    RawHeader budget = r.header;  // a region: what is read of it
+    for (int a = 0; a < 3 && !r.options.region.empty(); ++a)
+        budget.size[a] = std::clamp<std::int64_t>(r.options.region.dim()[a], 1, r.header.size[a]);
+    checkMemoryBudget(r.file, budget, r.options.maxMemoryMB);
     const auto bytes = static_cast<std::uint64_t>(r.io->GetImageSizeInBytes());
     if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz || r.format == CheckedFormat::NiftiPair) {
         const auto [header, data] = niftiFiles(r.path, r.format);
@@ -201,13 +204,42 @@ void checkDataSize(const ImageFileRead& r) {
     if (r.format == CheckedFormat::MetaImage) checkMetaImageSize(r.file, bytes);
 }
 
-// Reads every voxel of the file (all frames and components) as float.
-VectorImage4::Pointer readVoxels(const ImageFileRead& r) {
+// The 4-D region of the file's voxels to read: LoadOptions::region clipped to
+// the file, every frame; the whole file without a region. Throws when the
+// region misses the file.
+VectorImage4::RegionType requestedRegion(const ImageFileRead& r) {
+    VectorImage4::RegionType region;
+    for (int a = 0; a < 4; ++a) {
+        region.SetIndex(a, 0);
+        region.SetSize(a, static_cast<itk::SizeValueType>(std::max<std::int64_t>(r.header.size[a], 1)));
+    }
+    const openvdb::CoordBBox& want = r.options.region;
+    if (want.empty()) return region;
+    for (int a = 0; a < 3; ++a) {
+        const std::int64_t lo = std::max<std::int64_t>(want.min()[a], 0);
+        const std::int64_t hi = std::min<std::int64_t>(want.max()[a], r.header.size[a] - 1);
+        if (hi < lo)
+            throw Error(r.file + ": the voxel region asked for lies outside the image (please report this)");
+        region.SetIndex(a, lo);
+        region.SetSize(a, static_cast<itk::SizeValueType>(hi - lo + 1));
+    }
+    return region;
+}
+
+// Reads the file's voxels as float: all of them, or with a region asked for
+// the region (all frames and components); `streamed` says whether the
+// reader read the region alone.
+VectorImage4::Pointer readVoxels(const ImageFileRead& r, bool& streamed) {
     auto reader = itk::ImageFileReader<VectorImage4>::New();
     reader->SetImageIO(r.io);
     reader->SetFileName(r.file);
     if (r.options.progress) r.options.progress("read", 0.0);
+    const VectorImage4::RegionType region = requestedRegion(r);
     try {
+        if (!r.options.region.empty()) {
+            reader->UpdateOutputInformation();
+            reader->GetOutput()->SetRequestedRegion(region);
+        }
         reader->Update();
     } catch (const itk::ExceptionObject& e) {
         throw Error(r.file + ": the voxel data cannot be read (" + describe(e) +
@@ -216,6 +248,10 @@ VectorImage4::Pointer readVoxels(const ImageFileRead& r) {
         throw Error(r.file + ": out of memory while reading the voxel data; use a machine with "
                     "more memory or crop/downsample the scan first.");
     }
+    std::uint64_t ioPixels = 1;
+    const itk::ImageIORegion& io = r.io->GetIORegion();
+    for (unsigned a = 0; a < io.GetImageDimension(); ++a) ioPixels *= io.GetSize(a);
+    streamed = !r.options.region.empty() && ioPixels == region.GetNumberOfPixels();
     if (r.options.progress) r.options.progress("read", 1.0);
     return reader->GetOutput();
 }
@@ -223,11 +259,16 @@ VectorImage4::Pointer readVoxels(const ImageFileRead& r) {
 // Copies the chosen scalar volume and the geometry out of ITK's image, which
 // is released on return.
 RawVolume extractVolume(ImageFileRead& r, VectorImage4::Pointer image) {
-    const auto size = image->GetLargestPossibleRegion().GetSize();
+    const auto size = image->GetBufferedRegion().GetSize();
+    const auto start = image->GetBufferedRegion().GetIndex();
     RawVolume raw;
     raw.format = formatName(*r.io);
     raw.pixelType = componentName(r.component);
-    for (int a = 0; a < 3; ++a) raw.dims[a] = static_cast<std::int64_t>(size[a]);
+    for (int a = 0; a < 3; ++a) {
+        raw.dims[a] = static_cast<std::int64_t>(size[a]);
+        raw.start[a] = static_cast<std::int64_t>(start[a]);
+        raw.fileDims[a] = r.header.size[a];
+    }
     copyGeometry(*image, raw);
 
     const std::int64_t n = raw.count();
@@ -250,7 +291,7 @@ RawVolume extractVolume(ImageFileRead& r, VectorImage4::Pointer image) {
 // with NaN, as resampling with NaN fill writes, keeps NaN as background 0.
 void restoreNonFinite(const ImageFileRead& r, RawVolume& raw) {
     const bool nifti = r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz;
-    if (nifti && !r.options.labels)
+    if (nifti && !r.options.labels && r.options.region.empty())
         restoreNiftiNonFinite(r.file, raw.values, r.frame, std::max<std::int64_t>(r.frames, 1), r.comp);
 }
 
@@ -277,7 +318,9 @@ RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions&
     checkImageKind(r);
     checkVolumeChoice(r);
     checkDataSize(r);
-    RawVolume raw = extractVolume(r, readVoxels(r));
+    bool streamed = false;
+    RawVolume raw = extractVolume(r, readVoxels(r, streamed));
+    raw.streamed = streamed;
     restoreNonFinite(r, raw);
     finish(r, raw);
     return raw;

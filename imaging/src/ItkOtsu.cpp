@@ -17,7 +17,7 @@
 namespace isohex::imaging::detail {
 
 double otsuThresholdItk(const std::vector<float>& values) {
-    constexpr int kBins = 256;
+    constexpr int kBins = kOtsuBins;
     if (values.empty()) throw Error("Otsu threshold: no voxel values to choose a threshold from.");
     const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
     const double vmin = *lo, vmax = *hi;
@@ -40,7 +40,13 @@ double otsuThresholdItk(const std::vector<float>& values) {
             for (int i = 0; i < kBins; ++i) a[i] += b[i];
             return a;
         });
+    return otsuFromHistogramItk(counts, vmin, vmax);
+}
 
+double otsuFromHistogramItk(const std::vector<std::uint64_t>& counts, double vmin, double vmax) {
+    constexpr int kBins = kOtsuBins;
+    if (counts.size() != static_cast<std::size_t>(kBins))
+        throw Error("Otsu threshold: a histogram of " + std::to_string(counts.size()) + " bins (please report this)");
     using Histogram = itk::Statistics::Histogram<double>;
     auto histogram = Histogram::New();
     histogram->SetMeasurementVectorSize(1);

@@ -138,8 +138,46 @@ Range scanValues(const std::vector<float>& v) {
         });
 }
 
+// With a region asked for, the voxels of `raw` outside it dropped (a reader
+// that read more than the region: the whole file, or ITK's reader of a format
+// that does not stream); notes the file's dimensions.
+void cropToRegion(detail::RawVolume& raw, const openvdb::CoordBBox& region) {
+    if (raw.fileDims == std::array<std::int64_t, 3>{0, 0, 0} && raw.start == std::array<std::int64_t, 3>{0, 0, 0})
+        raw.fileDims = raw.dims;
+    if (region.empty()) return;
+    std::array<std::int64_t, 3> lo{}, hi{};
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = std::max<std::int64_t>(region.min()[a], raw.start[a]);
+        hi[a] = std::min<std::int64_t>(region.max()[a], raw.start[a] + raw.dims[a] - 1);
+        if (hi[a] < lo[a]) throw Error("the voxel region asked for lies outside the image (please report this)");
+    }
+    if (lo == raw.start && hi[0] - lo[0] + 1 == raw.dims[0] && hi[1] - lo[1] + 1 == raw.dims[1] &&
+        hi[2] - lo[2] + 1 == raw.dims[2])
+        return;
+    const std::array<std::int64_t, 3> d{hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
+    auto crop = [&](auto& values) {
+        using T = typename std::decay_t<decltype(values)>::value_type;
+        std::vector<T> out(static_cast<std::size_t>(d[0] * d[1] * d[2]));
+        for (std::int64_t z = 0; z < d[2]; ++z)
+            for (std::int64_t y = 0; y < d[1]; ++y) {
+                const std::int64_t from = (lo[0] - raw.start[0]) +
+                                          raw.dims[0] * ((y + lo[1] - raw.start[1]) + raw.dims[1] * (z + lo[2] - raw.start[2]));
+                std::copy_n(values.begin() + from, d[0], out.begin() + d[0] * (y + d[1] * z));
+            }
+        values = std::move(out);
+    };
+    if (!raw.values.empty()) crop(raw.values);
+    if (!raw.labels.empty()) crop(raw.labels);
+    raw.start = lo;
+    raw.dims = d;
+    raw.streamed = false;
+}
+
 Volume fromRaw(detail::RawVolume&& raw, const std::string& file, const LoadOptions& options) {
+    cropToRegion(raw, options.region);
     Volume vol;
+    vol.fileDims = openvdb::Coord(int(raw.fileDims[0]), int(raw.fileDims[1]), int(raw.fileDims[2]));
+    vol.regionStreamed = raw.streamed;
     vol.source = file;
     vol.format = raw.format;
     vol.pixelType = raw.pixelType;
@@ -147,9 +185,9 @@ Volume fromRaw(detail::RawVolume&& raw, const std::string& file, const LoadOptio
     vol.origin = raw.origin;
     vol.spacing = raw.spacing;
     vol.direction = raw.direction;
-    vol.box = openvdb::CoordBBox(openvdb::Coord(0, 0, 0),
-                                 openvdb::Coord(int(raw.dims[0]) - 1, int(raw.dims[1]) - 1,
-                                                int(raw.dims[2]) - 1));
+    const openvdb::Coord first(int(raw.start[0]), int(raw.start[1]), int(raw.start[2]));
+    vol.box = openvdb::CoordBBox(first, first.offsetBy(int(raw.dims[0]) - 1, int(raw.dims[1]) - 1,
+                                                       int(raw.dims[2]) - 1));
     auto transform = makeTransform(raw.origin, raw.spacing, raw.direction);
     if (options.progress) options.progress("grid", 0.0);
     if (!raw.labels.empty()) {

@@ -14,6 +14,9 @@ namespace isohex::imaging::detail {
 
 struct RawVolume {
     std::array<std::int64_t, 3> dims{0, 0, 0};  // x fastest in the buffers
+    std::array<std::int64_t, 3> start{0, 0, 0};  // the file's voxel index of the buffers' first voxel
+    std::array<std::int64_t, 3> fileDims{0, 0, 0};  // the whole file's (dims, unless a region was read)
+    bool streamed = false;                       // a region read without reading the rest of the file
     std::vector<float> values;                  // intensity, or
     std::vector<std::int32_t> labels;           // labels (exactly one is filled)
     Vec3 origin{0, 0, 0};
@@ -56,6 +59,11 @@ RawVolume readExrSlices(const std::vector<std::filesystem::path>& files,
 
 // ITK's Otsu threshold of a list of (finite) values.
 double otsuThresholdItk(const std::vector<float>& values);
+// The same from the 256-bin histogram of values in [vmin, vmax] that
+// otsuThresholdItk fills (bin = min(255, int((v - vmin) * 256 / (vmax - vmin))));
+// a caller streaming the scan fills it slab by slab.
+inline constexpr int kOtsuBins = 256;
+double otsuFromHistogramItk(const std::vector<std::uint64_t>& counts, double vmin, double vmax);
 
 // File-name order where runs of digits compare by value ("s2" < "s10").
 bool naturalLess(const std::string& a, const std::string& b);

@@ -12,12 +12,13 @@
 namespace isohex::imaging::detail {
 
 struct ItkReaders {
-    static constexpr int kAbi = 1;
+    static constexpr int kAbi = 2;
     int abi;
     RawVolume (*readImageFile)(const std::filesystem::path& path, const LoadOptions& options);
     RawVolume (*readDicomFolder)(const std::filesystem::path& dir, const LoadOptions& options);
     RawVolume (*readTiffSlices)(const std::vector<std::filesystem::path>& files, const LoadOptions& options);
     double (*otsuThreshold)(const std::vector<float>& values);
+    double (*otsuFromHistogram)(const std::vector<std::uint64_t>& counts, double vmin, double vmax);
 };
 
 struct ExrReader {

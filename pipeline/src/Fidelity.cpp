@@ -57,6 +57,15 @@ MeasuredNodes measure(const HexMesh& mesh, NodeKind kind, double voxel, const Pr
         ++measured;
     }
     s.mean = measured ? sum / static_cast<double>(measured) : 0.0;
+    if (measured) {
+        std::vector<double> sorted;
+        sorted.reserve(measured);
+        for (const double d : dist)
+            if (std::isfinite(d)) sorted.push_back(d);
+        const auto rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(measured))) - 1;
+        std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(rank), sorted.end());
+        s.p95 = sorted[rank];
+    }
     out.nodes = std::move(nodes);
     out.distance = std::move(dist);
     return out;

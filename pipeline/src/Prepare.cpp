@@ -13,6 +13,7 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/SettingError.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/imaging/ScanSummary.hpp"
 #include "isohex/imaging/Surface.hpp"
 #include "isohex/imaging/SurfaceVolume.hpp"
 #include "isohex/octree/Grid.hpp"
@@ -43,6 +44,10 @@ struct PrepareState {
     openvdb::CoordBBox solid;                             // index box of the selected voxels
     std::optional<octree::LevelChoice> choice;            // when chosen by topology
     octree::Labels sampled;                               // the labels as sampled, before any change
+    // A part reading its window only: the whole scan's facts, read slab by slab.
+    std::optional<imaging::ScanSummary> summary;
+    openvdb::math::Transform::Ptr summaryTransform;
+    bool gridChosen = false;
 };
 
 // Whether voxel c is inside a selected material.
@@ -78,11 +83,8 @@ openvdb::CoordBBox solidBox(const imaging::Volume& vol, const imaging::Selection
         join);
 }
 
-// The selected voxels nearest each layer of `grid` along `axis` (whose first
-// layer is at voxel index `start` and which is `step` voxels apart): the
-// weights a split balances (partWindow).
-std::vector<std::int64_t> selectedPerLayer(const imaging::Volume& vol, const imaging::Selection& sel, int axis,
-                                           double start, double step, int layers) {
+// The selected voxels per voxel layer along `axis` over the volume's box.
+std::vector<std::int64_t> selectedPerVoxelLayer(const imaging::Volume& vol, const imaging::Selection& sel, int axis) {
     const openvdb::CoordBBox box = vol.box;
     std::vector<std::int64_t> perVoxelLayer(static_cast<std::size_t>(box.dim()[axis]), 0);
     const int u = (axis + 1) % 3, v = (axis + 2) % 3;
@@ -96,9 +98,18 @@ std::vector<std::int64_t> selectedPerLayer(const imaging::Volume& vol, const ima
             perVoxelLayer[static_cast<std::size_t>(a - box.min()[axis])] = n;
         }
     });
+    return perVoxelLayer;
+}
+
+// The selected voxels nearest each layer of a grid (whose first layer is at
+// voxel index `start` and which is `step` voxels apart), from their counts
+// per voxel layer (the first at voxel index `firstVoxel`): the weights a
+// split balances (partWindow).
+std::vector<std::int64_t> gridLayerWeights(const std::vector<std::int64_t>& perVoxelLayer, int firstVoxel,
+                                           double start, double step, int layers) {
     std::vector<std::int64_t> weights(static_cast<std::size_t>(layers), 0);
     for (std::size_t i = 0; i < perVoxelLayer.size(); ++i) {
-        const double at = (static_cast<double>(box.min()[axis]) + static_cast<double>(i) - start) / step;
+        const double at = (static_cast<double>(firstVoxel) + static_cast<double>(i) - start) / step;
         const int l = std::clamp(static_cast<int>(std::floor(at + 0.5)), 0, layers - 1);
         weights[static_cast<std::size_t>(l)] += perVoxelLayer[i];
     }
@@ -106,9 +117,8 @@ std::vector<std::int64_t> selectedPerLayer(const imaging::Volume& vol, const ima
 }
 
 // The grid of `step` voxels per axis over the solid box, `pad` steps wider on every side.
-octree::Grid gridFor(const imaging::Volume& vol, const openvdb::CoordBBox& solid, const std::array<double, 3>& step,
-                     int pad) {
-    const openvdb::math::Transform& xf = vol.transform();
+octree::Grid gridFor(const openvdb::math::Transform& xf, const openvdb::CoordBBox& solid,
+                     const std::array<double, 3>& step, int pad) {
     const openvdb::Vec3d o = xf.indexToWorld(openvdb::Vec3d(0, 0, 0));
     octree::Grid g;
     openvdb::Vec3d start;
@@ -167,6 +177,82 @@ void selectMaterials(PrepareState& s) {
     s.p.domain = s.domain;
 }
 
+void chooseGrid(PrepareState& s);
+
+// Voxels a part reads beyond its window's first and last grid layers along
+// the cut axis: the interpolation's stencil (quadratic: 3 voxels) and room for
+// the projections of the ghost layers' nodes; the hexes the part keeps are
+// kPartGhostLayers layers further in.
+constexpr int kWindowMarginVoxels = 10;
+
+// The voxels of a part's window: its grid layers along the cut axis with
+// kWindowMarginVoxels on each side, the whole scan across.
+openvdb::CoordBBox windowVoxels(const PrepareState& s) {
+    const PartWindow& w = *s.p.part;
+    const int a = w.axis;
+    const double step = s.p.facts.grid.stepVoxels[static_cast<std::size_t>(a)];
+    const double start = s.solid.min()[a] - 2 * step + w.first * step;  // the window's first layer, in voxels
+    const double end = start + (w.grid.dims[a] - 1) * step;
+    openvdb::CoordBBox box(openvdb::Coord(0, 0, 0), s.summary->dims.offsetBy(-1));
+    box.min()[a] = std::max(box.min()[a], static_cast<int>(std::floor(start)) - kWindowMarginVoxels);
+    box.max()[a] = std::min(box.max()[a], static_cast<int>(std::ceil(end)) + kWindowMarginVoxels);
+    return box;
+}
+
+// Why a part reads the whole scan; empty when it may read its window only.
+std::string wholeReadReason(const PrepareState& s) {
+    if (!s.settings.part) return {};
+    if (imaging::isSurfaceFile(s.input)) return "a triangle surface";
+    if (!s.size && !s.settings.level)
+        return "the level is chosen by topology over the whole scan (give --size or --level)";
+    return {};
+}
+
+// A part of a split scan: the whole scan's facts read slab by slab
+// (imaging::summarizeScan), the grid and the part's window chosen from them,
+// then only the window's voxels read and selected with the whole scan's iso
+// value. False (nothing done) where the scan cannot be read so.
+bool loadPartWindow(PrepareState& s) {
+    ReadFacts& read = s.p.facts.input.read;
+    read.whole = wholeReadReason(s);
+    if (!s.settings.part || !read.whole.empty()) return false;
+    Stage st(s.sink, "load");
+    imaging::LoadOptions lo = s.settings.load;
+    lo.progress = [&](std::string_view, double f) { s.sink.progress(f); };
+    lo.reading = [&](const std::string& file) { s.sink.reading(file); };
+    s.summary = imaging::summarizeScan(s.input, lo, s.settings.select);
+    if (!s.summary) {
+        read.whole = "the format does not stream (uncompressed NIfTI-1 and MetaImage do), or the selection "
+                     "needs every voxel (labels, smoothing, non-finite voxels kept)";
+        return false;
+    }
+    const imaging::ScanSummary& sum = *s.summary;
+    s.summaryTransform = imaging::makeTransform(sum.origin, sum.spacing, sum.direction);
+    chooseGrid(s);
+    lo.region = windowVoxels(s);
+    imaging::Volume vol = imaging::loadVolume(s.input, lo);
+    vol.minValue = sum.minValue;  // the whole scan's: the iso value's range and the field's background
+    vol.maxValue = sum.maxValue;
+    read = {true, vol.regionStreamed, vol.voxelCount(), {}, sum.passes, sum.slabReads, {}};
+    for (int a = 0; a < 3; ++a) {
+        read.box[static_cast<std::size_t>(a)] = vol.box.min()[a];
+        read.box[static_cast<std::size_t>(a) + 3] = vol.box.max()[a];
+    }
+    s.p.volume = std::make_shared<const imaging::Volume>(std::move(vol));
+    st.finish();
+    Stage sel(s.sink, "select");
+    imaging::SelectOptions so = s.settings.select;
+    so.iso = sum.iso;
+    imaging::Selection selection = imaging::select(*s.p.volume, so);
+    selection.isoFromOtsu = sum.isoFromOtsu;
+    selection.materials.front().voxels = sum.selectedVoxels;
+    s.p.selection = std::make_shared<const imaging::Selection>(std::move(selection));
+    sel.finish();
+    s.domain = std::make_shared<const SelectionDomain>(s.p.volume, s.p.selection);
+    s.p.domain = s.domain;
+    return true;
+}
+
 // The input's and the selection's facts; notes an Otsu iso value and warns of dropped labels.
 void describeInput(PrepareState& s) {
     const imaging::Volume& vol = *s.p.volume;
@@ -177,6 +263,14 @@ void describeInput(PrepareState& s) {
     in.pixelType = vol.pixelType;
     in.kind = vol.kind;
     in.dimensions = {vol.dims().x(), vol.dims().y(), vol.dims().z()};
+    if (s.summary) in.dimensions = {s.summary->dims.x(), s.summary->dims.y(), s.summary->dims.z()};
+    if (!in.read.window) {
+        in.read.voxels = vol.voxelCount();
+        for (int a = 0; a < 3; ++a) {
+            in.read.box[static_cast<std::size_t>(a)] = vol.box.min()[a];
+            in.read.box[static_cast<std::size_t>(a) + 3] = vol.box.max()[a];
+        }
+    }
     in.spacing = vol.spacing;
     in.origin = vol.origin;
     in.direction = vol.direction;
@@ -199,15 +293,19 @@ void describeInput(PrepareState& s) {
 // The grid step in voxels per axis: from the element size, the level, or
 // the coarsest level that keeps the topology (octree::chooseLevel); then the grid.
 void chooseGrid(PrepareState& s) {
-    const imaging::Volume& vol = *s.p.volume;
+    if (s.gridChosen) return;
+    // A part reading its window only chooses it before the window is read, from the summary.
+    const imaging::Volume* vol = s.summary ? nullptr : s.p.volume.get();
+    const openvdb::math::Transform& xf = vol ? vol->transform() : *s.summaryTransform;
+    const Vec3 spacing = vol ? vol->spacing : s.summary->spacing;
     GridFacts& grid = s.p.facts.grid;
-    s.solid = solidBox(vol, *s.p.selection);
+    s.solid = vol ? solidBox(*vol, *s.p.selection) : s.summary->solid;
     if (s.solid.empty()) throw Error(s.input + ": the selection contains no voxel; nothing to mesh");
     const int pad = s.settings.meshExterior ? 1 + s.settings.exteriorMargin : 2;
-    const double spacingMin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+    const double spacingMin = std::min({spacing[0], spacing[1], spacing[2]});
     std::array<double, 3> step{1, 1, 1};
     if (s.size) {
-        for (int a = 0; a < 3; ++a) step[a] = *s.size / vol.spacing[a];
+        for (int a = 0; a < 3; ++a) step[a] = *s.size / spacing[a];
         if (*s.size < 0.5 * spacingMin)
             s.p.warnings.push_back("--size " + std::to_string(*s.size) +
                                    " is below half the voxel spacing; the mesh cannot resolve more than the scan");
@@ -219,7 +317,7 @@ void chooseGrid(PrepareState& s) {
         grid.chosenBy = GridChoice::Level;
         grid.level = *s.settings.level;
     } else {
-        const octree::Grid base = gridFor(vol, s.solid, step, pad);
+        const octree::Grid base = gridFor(xf, s.solid, step, pad);
         s.choice = octree::chooseLevel(*s.domain, base);
         step.fill(static_cast<double>(1 << s.choice->level));
         grid.chosenBy = GridChoice::Topology;
@@ -227,15 +325,19 @@ void chooseGrid(PrepareState& s) {
         grid.level = s.choice->level;
     }
     grid.stepVoxels = step;
-    grid.grid = gridFor(vol, s.solid, step, pad);
+    grid.grid = gridFor(xf, s.solid, step, pad);
     if (s.settings.part) {  // the same whole grid in every part; this part samples its window of it
         const int axis = partAxis(grid.grid);
         const auto a = static_cast<std::size_t>(axis);
+        const std::vector<std::int64_t> perVoxelLayer =
+            vol ? selectedPerVoxelLayer(*vol, *s.p.selection, axis) : s.summary->perLayer[a];
+        const int firstVoxel = vol ? vol->box.min()[axis] : 0;
         s.p.part = partWindow(grid.grid, *s.settings.part,
-                              selectedPerLayer(vol, *s.p.selection, axis, s.solid.min()[axis] - pad * step[a], step[a],
+                              gridLayerWeights(perVoxelLayer, firstVoxel, s.solid.min()[axis] - pad * step[a], step[a],
                                                grid.grid.dims[a]));
         grid.grid = s.p.part->grid;
     }
+    s.gridChosen = true;
 }
 
 // Adds the counts of another repair round.
@@ -388,7 +490,7 @@ std::vector<octree::RegionTopology> referenceTopology(const PrepareState& s, std
         name = "input surface";
     } else if ((s.size || s.settings.level) && vol.voxelCount() <= 60'000'000) {
         const octree::Grid& g = s.p.facts.grid.grid;
-        const octree::Grid fineGrid = gridFor(vol, s.solid, {1, 1, 1}, 2);
+        const octree::Grid fineGrid = gridFor(vol.transform(), s.solid, {1, 1, 1}, 2);
         const bool same = fineGrid.dims == g.dims && fineGrid.origin == g.origin && fineGrid.axes == g.axes;
         ref = s.p.facts.grid.topology;
         if (!same) {
@@ -449,15 +551,17 @@ void loadAndSelect(PrepareState& s) {
                             " is the element edge length in world units)"});
     checkElementSize(s.settings);
     checkPartSettings(s.settings);
-    loadInput(s);
-    selectMaterials(s);
+    if (!loadPartWindow(s)) {
+        loadInput(s);
+        selectMaterials(s);
+    }
     describeInput(s);
 }
 
 }  // namespace
 
 Prepared prepare(const std::string& input, const MeshSettings& settings, StageSink& sink) {
-    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
+    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}, {}, {}, false};
     loadAndSelect(s);
     buildLabels(s);
     for (const auto& w : s.p.warnings) sink.note("warning", w);
@@ -465,7 +569,7 @@ Prepared prepare(const std::string& input, const MeshSettings& settings, StageSi
 }
 
 Prepared prepareGrid(const std::string& input, const MeshSettings& settings, StageSink& sink) {
-    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}};
+    PrepareState s{input, settings, sink, {}, settings.size, {}, {}, {}, {}, {}, {}, {}, false};
     loadAndSelect(s);
     Stage st(s.sink, "octree");
     chooseGrid(s);

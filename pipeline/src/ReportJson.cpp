@@ -125,6 +125,7 @@ void distancesJson(const FidelityResult& f, nlohmann::json& j) {
     j["boundary_nodes_beyond_0_1_voxel"] = f.boundary.beyond;
     j["boundary_distance_mean"] = f.boundary.mean;
     j["boundary_distance_max"] = f.boundary.max;
+    j["boundary_distance_p95"] = f.boundary.p95;
     j["boundary_distance_mean_voxels"] = f.boundary.mean / voxel;
     j["boundary_distance_max_voxels"] = f.boundary.max / voxel;
     if (f.repaired) {
@@ -170,6 +171,16 @@ nlohmann::json toJson(const InputFacts& in) {
     j["coordinates"] = "LPS (ITK physical space), world units of the scan (mm for medical images)";
     if (!in.seriesUid.empty()) j["dicom_series"] = in.seriesUid;
     if (in.surface) j["surface"] = toJson(*in.surface);
+    if (!in.surface) {
+        const ReadFacts& r = in.read;
+        j["read"] = {{"window", r.window},
+                     {"streamed", r.streamed},
+                     {"voxels", r.voxels},
+                     {"box", r.box},
+                     {"summary_passes", r.summaryPasses},
+                     {"summary_reads", r.summaryReads}};
+        if (!r.whole.empty()) j["read"]["whole_because"] = r.whole;
+    }
     return j;
 }
 

@@ -74,15 +74,16 @@ def _job(path):
 def _merged(out, name, parts, row):
     """The figures of a scan meshed in parts: the merge's report (quality, validity),
     the parts' seconds added to the merge's, the largest peak of the parts and the
-    merge, and the merged mesh's volume against the scan's isosurface (which every
-    part measures whole; left empty unless all parts give the same). The boundary
-    distance stays empty: the merge has no scan."""
+    merge. Volume change and boundary distance are the merge report's fidelity
+    (merge --scan measures the merged mesh against the scan); a merge report
+    without it gives the volume against the scan's isosurface the parts measured
+    (the same in every part only where each read the whole scan; else empty)."""
     reps = [_json(os.path.join(out, "parts", name, f"{k}.report.json")) or {} for k in range(1, parts + 1)]
     merge = _json(os.path.join(out, name + ".report.json")) or {}
     isos = {r.get("fidelity", {}).get("volume_isosurface") for r in reps}
     iso = isos.pop() if len(isos) == 1 else None  # the same whole-scan volume in every part, else unknown
     volume = merge.get("volume", {}).get("total")
-    if iso and volume is not None:
+    if iso and volume is not None and "fidelity" not in merge:
         row["volume_change_percent"] = 100.0 * (volume - iso) / iso
     seconds = sum(r.get("timings_s", {}).get("total", 0) for r in reps) + merge.get("merge", {}).get("seconds", 0)
     peaks = [r.get("peak_memory_mb", 0) for r in reps] + [merge.get("peak_memory_mb", 0)]

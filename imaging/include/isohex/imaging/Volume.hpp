@@ -56,6 +56,15 @@ struct LoadOptions {
     // a library opens it, so that a crash inside the library can be put down
     // to that file; may be empty.
     std::function<void(const std::string& file)> reading;
+    // Read only these voxels (index box of the file's voxels; empty = all).
+    // The Volume's box is then this box (clipped to the file), in the file's
+    // own voxel indices. ITK's readers read only the region from formats that
+    // stream (NIfTI-1, also gzipped, decompressed from the file's start up to
+    // the region; uncompressed MetaImage: Volume::regionStreamed);
+    // every other input is read whole and cropped (a .vdb is read whole and
+    // not cropped). A NIfTI file's non-finite
+    // voxels read as 0 then (ITK zeroes them; the whole read restores them).
+    openvdb::CoordBBox region;
 };
 
 struct Volume {
@@ -81,6 +90,10 @@ struct Volume {
     std::string pixelType;   // the file's component type, e.g. "uint8", "float32"
     std::string seriesUid;   // DICOM only
     bool levelSet = false;   // an OpenVDB grid of class level set (inside < 0)
+    // With LoadOptions::region: the file's own voxel dimensions, and whether
+    // the reader read the region alone (false: the whole file, then cropped).
+    openvdb::Coord fileDims{0, 0, 0};
+    bool regionStreamed = false;
 
     const openvdb::math::Transform& transform() const {
         return kind == VolumeKind::Labels ? labels->transform() : intensity->transform();

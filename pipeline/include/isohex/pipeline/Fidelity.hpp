@@ -29,6 +29,7 @@ struct NodeDistances {
     std::size_t nodes = 0, notProjected = 0;
     std::size_t beyond = 0;  // farther than 0.1 voxel
     double mean = 0, max = 0;
+    double p95 = 0;  // the 95th percentile of the projected nodes' distances (nearest rank)
 };
 
 // The same boundary nodes measured against the surface the mesh was

@@ -35,6 +35,18 @@ struct SurfaceFacts {
     long long euler = 0;       // Euler characteristic of the triangles
 };
 
+// What was read of a scan: all of it, or (a part of a split scan whose
+// format streams) the whole-scan facts slab by slab and then its window.
+struct ReadFacts {
+    bool window = false;        // only the window's voxels were read to mesh
+    bool streamed = false;      // ... and the reader read them alone (else the whole file, cropped)
+    std::int64_t voxels = 0;    // voxels held to mesh (the window's, or the scan's)
+    std::array<int, 6> box{};   // their index box: min x y z, max x y z
+    int summaryPasses = 0;      // slab-by-slab passes through the file before
+    std::int64_t summaryReads = 0;
+    std::string whole;          // a part that read the scan whole: why
+};
+
 // The input as loaded (the report's "input").
 struct InputFacts {
     std::string path;
@@ -46,6 +58,7 @@ struct InputFacts {
     std::array<double, 2> dataRange{};
     std::string seriesUid;                 // DICOM only
     std::optional<SurfaceFacts> surface;   // a triangle surface only
+    ReadFacts read;                        // a scan only
 };
 
 // The selection (the report's "selection").
