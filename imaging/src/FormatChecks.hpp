@@ -30,6 +30,9 @@ void checkNiftiDataSize(const std::string& file, const std::string& dataFile, st
 // `frame` of `frames`, component `comp`, are not finite (ITK's reader zeroes them).
 void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
                            std::int64_t frames, int comp);
+// NIfTI-1: whether any float voxel of the file (every volume and component)
+// is NaN or infinite; false for other data types and unreadable files.
+bool niftiHasNonFinite(const std::string& file);
 
 // MetaImage: throws on header fields MetaIO mishandles (NDims, DimSize, ASCII
 // data, no ElementDataFile, HeaderSize) and on data files that are missing,

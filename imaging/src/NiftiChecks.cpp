@@ -205,35 +205,18 @@ void checkNiftiOrientation(const std::string& file) {
     }
 }
 
-// nifti1_io (inside ITK's NIfTI reader) replaces NaN and infinite float
-// voxels with 0, with only a debug message, so a NIfTI scan never reached
-// isohex's NaN policy (refuse, or outside with --nan-as-outside) and was
-// meshed with zeros in the holes. This reads the float voxels of the chosen
-// volume (`frame` of `frames`, component `comp`) again and puts NaN back
-// where the file has a non-finite value.
-void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
-                           std::int64_t frames, int comp) {
-    const NiftiHeader h(file);
-    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return;
-    const auto dt = h.field<std::uint16_t>(h.v1 ? 70 : 12);
-    if (dt != 16 && dt != 64) return;  // only float32 and float64 voxels can be non-finite
-    const double stored = h.voxOffset();
-    if (!std::isfinite(stored)) return;
-    const double voxOffset = std::max(stored, h.v1 ? 352.0 : 544.0);
-    gzFile gz = gzopen(file.c_str(), "rb");
-    if (!gz) return;
-    std::unique_ptr<std::remove_pointer_t<gzFile>, int (*)(gzFile)> guard(gz, gzclose);
-    const bool swap = h.swap;
-    const std::size_t width = dt == 16 ? 4 : 8;
-    const auto n = static_cast<std::int64_t>(values.size());
-    // NIfTI order: x fastest, then y, z, t (frames), then the components.
-    const std::int64_t first = (std::int64_t(comp) * frames + frame) * n;
-    if (gzseek(gz, static_cast<z_off_t>(voxOffset + double(first) * double(width)), SEEK_SET) < 0) return;
+namespace {
+
+// Calls onNonFinite(k) for each of the next n float voxels (`width` bytes
+// each) of `gz` that is NaN or infinite, k counted from the first. False on a
+// short read (the size checks report it) or when onNonFinite returns false.
+template <class OnNonFinite>
+bool scanNonFinite(gzFile gz, std::int64_t n, std::size_t width, bool swap, OnNonFinite onNonFinite) {
     std::vector<unsigned char> chunk(width * 65536);
     for (std::int64_t i = 0; i < n;) {
         const std::int64_t count = std::min<std::int64_t>(65536, n - i);
         const int want = static_cast<int>(count * static_cast<std::int64_t>(width));
-        if (gzread(gz, chunk.data(), static_cast<unsigned>(want)) != want) return;  // short: the size checks report it
+        if (gzread(gz, chunk.data(), static_cast<unsigned>(want)) != want) return false;
         for (std::int64_t k = 0; k < count; ++k) {
             const unsigned char* b = chunk.data() + k * static_cast<std::int64_t>(width);
             bool finite;
@@ -248,10 +231,72 @@ void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, 
                 if (swap) u = __builtin_bswap64(u);
                 finite = (u & 0x7ff0000000000000ull) != 0x7ff0000000000000ull;
             }
-            if (!finite) values[static_cast<std::size_t>(i + k)] = std::numeric_limits<float>::quiet_NaN();
+            if (!finite && !onNonFinite(i + k)) return false;
         }
         i += count;
     }
+    return true;
+}
+
+// The file's float voxel data opened at vox_offset plus `first` voxels, and
+// the voxel width; null for headers that are not float NIfTI.
+struct FloatVoxels {
+    std::unique_ptr<std::remove_pointer_t<gzFile>, int (*)(gzFile)> gz{nullptr, gzclose};
+    std::size_t width = 0;
+    bool swap = false;
+};
+
+FloatVoxels openFloatVoxels(const std::string& file, const NiftiHeader& h, std::int64_t first) {
+    FloatVoxels v;
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return v;
+    const auto dt = h.field<std::uint16_t>(h.v1 ? 70 : 12);
+    if (dt != 16 && dt != 64) return v;  // only float32 and float64 voxels can be non-finite
+    const double stored = h.voxOffset();
+    if (!std::isfinite(stored)) return v;
+    const double voxOffset = std::max(stored, h.v1 ? 352.0 : 544.0);
+    v.width = dt == 16 ? 4 : 8;
+    v.swap = h.swap;
+    v.gz.reset(gzopen(file.c_str(), "rb"));
+    if (v.gz && gzseek(v.gz.get(), static_cast<z_off_t>(voxOffset + double(first) * double(v.width)), SEEK_SET) < 0)
+        v.gz.reset();
+    return v;
+}
+
+}  // namespace
+
+// nifti1_io (inside ITK's NIfTI reader) replaces NaN and infinite float
+// voxels with 0, with only a debug message, so a NIfTI scan never reached
+// isohex's NaN policy (refuse, or outside with --nan-as-outside) and was
+// meshed with zeros in the holes. This reads the float voxels of the chosen
+// volume (`frame` of `frames`, component `comp`) again and puts NaN back
+// where the file has a non-finite value.
+void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,
+                           std::int64_t frames, int comp) {
+    const NiftiHeader h(file);
+    const auto n = static_cast<std::int64_t>(values.size());
+    // NIfTI order: x fastest, then y, z, t (frames), then the components.
+    const FloatVoxels v = openFloatVoxels(file, h, (std::int64_t(comp) * frames + frame) * n);
+    if (!v.gz) return;
+    scanNonFinite(v.gz.get(), n, v.width, v.swap, [&](std::int64_t k) {
+        values[static_cast<std::size_t>(k)] = std::numeric_limits<float>::quiet_NaN();
+        return true;
+    });
+}
+
+bool niftiHasNonFinite(const std::string& file) {
+    const NiftiHeader h(file);
+    if (!h.v1 || h.got < 348 || !h.known) return false;
+    const auto rank = h.field<std::int16_t>(40);
+    std::int64_t n = 1;
+    for (int d = 1; d <= std::clamp<int>(rank, 0, 7); ++d) n *= std::max<std::int64_t>(h.field<std::int16_t>(40 + 2 * d), 1);
+    const FloatVoxels v = openFloatVoxels(file, h, 0);
+    if (!v.gz) return false;
+    bool found = false;
+    scanNonFinite(v.gz.get(), n, v.width, v.swap, [&](std::int64_t) {
+        found = true;
+        return false;
+    });
+    return found;
 }
 
 }  // namespace isohex::imaging::detail

@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 
+#include "FormatChecks.hpp"
 #include "RawVolume.hpp"
 #include "ReaderPlugins.hpp"
 
@@ -135,6 +136,9 @@ std::optional<ScanSummary> summarizeScan(const fs::path& path, const LoadOptions
                                          std::int64_t voxelsPerRead) {
     if (load.labels || load.nanAsOutside || select.smoothSigma != 0.0 || !select.labels.empty() || !mayStream(path))
         return std::nullopt;
+    // ITK's NIfTI reader zeroes non-finite voxels in a region read: such a
+    // scan is read whole, which refuses it as every run does.
+    if (detail::niftiHasNonFinite(path.string())) return std::nullopt;
     ScanSummary sum;
     sum.insideBelow = select.insideBelow;
     SlabReader slabs(path, load, voxelsPerRead);

@@ -94,6 +94,26 @@ class SplitWindow(unittest.TestCase):
         self.assertLess(abs(fid["boundary_distance_mean"] - mean), 0.05)
         self.assertLess(fid["boundary_distance_max"], top + 0.2)
 
+    def test_a_part_of_a_scan_with_nan_voxels_is_refused_as_the_whole_run_is(self):
+        # ITK's NIfTI reader zeroes NaN in a region read: the part must not mesh the
+        # zeros but refuse the scan with the whole run's error (or mesh it with --nan-as-outside)
+        bad = os.path.join(self.dir, "torus_nan.nii")
+        data = bytearray(open(self.nii, "rb").read())
+        self.assertEqual(int.from_bytes(data[70:72], "little"), 16)  # float32 voxels
+        offset = 352 + 4 * (5 + 64 * (5 + 64 * 5))  # voxel (5, 5, 5), outside the torus
+        data[offset:offset + 4] = np.array([np.nan], dtype="<f4").tobytes()
+        open(bad, "wb").write(bytes(data))
+        whole = run(["mesh", bad, *self.opts, "-o", os.path.join(self.dir, "nan_whole.vtu")], check=False)
+        part_out = os.path.join(self.dir, "nan_part.vtu")
+        part = run(["mesh", bad, *self.opts, "--part", "1/3", "-o", part_out], check=False)
+        self.assertNotEqual(whole.returncode, 0)
+        self.assertNotEqual(part.returncode, 0)
+        self.assertIn("NaN or infinite", part.stderr)
+        self.assertIn("torus_nan.nii", part.stderr)
+        self.assertFalse(os.path.exists(part_out))
+        ok = run(["mesh", bad, *self.opts, "--part", "1/3", "--nan-as-outside", "-o", part_out])
+        self.assertEqual(ok.returncode, 0)
+
 
 if __name__ == "__main__":
     unittest.main()
