@@ -101,13 +101,35 @@ int localEdgeWith(const Hex& h, Index a, Index b) {
 constexpr std::size_t kMaxHolders = 64;
 
 // The smallest hex that has an edge from a to b (a hex holding both as a face
-// diagonal does not count).
-Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index a, Index b,
-                     std::array<Index, kMaxHolders>& cand) {
-    const int n = intersectRows(nodeHexes, a, b, cand);
-    for (int c = 0; c < n; ++c)
-        if (localEdgeWith(hexes[cand[c]], a, b) >= 0) return cand[c];
+// diagonal does not count), given `holder`, one that has it: the first hex of
+// both sorted rows, in order, that has the edge, so the merge stops there, at
+// `holder` at the latest.
+Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index a, Index b, Index holder) {
+    const Index *p = nodeHexes.begin(a), *pe = nodeHexes.end(a), *q = nodeHexes.begin(b), *qe = nodeHexes.end(b);
+    while (p != pe && q != qe) {
+        if (*p < *q) ++p;
+        else if (*q < *p) ++q;
+        else {
+            if (*p == holder || localEdgeWith(hexes[*p], a, b) >= 0) return *p;
+            ++p;
+            ++q;
+        }
+    }
     return kNone;
+}
+
+}  // namespace
+
+namespace {
+
+// The part of requireTopologyOf every topology meets: built for this mesh.
+void requireBuiltFor(const HexMesh& mesh, const Topology& topo, const std::string& who) {
+    if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size() ||
+        topo.nodeOnBoundary.size() != mesh.nodes.size())
+        throw Error(who + ": the topology was built for a different mesh (" + std::to_string(topo.hexQuads.size()) +
+                    " hexes, " + std::to_string(topo.nodeHexes.rows()) + " nodes; this mesh has " +
+                    std::to_string(mesh.hexes.size()) + " and " + std::to_string(mesh.nodes.size()) +
+                    "); rebuild it with buildTopology()");
 }
 
 }  // namespace
@@ -115,12 +137,12 @@ Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index 
 void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who, TopologyParts parts) {
     if (parts == TopologyParts::All && topo.hexEdges.size() != mesh.hexes.size())
         throw Error(who + ": needs a topology with every part; build it with buildTopology(mesh)");
-    if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size() ||
-        topo.nodeOnBoundary.size() != mesh.nodes.size())
-        throw Error(who + ": the topology was built for a different mesh (" + std::to_string(topo.hexQuads.size()) +
-                    " hexes, " + std::to_string(topo.nodeHexes.rows()) + " nodes; this mesh has " +
-                    std::to_string(mesh.hexes.size()) + " and " + std::to_string(mesh.nodes.size()) +
-                    "); rebuild it with buildTopology()");
+    requireBuiltFor(mesh, topo, who);
+    if (parts != TopologyParts::QuadHolders && !mesh.hexes.empty() && topo.edges.empty())
+        throw Error(who + ": needs a topology with its edges; build it with buildTopology(mesh) or add them "
+                          "with addHexEdges");
+    if (parts == TopologyParts::QuadHolders && topo.quadHexesAll.rows() != topo.quads.size())
+        throw Error(who + ": needs a topology with the quads' holders; build it with buildTopology(mesh)");
 }
 
 namespace {
@@ -249,19 +271,22 @@ std::vector<Index> numberQuads(Topology& t, const std::vector<Hex>& hexes) {
 void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
     const std::size_t H = hexes.size();
     if (perHex) t.hexEdges.resize(H);
+    // With perHex, an edge's entry first holds its owner hex where another
+    // hex owns it, and the owner's edge id after the last pass.
     std::vector<std::uint16_t> ownedEdges(H, 0);
     std::vector<Index> edgeBase(H + 1, 0);
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
-        std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
             std::uint16_t bits = 0;
             Index owned = 0;
             for (int e = 0; e < 12; ++e) {
                 const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
-                const Index first = smallestHolder(t.nodeHexes, hexes, a, b, cand);
+                const Index first = smallestHolder(t.nodeHexes, hexes, a, b, static_cast<Index>(h));
                 if (first == static_cast<Index>(h) && localEdgeWith(hexes[h], a, b) == e) {
                     bits |= static_cast<std::uint16_t>(1u << e);
                     ++owned;
+                } else if (perHex) {
+                    t.hexEdges[h][e] = first;
                 }
             }
             ownedEdges[h] = bits;
@@ -283,13 +308,14 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
         }
     });
     if (!perHex) return;
+    // Owned entries hold ids by now and are only read here; each hex writes
+    // only its own entries that another hex owns.
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
-        std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h)
             for (int e = 0; e < 12; ++e) {
                 if (ownedEdges[h] >> e & 1) continue;
                 const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
-                const Index owner = smallestHolder(t.nodeHexes, hexes, a, b, cand);
+                const Index owner = t.hexEdges[h][e];
                 t.hexEdges[h][e] = t.hexEdges[owner][localEdgeWith(hexes[owner], a, b)];
             }
     });
@@ -326,14 +352,14 @@ Topology buildTopology(const HexMesh& mesh, TopologyParts parts) {
     t.nodeHexes = nodeHexRows(mesh.hexes, mesh.nodes.size());
     std::vector<Index> holderCount = numberQuads(t, mesh.hexes);
     classifyQuads(t, mesh, holderCount);
-    if (all) listQuadHolders(t, mesh.hexes.size(), std::move(holderCount));
+    if (parts != TopologyParts::NodeMoves) listQuadHolders(t, mesh.hexes.size(), std::move(holderCount));
     holderCount = {};
-    numberEdges(t, mesh.hexes, all);
+    if (parts != TopologyParts::QuadHolders) numberEdges(t, mesh.hexes, all);
     return t;
 }
 
 void addQuadHolders(Topology& t, const HexMesh& mesh) {
-    requireTopologyOf(mesh, t, "addQuadHolders");
+    requireBuiltFor(mesh, t, "addQuadHolders");
     const std::size_t H = mesh.hexes.size();
     std::vector<Index> quadBase;
     std::vector<FaceLink> link = linkFaces(t.nodeHexes, mesh.hexes, quadBase);
@@ -351,7 +377,7 @@ void addQuadHolders(Topology& t, const HexMesh& mesh) {
 }
 
 void addHexEdges(Topology& t, const HexMesh& mesh) {
-    requireTopologyOf(mesh, t, "addHexEdges");
+    requireBuiltFor(mesh, t, "addHexEdges");
     numberEdges(t, mesh.hexes, true);
 }
 

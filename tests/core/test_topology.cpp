@@ -269,3 +269,53 @@ TEST(Dual, SheetOfRingClosesOnItself) {
         if (c.chordHexes.size(i) == 8 && c.chordQuads.size(i) == 8) closedChord = true;
     EXPECT_TRUE(closedChord);
 }
+
+// validate()'s turns: the quads with their holders first and no edges, then
+// the edges added, each as the full topology has them; what needs the edges
+// refuses the topology before they are added.
+TEST(Topology, QuadHolderPartsThenEdgesEqualTheFullTopologys) {
+    HexMesh block = makeBlock(4, 3, 3);
+    for (std::size_t h = 0; h < block.hexCount(); h += 2) block.material[h] = 3;
+    for (const HexMesh& m : {block, bookOfThree()}) {
+        const Topology all = buildTopology(m);
+        Topology t = buildTopology(m, TopologyParts::QuadHolders);
+        EXPECT_EQ(t.hexQuads, all.hexQuads);
+        EXPECT_EQ(t.quadHexesAll.offsets, all.quadHexesAll.offsets);
+        EXPECT_EQ(t.quadHexesAll.items, all.quadHexesAll.items);
+        EXPECT_EQ(t.overfullQuads, all.overfullQuads);
+        EXPECT_EQ(t.boundaryNodes, all.boundaryNodes);
+        EXPECT_TRUE(t.edges.empty());
+        EXPECT_TRUE(t.hexEdges.empty());
+        EXPECT_NO_THROW(requireTopologyOf(m, t, "test", TopologyParts::QuadHolders));
+        EXPECT_THROW(requireTopologyOf(m, t, "test"), Error);
+        addHexEdges(t, m);
+        EXPECT_EQ(t.edges, all.edges);
+        EXPECT_EQ(t.hexEdges, all.hexEdges);
+        EXPECT_NO_THROW(requireTopologyOf(m, t, "test"));
+    }
+    EXPECT_THROW(requireTopologyOf(block, buildTopology(block, TopologyParts::NodeMoves), "test",
+                                   TopologyParts::QuadHolders),
+                 Error);
+}
+
+// Every hex's edge ids name edges with that hex edge's two ends, each edge
+// once, also where a hex repeats a node (a collapsed edge and a hex holding
+// an edge twice).
+TEST(Topology, HexEdgeIdsNameTheHexesOwnEnds) {
+    HexMesh m = makeBlock(3, 2, 2);
+    m.hexes[4][1] = m.hexes[4][0];  // edge 0 of hex 4 collapses to a point
+    m.hexes[7][6] = m.hexes[7][2];
+    for (TopologyParts parts : {TopologyParts::All, TopologyParts::QuadHolders}) {
+        Topology t = buildTopology(m, parts);
+        if (parts == TopologyParts::QuadHolders) addHexEdges(t, m);
+        std::set<std::array<Index, 2>> unique(t.edges.begin(), t.edges.end());
+        EXPECT_EQ(unique.size(), t.edges.size());
+        for (std::size_t h = 0; h < m.hexCount(); ++h)
+            for (int e = 0; e < 12; ++e) {
+                const Index a = m.hexes[h][hexcell::kEdges[e][0]], b = m.hexes[h][hexcell::kEdges[e][1]];
+                const std::array<Index, 2> ends{std::min(a, b), std::max(a, b)};
+                ASSERT_GE(t.hexEdges[h][e], 0);
+                EXPECT_EQ(t.edges[static_cast<std::size_t>(t.hexEdges[h][e])], ends) << "hex " << h << " edge " << e;
+            }
+    }
+}

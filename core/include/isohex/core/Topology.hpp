@@ -44,8 +44,11 @@ struct Topology {
 // What buildTopology fills. `NodeMoves` leaves hexEdges and quadHexesAll
 // empty (48 bytes per hex and about 40 more at peak, on 2 M hexes about 160 MB):
 // moving nodes (the smoother, the worst-hex pass) reads neither; every other
-// field is the same as with `All`.
-enum class TopologyParts : std::uint8_t { All, NodeMoves };
+// field is the same as with `All`. `QuadHolders` leaves edges and hexEdges
+// empty instead (addHexEdges adds them): validate() checks the volume with
+// the quads' holders, drops them, then checks the surfaces with the edges, so
+// the two largest parts are never held together and each is built once.
+enum class TopologyParts : std::uint8_t { All, NodeMoves, QuadHolders };
 
 // Builds the fields of Topology that `parts` names. Hexes with repeated nodes
 // still get their faces and edges (validate() reports them); indices out of
