@@ -457,11 +457,11 @@ void addWorstHexRows(std::vector<MeshOption>& t) {
                       "After the mean-ratio optimisation, do not run the max-min pass on the hexes below "
                       "--worst-hex-target",
                       nullptr, [](MeshArgs& a) -> auto& { return a.settings.worstHexPass; }, true));
-    t.push_back(number<double>(
+    t.push_back(number<std::optional<double>>(
         "worst-hex-target", g,
-        "Scaled Jacobian the max-min pass lifts hexes towards (default 0.3). Higher can raise the minimum on smooth "
-        "surfaces, for a slightly lower mean and more time; where hexes are stuck (thin folds, pits) it can leave "
-        "more below 0.2",
+        "Scaled Jacobian the max-min pass lifts hexes towards (default 0.3, then 0.5 where 0.3 is reached "
+        "everywhere, kept only if it lifts the minimum). Higher can raise the minimum on smooth surfaces, for a "
+        "slightly lower mean and more time; where hexes are stuck (thin folds, pits) it can leave more below 0.2",
         nullptr, [](MeshArgs& a) -> auto& { return a.settings.worstHexTarget; }, between(0.0, 1.0)));
     t.back().excludes = {"no-worst-hex-pass"};
     t.push_back(number<std::optional<double>>(

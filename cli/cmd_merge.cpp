@@ -21,6 +21,7 @@
 #include "isohex/core/Validate.hpp"
 #include "isohex/pipeline/Fidelity.hpp"
 #include "isohex/pipeline/Merge.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/ReportJson.hpp"
 
@@ -57,6 +58,7 @@ pipeline::MergeResult merge(const MergeArgs& a, std::optional<pipeline::Prepared
     pipeline::MergeScan scan;
     scan.prepared = &*p;
     scan.surfaceToleranceVoxels = a.mesh.settings.surfaceTolerance.value_or(pipeline::kDefaultSurfaceTolerance);
+    scan.stretchTarget = pipeline::stretchTargetFor(a.scan, a.mesh.settings);
     return pipeline::mergeParts(a.parts, !a.noBandPass, scan);
 }
 

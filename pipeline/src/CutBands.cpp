@@ -4,6 +4,7 @@
 
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/pipeline/Optimize.hpp"
 #include "isohex/insertion/SheetGeometry.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
@@ -61,7 +62,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     // its cuts lower than the single run does).
     std::vector<std::uint8_t> seeds = onCut;
     const std::vector<double> sj = scaledJacobians(mesh);
-    const double target = smoothing::WorstHexOptions{}.target;
+    const double target = std::max(smoothing::WorstHexOptions{}.target, scan ? scan->stretchTarget : 0.0);
     for (std::size_t h = 0; h < mesh.hexCount(); ++h)
         if (!(sj[h] >= target) || sj[h] > 1.0 + 1e-9)
             for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
@@ -91,7 +92,10 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
         else ++r.nodes;
     }
     smoothing::optimizeMesh(sub, projector, smoothing::SmoothingOptions{});
-    smoothing::raiseWorstHexes(sub, projector, worst);
+    const smoothing::WorstHexResult raised = smoothing::raiseWorstHexes(sub, projector, worst);
+    if (scan && scan->stretchTarget > worst.target && raised.minAfter >= worst.target &&
+        raised.minAfter < scan->stretchTarget)
+        stretchWorstHexes(sub, projector, scan->stretchTarget, worst.surfaceSlack);
     const QualitySummary after = summarize(sub, computeQuality(sub));
     r.minAfter = after.scaledJacobian.min;
     r.invertedAfter = after.inverted;

@@ -276,7 +276,8 @@ MergeResult mergeParts(const std::vector<std::string>& paths, bool optimiseBands
         const FieldProjector projector(*static_cast<const SelectionDomain*>(p.domain.get()), s.r.mesh,
                                        static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
         const CutBandScan band{&projector,
-                               scan.surfaceToleranceVoxels * p.selection->materials.front().field.voxelSize()};
+                               scan.surfaceToleranceVoxels * p.selection->materials.front().field.voxelSize(),
+                               scan.stretchTarget};
         s.r.scanBands = optimiseCutBands(s.r.mesh, s.r.onCut, &band);
         for (int i = 1; i < kCutBandScanPasses; ++i) {
             const CutBandResult more = optimiseCutBands(s.r.mesh, s.r.onCut, &band);

@@ -19,7 +19,8 @@ MeshOutcome certified(MeshOutcome out, const std::string& input, const MeshSetti
                       const std::optional<FeatureRemovalResult>& features = std::nullopt) {
     out.quality = certifyQuality(out.mesh, minQualityFor(input, settings), local);
     out.quality.defaultTarget = !settings.minQuality.has_value();
-    if (worstHexTargetFor(input, settings) > settings.worstHexTarget && settings.optimize && settings.worstHexPass)
+    if (worstHexTargetFor(input, settings) > settings.worstHexTarget.value_or(kDefaultWorstHexTarget) &&
+        settings.optimize && settings.worstHexPass)
         out.quality.worstHexTarget = worstHexTargetFor(input, settings);
     out.quality.relaxation = relaxation;
     out.report["quality"] = toJson(out.quality);

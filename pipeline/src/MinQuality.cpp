@@ -32,7 +32,13 @@ double minQualityFor(const std::string& input, const MeshSettings& settings) {
 }
 
 double worstHexTargetFor(const std::string& input, const MeshSettings& settings) {
-    return std::max(settings.worstHexTarget, minQualityFor(input, settings));
+    return std::max(settings.worstHexTarget.value_or(kDefaultWorstHexTarget), minQualityFor(input, settings));
+}
+
+double stretchTargetFor(const std::string& input, const MeshSettings& settings) {
+    if (settings.worstHexTarget || settings.minQuality || settings.method == Method::Sheets || settings.fixBoundary)
+        return 0;
+    return kStretchTarget > worstHexTargetFor(input, settings) ? kStretchTarget : 0;
 }
 
 namespace {

@@ -1,5 +1,8 @@
 #include "isohex/pipeline/Optimize.hpp"
 
+#include <algorithm>
+#include <vector>
+
 #include "Stage.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
@@ -17,6 +20,35 @@ WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector
     r.options.surfaceSlack = slack;
     r.result = smoothing::raiseWorstHexes(mesh, projector, r.options, topo);
     r.seconds = clock.seconds();
+    return r;
+}
+
+namespace {
+
+double mean(const std::vector<double>& v) {
+    double s = 0;
+    for (double x : v) s += x;
+    return v.empty() ? 0 : s / static_cast<double>(v.size());
+}
+
+}  // namespace
+
+StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
+                                double slack) {
+    StretchResult r;
+    r.target = target;
+    const std::vector<Vec3> start = mesh.nodes;
+    const std::vector<double> before = scaledJacobians(mesh);
+    r.minBefore = before.empty() ? 0 : *std::min_element(before.begin(), before.end());
+    r.meanBefore = mean(before);
+    r.pass = worstHexPass(mesh, projector, target, slack);
+    const std::vector<double> after = scaledJacobians(mesh);
+    const double minAfter = after.empty() ? 0 : *std::min_element(after.begin(), after.end());
+    const double meanAfter = mean(after);
+    r.kept = minAfter > r.minBefore && minAfter > 0 && meanAfter >= r.meanBefore - kStretchMeanLoss;
+    if (!r.kept) mesh.nodes = start;
+    r.minAfter = r.kept ? minAfter : r.minBefore;
+    r.meanAfter = r.kept ? meanAfter : r.meanBefore;
     return r;
 }
 
@@ -60,6 +92,10 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         r.worstHexes = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector,
                                     worstHexTargetFor(p.facts.input.path, settings), slack);
         r.worstHexes->surfaceToleranceVoxels = voxels;
+        const double stretch = stretchTargetFor(p.facts.input.path, settings);
+        const double reached = r.worstHexes->result.minAfter;
+        if (stretch > r.worstHexes->options.target && reached >= r.worstHexes->options.target && reached < stretch)
+            r.stretch = stretchWorstHexes(mesh, &projector, stretch, slack);
     }
     r.fixBoundary = settings.fixBoundary;
     // The warning counts what is still inverted after the worst-hex pass too

@@ -329,6 +329,14 @@ nlohmann::json toJson(const OptimizeResult& o) {
     if (!o.enabled) return j;
     const smoothing::SmoothingResult& r = o.smoothingResult;
     if (o.worstHexes) j["worst_hexes"] = toJson(*o.worstHexes);
+    if (o.stretch)
+        j["stretch"] = {{"target", o.stretch->target},
+                        {"kept", o.stretch->kept},
+                        {"min_scaled_jacobian_before", o.stretch->minBefore},
+                        {"min_scaled_jacobian_after", o.stretch->minAfter},
+                        {"mean_scaled_jacobian_before", o.stretch->meanBefore},
+                        {"mean_scaled_jacobian_after", o.stretch->meanAfter},
+                        {"pass", toJson(o.stretch->pass)}};
     j["fix_boundary"] = o.fixBoundary;
     j["sweeps"] = r.sweeps;
     j["untangle_sweeps"] = r.untangleSweeps;

@@ -135,6 +135,28 @@ class MinQuality(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(d, "ok.vtu")))
         self.assertFalse(os.path.exists(os.path.join(d, "below.vtu")))
 
+    def test_default_stretch_lifts_the_torus_to_half_and_keeps_the_mean(self):
+        # Default options: the max-min pass reaches 0.3 everywhere, so a second
+        # pass aims at 0.5; with --worst-hex-target 0.3 set there is none.
+        torus = os.path.join(self.dir, "torus.nii.gz")
+        out, report = self.paths("torus_default")
+        run(["mesh", torus, "-o", out, "--report", report, "-q", "--force"])
+        fixed, fixed_report = self.paths("torus_target_0.3")
+        run(["mesh", torus, "-o", fixed, "--report", fixed_report, "--worst-hex-target", "0.3", "-q", "--force"])
+        sj, sj_fixed = vtk_sj(out), vtk_sj(fixed)
+        self.assertEqual(len(sj), len(sj_fixed))
+        self.assertLess(sj_fixed.min(), 0.5)
+        self.assertGreaterEqual(sj.min(), 0.5)
+        self.assertGreaterEqual(sj.mean(), sj_fixed.mean() - 0.005)
+        with open(report) as f:
+            stretch = json.load(f)["optimization"]["stretch"]
+        self.assertEqual(stretch["target"], 0.5)
+        self.assertIs(stretch["kept"], True)
+        self.assertAlmostEqual(stretch["min_scaled_jacobian_after"], sj.min(), delta=1e-9)
+        self.assertAlmostEqual(stretch["min_scaled_jacobian_before"], sj_fixed.min(), delta=1e-9)
+        with open(fixed_report) as f:
+            self.assertNotIn("stretch", json.load(f)["optimization"])
+
     def test_insert_sheet_below_writes_nothing(self):
         block = os.path.join(SOURCE, "samples", "spherical_cuts_block.vtu")
         cut = os.path.join(SOURCE, "samples", "spherical_cut_1.off")

@@ -38,6 +38,11 @@ inline constexpr double kCutBandFeatureAngle = 180.0;
 struct CutBandScan {
     const smoothing::SurfaceProjector* projector = nullptr;
     double surfaceSlack = 0;
+    // The parts' second max-min target (stretchTargetFor; 0: none): hexes
+    // below it seed the band too, and where the band's pass reaches the
+    // first target everywhere, the second pass runs on the band as the
+    // single run's does (stretchWorstHexes).
+    double stretchTarget = 0;
 };
 
 struct CutBandResult {

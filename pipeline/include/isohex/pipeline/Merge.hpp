@@ -62,6 +62,7 @@ inline constexpr int kCutBandScanPasses = 2;
 struct MergeScan {
     const Prepared* prepared = nullptr;
     double surfaceToleranceVoxels = kDefaultSurfaceTolerance;
+    double stretchTarget = 0;  // the parts' second max-min target (stretchTargetFor)
 };
 
 // As above, and after the band pass a second one whose boundary nodes are

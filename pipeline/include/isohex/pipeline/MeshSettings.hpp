@@ -93,7 +93,10 @@ struct MeshSettings {
     bool worstHexPass = true;     // max-min pass on the hexes the optimiser leaves below worstHexTarget
     bool removeFeatures = true;   // where hexes stay below the certified minimum, remove specks, pockets,
                                   // strands and tunnels finer than an element next to them (FeatureRemoval.hpp)
-    double worstHexTarget = 0.3;  // scaled Jacobian the max-min pass aims every hex at
+    // Scaled Jacobian the max-min pass aims every hex at; unset:
+    // kDefaultWorstHexTarget, then kStretchTarget where that is reached
+    // everywhere (MinQuality.hpp, stretchTargetFor).
+    std::optional<double> worstHexTarget;
     // How far (voxels) the max-min pass may leave a surface node off its
     // isosurface to lift a hex below worstHexTarget; unset: kDefaultSurfaceTolerance.
     std::optional<double> surfaceTolerance;
