@@ -10,18 +10,20 @@ the unrefined cells by the template they end with:
 
     tools/closure-cascade.py                        # the templates octree/ has
     tools/closure-cascade.py --add tripod,l3,face-corner
+    tools/closure-cascade.py --refined ch2bet-1mm.l1 --add l3,face-corner   # a level-1 mask (read_level)
 
 With vertex, edge, face, two-face and FULL only, a coarse region keeps plain cells only where its boundary is a box
-(the shell case: 4,913 plain of 6,859 unrefined cells, 21 cells per axis): a diagonal facet shows the TRIPOD mask (a corner and its three
-neighbours: refined cells touch the cell along the three edges of one corner), whose promotion adds the opposite
-corner and moves the facet one cell on, so the half-space's whole coarse side ends FULL (7,471 of 7,490, the rest two-face), and the
-inside of a spherical band too (2,539 of 2,553). Slanted and curved boundaries also show three corners of a face
-(L3) and a face with one more corner (FACE-CORNER). With hypothetical templates for those masks (--add) plain
-cells stay: TRIPOD alone keeps 6,745 of the half-space's cells plain but 99 of the sphere's, FACE-CORNER alone
-5,073 and 840, L3 and FACE-CORNER 5,073 and 1,260, all three 6,745 and 1,411.
+(the shell case: 4,913 plain of 6,859 unrefined cells, 21 cells per axis): a diagonal facet shows the TRIPOD mask (a
+corner and its three neighbours: refined cells touch the cell along the three edges of one corner), whose promotion
+adds the opposite corner and moves the facet one cell on, so the half-space's whole coarse side ends FULL (7,471 of
+7,490, the rest two-face), and the inside of a spherical band too (2,539 of 2,553). Slanted and curved boundaries
+also show three corners of a face (L3) and a face with one more corner (FACE-CORNER). With hypothetical templates
+for those masks (--add) plain cells stay: TRIPOD alone keeps 6,745 of the half-space's cells plain but 99 of the
+sphere's, FACE-CORNER alone 5,073 and 840, L3 and FACE-CORNER 5,073 and 1,260, all three 6,745 and 1,411.
 """
 import argparse
 import itertools
+import struct
 
 CORNERS = [(c & 1, c >> 1 & 1, c >> 2 & 1) for c in range(8)]
 EDGES = [(c, c | 1 << a) for c in range(8) for a in range(3) if not c >> a & 1]
@@ -76,8 +78,9 @@ def promotions(kind):
             min((s for s in range(256) if s & m == m and kind[s] is not None), key=rank) for m in range(256)]
 
 
-def close(n, refined, kind, promote):
-    """Marked corners after the closure of an n^3 level whose refined cells are `refined`."""
+def close(dims, refined, kind, promote):
+    """The template kind of each unrefined cell after the closure of a level of `dims` cells whose refined cells
+    are `refined`."""
     marked = set()
     for cell in refined:
         marked.update((cell[0] + x, cell[1] + y, cell[2] + z) for x, y, z in CORNERS)
@@ -88,14 +91,14 @@ def close(n, refined, kind, promote):
     changed = True
     while changed:
         changed = False
-        for k, j, i in itertools.product(range(n), repeat=3):
+        for k, j, i in itertools.product(range(dims[2]), range(dims[1]), range(dims[0])):
             if (i, j, k) in refined:
                 continue
             m = mask(i, j, k)
             if kind[m] is None:
                 marked.update((i + x, j + y, k + z) for c, (x, y, z) in enumerate(CORNERS) if promote[m] >> c & 1)
                 changed = True
-    return {(i, j, k): kind[mask(i, j, k)] for i, j, k in itertools.product(range(n), repeat=3)
+    return {(i, j, k): kind[mask(i, j, k)] for i, j, k in itertools.product(*(range(d) for d in dims))
             if (i, j, k) not in refined}
 
 
@@ -109,22 +112,46 @@ def regions(n):
             k - c) ** 2) ** 0.5 > radius
 
 
+def read_level(path):
+    """A level-1 mask file: three little-endian int32 (cells per axis), then one byte per cell (x fastest), nonzero
+    where refined, then optionally one byte per cell, nonzero where the cell holds a labelled point."""
+    with open(path, "rb") as f:
+        data = f.read()
+    dims = struct.unpack("<3i", data[:12])
+    n = dims[0] * dims[1] * dims[2]
+    cells = list(itertools.product(range(dims[0]), range(dims[1]), range(dims[2])))
+    at = [(c[2] * dims[1] + c[1]) * dims[0] + c[0] for c in cells]
+    refined = {c for c, a in zip(cells, at) if data[12 + a]}
+    counted = {c for c, a in zip(cells, at) if len(data) < 12 + 2 * n or data[12 + n + a]}
+    return dims, refined, counted
+
+
+def report(name, refined, result, counted=None):
+    counts = {}
+    for cell, k in result.items():
+        if counted is None or cell in counted:
+            counts[k] = counts.get(k, 0) + 1
+    print(f"{name}: {len(refined)} refined, {sum(counts.values())} unrefined counted:",
+          ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=21, help="cells per axis")
     ap.add_argument("--add", default="", help="hypothetical templates: comma list of tripod, l3, face-corner")
+    ap.add_argument("--refined", help="replay a level-1 mask file (read_level) instead of the synthetic regions; "
+                    "counts only cells with a labelled point when the file says")
     args = ap.parse_args()
     extra = [a for a in args.add.split(",") if a]
     kind = kinds(extra)
     promote = promotions(kind)
+    if args.refined:
+        dims, refined, counted = read_level(args.refined)
+        report(args.refined, refined, close(dims, refined, kind, promote), counted)
+        return
     for name, inside in regions(args.n):
         refined = {x for x in itertools.product(range(args.n), repeat=3) if inside(*x)}
-        result = close(args.n, refined, kind, promote)
-        counts = {}
-        for k in result.values():
-            counts[k] = counts.get(k, 0) + 1
-        print(f"{name}: {len(refined)} refined, {len(result)} unrefined:",
-              ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
+        report(name, refined, close((args.n,) * 3, refined, kind, promote))
 
 
 if __name__ == "__main__":
