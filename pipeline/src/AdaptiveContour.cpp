@@ -66,7 +66,6 @@ bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& s
     facts.hexLevel.assign(uniform.hexCount(), 0);
     facts.hexesPerLevel = {uniform.hexCount()};
     facts.hexesPerForm = {{uniform.hexCount(), 0, 0, 0, 0, 0}};
-    facts.leavesPerForm = facts.hexesPerForm;
     edgeRange(uniform, facts.smallestEdge, facts.largestEdge);
     return false;
 }

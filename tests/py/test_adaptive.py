@@ -165,6 +165,9 @@ class NeverWorseThanUniform(unittest.TestCase):
             self.assertEqual(ns.vtk_to_numpy(self.out["adaptive"][0].GetCellData().GetArray("level")).max(), 0)
             self.assertEqual(a["hexes_per_form"]["whole"], [a["uniform_hexes"]])
             self.assertEqual(sum(sum(v) for v in a["hexes_per_form"].values()), a["uniform_hexes"])
+        # the leaves are the tree's whichever mesh is written: the same tree as --keep-tree's
+        self.assertEqual(a["leaves_per_form"], rt["adaptive"]["leaves_per_form"])
+        self.assertGreater(sum(sum(v[1:]) for v in a["leaves_per_form"].values()), 0)
 
 
 if __name__ == "__main__":
