@@ -49,8 +49,9 @@ struct LeafWalk {
         if (m == 0) return;
         std::array<NodeKey, 8> h;
         for (int c = 0; c < 8; ++c) h[c] = nodeKey(kS * (i + kRef[c][0]), kS * (j + kRef[c][1]), kS * (k + kRef[c][2]));
+        const std::size_t before = out.hexes.size();
         add(h, m, 0, LeafForm::Whole);
-        countLeaf(0, LeafForm::Whole, out.hexes.size() - 1);
+        countLeaf(0, LeafForm::Whole, before);
     }
 
     // The label of the grid point whose level-0 hex holds the centroid of h
