@@ -75,6 +75,17 @@ def same_bytes(a, b):
         return fa.read() == fb.read()
 
 
+def tree_columns(adaptive):
+    """The tree's contoured hexes against the uniform mesh's, and its level-1 leaves by form (empty for --uniform)."""
+    if not adaptive:
+        return "", ""
+    ratio = f"{adaptive['tree_hexes'] / max(1, adaptive['uniform_hexes']):.3f}"
+    forms = adaptive.get("leaves_per_form", {})
+    level1 = [forms.get(f, [])[1] if len(forms.get(f, [])) > 1 else 0
+              for f in ("full", "two_face", "face", "edge", "vertex", "whole")]
+    return ratio, " / ".join(str(n) for n in level1)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--isohex", default=os.environ.get("ISOHEX", os.path.join(HERE, "..", "build", "cli", "isohex")))
@@ -88,14 +99,15 @@ def main():
     subprocess.run([sys.executable, os.path.join(HERE, "..", "samples", "make_phantoms.py"), phantoms], check=True,
                    capture_output=True)
     print("| input | mode | hexes | wall s | peak MB | min SJ | mean SJ | volume | bnd dist mean / max (vox) | valid "
-          "| 1 = 2 threads | hexes per level |")
-    print("|---|---|--:|--:|--:|--:|--:|--:|--:|---|---|---|")
+          "| 1 = 2 threads | hexes per level | tree / uniform | level-1 leaves full / two-face / face / edge / vertex / whole |")
+    print("|---|---|--:|--:|--:|--:|--:|--:|--:|---|---|---|--:|---|")
     for i, (label, inp, opts) in enumerate(cases(a.data, phantoms, a.quick)):
         if a.only not in label:
             continue
         for mode in ("uniform", "adaptive"):
             wall, mb, rep, vtu, hexes, smin, smean, vol = run(a.isohex, inp, opts, mode, work, f"case{i}")
             levels = rep.get("adaptive", {}).get("hexes_per_level", "")
+            tree, leaves = tree_columns(rep.get("adaptive"))
             valid = "yes" if rep.get("validity", {}).get("ok") else "NO"
             threads = ""
             if mode == "adaptive":
@@ -106,7 +118,7 @@ def main():
             dist = f"{fid.get('boundary_distance_mean_voxels', float('nan')):.3f} / " \
                    f"{fid.get('boundary_distance_max_voxels', float('nan')):.2f}"
             print(f"| {label} | {mode} | {hexes} | {wall:.1f} | {mb:.0f} | {smin:.3f} | {smean:.3f} | {vol:.6g} | "
-                  f"{dist} | {valid} | {threads} | {levels} |", flush=True)
+                  f"{dist} | {valid} | {threads} | {levels} | {tree} | {leaves} |", flush=True)
     print(f"\nfiles in {work}", file=sys.stderr)
 
 

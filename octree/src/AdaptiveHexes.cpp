@@ -27,10 +27,19 @@ struct LeafWalk {
         return s;
     }
 
-    void add(const std::array<NodeKey, 8>& h, std::int32_t material, int level) {
+    void add(const std::array<NodeKey, 8>& h, std::int32_t material, int level, LeafForm form) {
         out.hexes.push_back(h);
         out.material.push_back(material);
         out.level.push_back(static_cast<std::uint8_t>(level));
+        out.form.push_back(form);
+    }
+
+    // Counts a leaf of `level` cut as `form` when it gave a labelled hex.
+    void countLeaf(int level, LeafForm form, std::size_t hexesBefore) {
+        if (out.hexes.size() == hexesBefore) return;
+        auto& perLevel = out.leavesPerForm;
+        if (static_cast<std::size_t>(level) >= perLevel.size()) perLevel.resize(static_cast<std::size_t>(level) + 1, {});
+        ++perLevel[static_cast<std::size_t>(level)][static_cast<std::size_t>(form)];
     }
 
     // Grid point (i, j, k): its hex when labelled.
@@ -40,7 +49,9 @@ struct LeafWalk {
         if (m == 0) return;
         std::array<NodeKey, 8> h;
         for (int c = 0; c < 8; ++c) h[c] = nodeKey(kS * (i + kRef[c][0]), kS * (j + kRef[c][1]), kS * (k + kRef[c][2]));
-        add(h, m, 0);
+        const std::size_t before = out.hexes.size();
+        add(h, m, 0, LeafForm::Whole);
+        countLeaf(0, LeafForm::Whole, before);
     }
 
     // The label of the grid point whose level-0 hex holds the centroid of h
@@ -55,9 +66,9 @@ struct LeafWalk {
                          static_cast<int>(sum[2] / (8 * kS)));
     }
 
-    void addLabelled(const std::array<NodeKey, 8>& h, int level) {
+    void addLabelled(const std::array<NodeKey, 8>& h, int level, LeafForm form) {
         const std::int32_t m = centroidLabel(h);
-        if (m != 0) add(h, m, level);
+        if (m != 0) add(h, m, level, form);
     }
 
     // An unrefined level-l cell: one hex, or its template's hexes, each with
@@ -68,22 +79,25 @@ struct LeafWalk {
         const TemplateChoice choice = chooseTemplate(marks);
         if (choice.action == TemplateChoice::Action::Promote)
             throw Error("internal error: a leaf of the refinement tree has marked corners no template takes");
+        const LeafForm form = leafForm(choice);
+        const std::size_t before = out.hexes.size();
         if (choice.action == TemplateChoice::Action::Plain) {
             std::array<NodeKey, 8> h;
             for (int c = 0; c < 8; ++c)
                 h[c] = nodeKey(kS * (a[0] + side * kRef[c][0]), kS * (a[1] + side * kRef[c][1]),
                                kS * (a[2] + side * kRef[c][2]));
-            addLabelled(h, l);
-            return;
+            addLabelled(h, l, form);
+        } else {
+            const std::int64_t child = side / 3;  // template coordinates are twelfths of a child
+            for (const TemplateHex& th : templateHexes(choice.kind)) {
+                const TemplateHex t = choice.symmetry.apply(th);
+                std::array<NodeKey, 8> h;
+                for (int c = 0; c < 8; ++c)
+                    h[c] = nodeKey(kS * a[0] + t[c][0] * child, kS * a[1] + t[c][1] * child, kS * a[2] + t[c][2] * child);
+                addLabelled(h, l, form);
+            }
         }
-        const std::int64_t child = side / 3;  // template coordinates are twelfths of a child
-        for (const TemplateHex& th : templateHexes(choice.kind)) {
-            const TemplateHex t = choice.symmetry.apply(th);
-            std::array<NodeKey, 8> h;
-            for (int c = 0; c < 8; ++c)
-                h[c] = nodeKey(kS * a[0] + t[c][0] * child, kS * a[1] + t[c][1] * child, kS * a[2] + t[c][2] * child);
-            addLabelled(h, l);
-        }
+        countLeaf(l, form, before);
     }
 
     void cell(int l, int i, int j, int k) {
@@ -105,6 +119,11 @@ struct LeafWalk {
 };
 
 }  // namespace
+
+LeafForm leafForm(const TemplateChoice& choice) {
+    if (choice.action != TemplateChoice::Action::Template) return LeafForm::Whole;
+    return static_cast<LeafForm>(1 + static_cast<int>(choice.kind));
+}
 
 LeafHexes leafHexes(const RefinementTree& tree, const Labels& labels) {
     if (tree.points != labels.grid.dims) throw Error("internal error: the refinement tree was built for another grid");
@@ -148,10 +167,17 @@ AdaptiveMesh assembleAdaptive(const LeafHexes& leaves, const Grid& grid, const N
     });
     mesh.material = leaves.material;
     out.hexLevel = leaves.level;
-    for (std::uint8_t l : leaves.level) {
-        if (l >= out.hexesPerLevel.size()) out.hexesPerLevel.resize(l + 1u, 0);
+    for (std::size_t h = 0; h < leaves.level.size(); ++h) {
+        const std::uint8_t l = leaves.level[h];
+        if (l >= out.hexesPerLevel.size()) {
+            out.hexesPerLevel.resize(l + 1u, 0);
+            out.hexesPerForm.resize(l + 1u, {});
+        }
         ++out.hexesPerLevel[l];
+        ++out.hexesPerForm[l][static_cast<std::size_t>(leaves.form[h])];
     }
+    out.leavesPerForm = leaves.leavesPerForm;
+    out.leavesPerForm.resize(out.hexesPerForm.size(), {});
     return out;
 }
 

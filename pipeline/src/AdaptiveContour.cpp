@@ -43,6 +43,8 @@ HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSett
     facts.topLevel = tree.top();
     facts.uniformHexes = uniform.hexCount();
     facts.hexesPerLevel = r.mesh.hexesPerLevel;
+    facts.hexesPerForm = r.mesh.hexesPerForm;
+    facts.leavesPerForm = r.mesh.leavesPerForm;
     facts.cellsAtLabelChanges = r.criterionCells.size() > 1 ? r.criterionCells[1] : 0;
     facts.cellsBySurface.assign(r.criterionCells.begin() + 1, r.criterionCells.end());
     for (const auto& round : r.rounds) facts.cellsByCheck.push_back(round.cells);
@@ -63,6 +65,7 @@ bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& s
     facts.uniformKept = true;
     facts.hexLevel.assign(uniform.hexCount(), 0);
     facts.hexesPerLevel = {uniform.hexCount()};
+    facts.hexesPerForm = {{uniform.hexCount(), 0, 0, 0, 0, 0}};
     edgeRange(uniform, facts.smallestEdge, facts.largestEdge);
     return false;
 }

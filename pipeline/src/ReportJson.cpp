@@ -376,6 +376,22 @@ nlohmann::json toJson(const FidelityResult& f) {
     return j;
 }
 
+namespace {
+
+// {"whole": [per level], "vertex": [...], ...}: counts per LeafForm and level.
+nlohmann::json formsJson(const octree::FormCounts& counts) {
+    static constexpr const char* kName[octree::kLeafForms] = {"whole", "vertex", "edge", "face", "two_face", "full"};
+    nlohmann::json j = nlohmann::json::object();
+    for (int f = 0; f < octree::kLeafForms; ++f) {
+        std::vector<std::size_t> perLevel;
+        for (const auto& level : counts) perLevel.push_back(level[static_cast<std::size_t>(f)]);
+        j[kName[f]] = perLevel;
+    }
+    return j;
+}
+
+}  // namespace
+
 nlohmann::json toJson(const AdaptiveFacts& a) {
     nlohmann::json checks = nlohmann::json::array();
     for (const auto& c : a.cellsByCheck)
@@ -398,6 +414,8 @@ nlohmann::json toJson(const AdaptiveFacts& a) {
                           {"thickness", a.sizing.thickness},
                           {"grading_per_level", a.cellsForGrading},
                           {"requested_per_level", a.cellsRequested}}}};
+    j["hexes_per_form"] = formsJson(a.hexesPerForm);
+    j["leaves_per_form"] = formsJson(a.leavesPerForm);
     j["tree_hexes"] = a.treeHexes;
     j["uniform_kept"] = a.uniformKept;
     if (a.sizing.maxSizeLevel) j["max_size_level"] = *a.sizing.maxSizeLevel;

@@ -216,3 +216,41 @@ TEST(RefinementTree, ARefinedShellKeepsACoarseInside) {
     expectConformalBox(a, {-0.5, -0.5, -0.5}, {26.5, 26.5, 26.5});
     EXPECT_LT(a.mesh.hexCount(), l.grid.size());
 }
+
+TEST(RefinementTree, LeavesAndHexesAreCountedByHowTheLeafIsCut) {
+    // One refined level-1 cell in the middle of 3 x 3 x 3: its 6 face
+    // neighbours take the FACE template (31 hexes), its 12 edge neighbours
+    // EDGE (17), its 8 corner neighbours VERTEX (7); its own 27 hexes are
+    // whole level-0 leaves.
+    const std::array<int, 3> dims{9, 9, 9};
+    std::vector<std::vector<std::uint8_t>> req(2);
+    req[1].assign(27, 0);
+    req[1][13] = 1;
+    const RefinementTree tree = closeRefinement(dims, 1, req);
+    const auto index = [](LeafForm f) { return static_cast<std::size_t>(f); };
+    {
+        const AdaptiveMesh a = assembleAdaptive(leafHexes(tree, solid(dims)), solid(dims).grid);
+        ASSERT_EQ(a.hexesPerForm.size(), 2u);
+        ASSERT_EQ(a.leavesPerForm.size(), 2u);
+        EXPECT_EQ(a.leavesPerForm[0][index(LeafForm::Whole)], 27u);
+        EXPECT_EQ(a.hexesPerForm[0][index(LeafForm::Whole)], 27u);
+        const std::array<std::size_t, kLeafForms> leaves{0, 8, 12, 6, 0, 0};
+        const std::array<std::size_t, kLeafForms> hexes{0, 8 * 7, 12 * 17, 6 * 31, 0, 0};
+        EXPECT_EQ(a.leavesPerForm[1], leaves);
+        EXPECT_EQ(a.hexesPerForm[1], hexes);
+        EXPECT_EQ(a.hexesPerLevel[1], 8 * 7 + 12 * 17 + 6 * 31u);
+    }
+    {
+        // Points with x >= 6 unlabelled: the slab of level-1 cells there gives
+        // no hex (every template hex's centroid lies in it), so its 1 face, 4
+        // edge and 4 corner neighbours of the refined cell are not counted.
+        Labels l = solid(dims);
+        for (int k = 0; k < 9; ++k)
+            for (int j = 0; j < 9; ++j)
+                for (int i = 6; i < 9; ++i) l.material[l.grid.index(i, j, k)] = 0;
+        const AdaptiveMesh a = assembleAdaptive(leafHexes(tree, l), l.grid);
+        const std::array<std::size_t, kLeafForms> leaves{0, 4, 8, 5, 0, 0};
+        EXPECT_EQ(a.leavesPerForm[1], leaves);
+        EXPECT_EQ(a.hexesPerForm[1][index(LeafForm::Face)], 5 * 31u);
+    }
+}

@@ -76,6 +76,15 @@ class Adaptive(unittest.TestCase):
         counts = np.bincount(level, minlength=len(per_level))
         self.assertEqual(counts[0] - per_level[0], grid.GetNumberOfCells() - rep["extracted"]["hexes"])
         self.assertEqual(list(counts[1:]), per_level[1:])
+        # hexes per level split by how their leaf is cut; level 0 is whole leaves only
+        forms, leaves = rep["adaptive"]["hexes_per_form"], rep["adaptive"]["leaves_per_form"]
+        self.assertEqual(set(forms), {"whole", "vertex", "edge", "face", "two_face", "full"})
+        self.assertEqual(set(leaves), set(forms))
+        for level, n in enumerate(per_level):
+            self.assertEqual(sum(f[level] for f in forms.values()), n)
+            self.assertLessEqual(sum(f[level] for f in leaves.values()), n)
+        self.assertEqual(forms["whole"][0], per_level[0])
+        self.assertEqual(leaves["whole"][0], per_level[0])
         refined = rep["adaptive"]["cells_refined"]
         self.assertEqual(len(refined["surface_per_level"]), rep["adaptive"]["levels"])
         # the box is simple enough for the surface criterion; the deviation check refines its rounded edges
@@ -152,8 +161,13 @@ class NeverWorseThanUniform(unittest.TestCase):
         self.assertFalse(rt["adaptive"]["uniform_kept"])
         self.assertEqual(rt["extracted"]["hexes"], rt["adaptive"]["tree_hexes"])
         self.assertEqual(rt["adaptive"]["tree_hexes"], a["tree_hexes"])
-        if not kept:  # the uniform mesh: every hex at level 0
+        if not kept:  # the uniform mesh: every hex at level 0, a whole leaf
             self.assertEqual(ns.vtk_to_numpy(self.out["adaptive"][0].GetCellData().GetArray("level")).max(), 0)
+            self.assertEqual(a["hexes_per_form"]["whole"], [a["uniform_hexes"]])
+            self.assertEqual(sum(sum(v) for v in a["hexes_per_form"].values()), a["uniform_hexes"])
+        # the leaves are the tree's whichever mesh is written: the same tree as --keep-tree's
+        self.assertEqual(a["leaves_per_form"], rt["adaptive"]["leaves_per_form"])
+        self.assertGreater(sum(sum(v[1:]) for v in a["leaves_per_form"].values()), 0)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,15 @@ inline std::array<std::int64_t, 3> keyCoords(NodeKey k) {
     return {static_cast<std::int64_t>(k & m), static_cast<std::int64_t>(k >> 21 & m), static_cast<std::int64_t>(k >> 42 & m)};
 }
 
+// How a leaf is cut into hexes: whole (one hex, as every level-0 leaf) or by
+// the transition template of its marked corners (TemplateKind order).
+enum class LeafForm : std::uint8_t { Whole, Vertex, Edge, Face, TwoFace, Full };
+inline constexpr int kLeafForms = 6;
+LeafForm leafForm(const TemplateChoice& choice);
+
+// Per level, per LeafForm: a count of hexes or of leaves.
+using FormCounts = std::vector<std::array<std::size_t, kLeafForms>>;
+
 // The leaves' hexes before nodes are numbered: one hex per labelled grid
 // point inside refined level-1 cells, one per labelled unrefined leaf without
 // marked corners, a template's hexes per leaf with marked corners. Each hex's
@@ -44,6 +53,8 @@ struct LeafHexes {
     std::vector<std::array<NodeKey, 8>> hexes;  // VTK order, positive on a right-handed grid
     std::vector<std::int32_t> material;
     std::vector<std::uint8_t> level;            // level of the leaf each hex fills
+    std::vector<LeafForm> form;                 // how that leaf is cut
+    FormCounts leavesPerForm;                   // leaves with at least one labelled hex
 };
 LeafHexes leafHexes(const RefinementTree& tree, const Labels& labels);
 
@@ -53,6 +64,8 @@ struct AdaptiveMesh {
     std::vector<std::uint8_t> hexLevel;  // per hex
     std::vector<NodeKey> nodeKeys;       // per node, ascending
     std::vector<std::size_t> hexesPerLevel;
+    FormCounts hexesPerForm;   // hexes per level and LeafForm
+    FormCounts leavesPerForm;  // leaves per level and LeafForm (LeafHexes::leavesPerForm)
 };
 
 // Position and class of the node with a key.

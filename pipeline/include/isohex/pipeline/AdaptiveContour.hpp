@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/octree/AdaptiveHexes.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/Sizing.hpp"
@@ -18,6 +19,9 @@ struct AdaptiveFacts {
     int topLevel = 0;                           // levels of the 27-tree above the finest hexes
     std::size_t uniformHexes = 0;               // the uniform mesh at the same finest size
     std::vector<std::size_t> hexesPerLevel;     // contoured hexes filling leaves of each level
+    octree::FormCounts hexesPerForm;            // the same per level and how the leaf is cut (whole, template)
+    octree::FormCounts leavesPerForm;           // the tree's leaves with a contoured hex, per level and cut
+                                                // (the tree's also when the uniform mesh is kept)
     std::size_t cellsAtLabelChanges = 0;        // level-1 cells refined by the surface criterion
     std::vector<std::size_t> cellsBySurface;    // per level: cells the surface criterion refined
     // per check round: leaf cells refined at junctions, non-manifold places,
@@ -48,7 +52,9 @@ inline constexpr double kTreeKeptAtMost = 0.9;
 HexMesh coarsenContour(const Prepared& p, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 // Whether the tree's mesh replaces the uniform one (kTreeKeptAtMost, or
-// settings.keepTree); when not, `facts` says so and gives every hex level 0.
+// settings.keepTree); when not, `facts` says so and gives every hex level 0
+// (hexesPerLevel and hexesPerForm then describe the uniform mesh; treeHexes
+// and leavesPerForm still describe the tree).
 bool keepTree(const HexMesh& tree, const HexMesh& uniform, const MeshSettings& settings, AdaptiveFacts& facts);
 
 }  // namespace isohex::pipeline
