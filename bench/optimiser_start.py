@@ -16,7 +16,8 @@ Cases (names): the phantoms sphere, torus, thin_plate, two_spheres (--iso 50
 grid points edited), VTK's scaled Jacobian (min, mean, inverted) on the .vtu
 and VTK's distance from the boundary nodes to the scan's full-resolution
 isosurface (bench/run's reference surface), plus the report's own boundary
-distance. Threads: 2 (`--threads`).
+distance. The summary also keeps the mean-ratio sweeps' accepted node moves and node visits
+(`optimization.node_updates`, `node_visits`; builds before the visit count have none). Threads: 2 (`--threads`).
 """
 import json
 import os
@@ -102,6 +103,7 @@ def run(binary, out, only, extra=()):
         s = {"hexes": q["hexes"], "wall": wall, "cpu_s": cpu, "peak_mb": peak, "optimize_s": r["timings_s"].get("optimize"),
              "retries_s": rt.get("seconds"), "inverted_at_start": o.get("inverted_before"),
              "untangle_sweeps": o.get("untangle_sweeps"), "sweeps": o.get("sweeps"),
+             "node_updates": o.get("node_updates"), "node_visits": o.get("node_visits"),
              "meshed_again": rt.get("meshed_again"), "points_edited": rt.get("points_edited"),
              "retry_attempts": rt.get("attempts"), "sj_min": q["sj_min"], "sj_mean": q["sj_mean"],
              "below_0_2": q["below_0_2"], "inverted": q["inverted"], "vtk_distance_mean": d["mean"],

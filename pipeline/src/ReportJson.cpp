@@ -342,6 +342,8 @@ nlohmann::json toJson(const OptimizeResult& o) {
     j["untangle_sweeps"] = r.untangleSweeps;
     j["nodes_moved"] = r.nodesMoved;
     j["node_updates"] = r.nodeUpdates;
+    j["node_visits"] = r.nodeVisits;
+    j["surface_node_visits"] = r.surfaceNodeVisits;
     j["surface_nodes_off_surface"] = r.surfaceNodesReleased;
     j["curve_nodes_demoted"] = r.curveNodesDemoted;
     j["inverted_before"] = r.invertedBefore;

@@ -125,10 +125,12 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
     for (int sweep = 0; sweep < opt_.maxSweeps; ++sweep) {
         std::fill(gain.begin(), gain.end(), 0.0);
         std::fill(next.begin(), next.end(), std::uint8_t{0});
-        std::atomic<std::size_t> updates{0};
+        std::atomic<std::size_t> updates{0}, visits{0}, surfaceVisits{0};
         sweepColours(colouring_.classes, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
             if (!active[sv] || (mode_[sv] == Mode::Curve && !projector_->hasCurves())) return;
+            visits.fetch_add(1, std::memory_order_relaxed);
+            if (mode_[sv] != Mode::Interior) surfaceVisits.fetch_add(1, std::memory_order_relaxed);
             auto& buf = buffers_->local();
             const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf)
                             : mode_[sv] == Mode::Curve ? curveStep(v, buf)
@@ -152,6 +154,9 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         total -= improvement;
         ++result_.sweeps;
         result_.nodeUpdates += updates.load();
+        result_.nodeVisits += visits.load();
+        result_.surfaceNodeVisits += surfaceVisits.load();
+        result_.visitHistory.push_back(visits.load());
         result_.objectiveHistory.push_back(start.finite ? total / corners : 0.0);
         report("optimize", static_cast<double>(sweep + 1) / opt_.maxSweeps);
         if (!(improvement > opt_.relativeTolerance * before) ||

@@ -66,6 +66,35 @@ TEST(Optimize, DisplacedInteriorNodeReturnsToTheCubePosition) {
     EXPECT_TRUE(r.converged);
 }
 
+// Only the nodes of hexes that are not cubes start active: one displaced node
+// in a block of cubes makes its eight hexes poor, whose 27 nodes (all
+// interior) are the first sweep's visits. Later sweeps visit only nodes next
+// to a node that moved, and every visit is counted, moved or not.
+TEST(Optimize, CountsEveryNodeVisitStartingWithTheNodesOfPoorHexes) {
+    HexMesh m = classifiedBlock(4);
+    const Index v = nodeAt(4, 2, 2, 2);
+    m.nodes[v][0] += 0.3;
+    const SmoothingResult r = optimizeMesh(m, nullptr);
+    ASSERT_EQ(r.visitHistory.size(), static_cast<std::size_t>(r.sweeps));
+    ASSERT_GE(r.sweeps, 1);
+    EXPECT_EQ(r.visitHistory[0], 27u);
+    std::size_t sum = 0;
+    for (std::size_t n : r.visitHistory) sum += n;
+    EXPECT_EQ(r.nodeVisits, sum);
+    EXPECT_GE(r.nodeVisits, r.nodeUpdates);
+    EXPECT_GT(r.nodeUpdates, 0u);
+    EXPECT_EQ(r.surfaceNodeVisits, 0u);  // no projector: surface nodes stay where they are
+}
+
+TEST(Optimize, CountsSurfaceNodeVisitsApart) {
+    HexMesh m = pillowedBall(6, 3.0, 0.05, 5);
+    const test::SphereProjector sphere({0, 0, 0}, 3.0);
+    const SmoothingResult r = optimizeMesh(m, &sphere);
+    EXPECT_GT(r.surfaceNodeVisits, 0u);
+    EXPECT_LT(r.surfaceNodeVisits, r.nodeVisits);
+    EXPECT_GE(r.nodeVisits, r.nodeUpdates);
+}
+
 TEST(Optimize, NodePushedThroughAFaceIsUntangled) {
     HexMesh m = classifiedBlock(4);
     const Index v = nodeAt(4, 2, 2, 2);
@@ -231,6 +260,8 @@ TEST(Optimize, OutputIsBitIdenticalForOneAndTwoThreads) {
     for (std::size_t v = 0; v < one.nodeCount(); ++v) ASSERT_EQ(one.nodes[v], two.nodes[v]) << "node " << v;
     EXPECT_EQ(r1.sweeps, r2.sweeps);
     EXPECT_EQ(r1.nodeUpdates, r2.nodeUpdates);
+    EXPECT_EQ(r1.visitHistory, r2.visitHistory);
+    EXPECT_EQ(r1.surfaceNodeVisits, r2.surfaceNodeVisits);
     EXPECT_EQ(r1.objectiveHistory, r2.objectiveHistory);
     EXPECT_EQ(r1.objectiveAfter, r2.objectiveAfter);
     EXPECT_GT(r1.nodeUpdates, 0u);

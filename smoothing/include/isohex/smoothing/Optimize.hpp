@@ -126,6 +126,12 @@ struct SmoothingResult {
     int sweeps = 0;                       // mean-ratio sweeps
     std::size_t nodesMoved = 0;           // distinct nodes whose position changed
     std::size_t nodeUpdates = 0;          // accepted node moves, all sweeps
+    // Node visits of the mean-ratio sweeps, moved or not (visits - updates
+    // = visits that left the node where it was), all sweeps; the surface
+    // and curve nodes' share; the visits of each sweep in order.
+    std::size_t nodeVisits = 0;
+    std::size_t surfaceNodeVisits = 0;
+    std::vector<std::size_t> visitHistory;
     // Mean over hexes of the (8-corner averaged) inverse mean ratio, counting
     // only hexes with all corner determinants > 0 (it is infinite for others).
     double objectiveBefore = 0;
