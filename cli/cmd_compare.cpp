@@ -20,6 +20,7 @@
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/pipeline/Compare.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/ReportJson.hpp"
 
@@ -69,6 +70,8 @@ pipeline::MeshSettings compareSettings(const CompareArgs& c) {
                     "reports the variants' quality as they come (leave them out)");
     s.fixBoundary = !c.moveBoundary;
     s.fixBoundaryByCompare = s.fixBoundary;
+    // every variant aims at one target (a second one would be decided per variant)
+    if (!s.worstHexTarget) s.worstHexTarget = pipeline::kDefaultWorstHexTarget;
     return s;
 }
 

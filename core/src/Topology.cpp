@@ -135,7 +135,8 @@ void requireBuiltFor(const HexMesh& mesh, const Topology& topo, const std::strin
 }  // namespace
 
 void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who, TopologyParts parts) {
-    if (parts == TopologyParts::All && topo.hexEdges.size() != mesh.hexes.size())
+    if (parts == TopologyParts::All &&
+        (topo.hexEdges.size() != mesh.hexes.size() || topo.quadHexesAll.rows() != topo.quads.size()))
         throw Error(who + ": needs a topology with every part; build it with buildTopology(mesh)");
     requireBuiltFor(mesh, topo, who);
     if (parts != TopologyParts::QuadHolders && !mesh.hexes.empty() && topo.edges.empty())

@@ -51,6 +51,22 @@ HexMesh bandMesh(const HexMesh& mesh, const std::vector<std::uint8_t>& band, std
     return sub;
 }
 
+// The scaled Jacobian below which a hex seeds the band: the worst-hex
+// target, or the second target where the parts reached the first away from
+// their cuts (they ran the second pass then; elsewhere the band stays as
+// small as without it).
+double seedTarget(const HexMesh& mesh, const std::vector<std::uint8_t>& onCut, const std::vector<double>& sj,
+                  const CutBandScan* scan) {
+    const double target = smoothing::WorstHexOptions{}.target;
+    if (!scan || !(scan->stretchTarget > target)) return target;
+    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
+        bool atCut = false;
+        for (Index v : mesh.hexes[h]) atCut = atCut || onCut[static_cast<std::size_t>(v)];
+        if (!atCut && !(sj[h] >= target)) return target;
+    }
+    return scan->stretchTarget;
+}
+
 }  // namespace
 
 CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& onCut, const CutBandScan* scan,
@@ -62,7 +78,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     // its cuts lower than the single run does).
     std::vector<std::uint8_t> seeds = onCut;
     const std::vector<double> sj = scaledJacobians(mesh);
-    const double target = std::max(smoothing::WorstHexOptions{}.target, scan ? scan->stretchTarget : 0.0);
+    const double target = seedTarget(mesh, onCut, sj, scan);
     for (std::size_t h = 0; h < mesh.hexCount(); ++h)
         if (!(sj[h] >= target) || sj[h] > 1.0 + 1e-9)
             for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;

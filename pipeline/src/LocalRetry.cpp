@@ -7,6 +7,7 @@
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/DualContour.hpp"
 #include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Pillow.hpp"
 
 namespace isohex::pipeline {
@@ -113,7 +114,11 @@ LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, c
     }
     Submesh s = cutOut(mesh, free);
     r.hexes = s.mesh.hexCount();
-    r.optimization = optimize(s.mesh, prepared, settings, sink, false);
+    // The second max-min target is decided on a whole mesh, never on a window
+    // (a window's minimum says nothing of the rest).
+    MeshSettings window = settings;
+    window.worstHexTarget = settings.worstHexTarget.value_or(kDefaultWorstHexTarget);
+    r.optimization = optimize(s.mesh, prepared, window, sink, false);
     for (std::size_t i = 0; i < s.from.size(); ++i) mesh.nodes[static_cast<std::size_t>(s.from[i])] = s.mesh.nodes[i];
     r.seconds = clock.seconds();
     return r;

@@ -1,6 +1,8 @@
 #include "isohex/pipeline/Optimize.hpp"
 
 #include <algorithm>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "Stage.hpp"
@@ -25,10 +27,12 @@ WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector
 
 namespace {
 
-double mean(const std::vector<double>& v) {
+// The smallest and the mean scaled Jacobian (0, 0 without hexes).
+std::pair<double, double> minAndMean(const std::vector<double>& sj) {
+    if (sj.empty()) return {0, 0};
     double s = 0;
-    for (double x : v) s += x;
-    return v.empty() ? 0 : s / static_cast<double>(v.size());
+    for (double x : sj) s += x;
+    return {*std::min_element(sj.begin(), sj.end()), s / static_cast<double>(sj.size())};
 }
 
 }  // namespace
@@ -38,14 +42,11 @@ StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector
     StretchResult r;
     r.target = target;
     const std::vector<Vec3> start = mesh.nodes;
-    const std::vector<double> before = scaledJacobians(mesh);
-    r.minBefore = before.empty() ? 0 : *std::min_element(before.begin(), before.end());
-    r.meanBefore = mean(before);
+    std::tie(r.minBefore, r.meanBefore) = minAndMean(scaledJacobians(mesh));
     r.pass = worstHexPass(mesh, projector, target, slack);
-    const std::vector<double> after = scaledJacobians(mesh);
-    const double minAfter = after.empty() ? 0 : *std::min_element(after.begin(), after.end());
-    const double meanAfter = mean(after);
-    r.kept = minAfter > r.minBefore && minAfter > 0 && meanAfter >= r.meanBefore - kStretchMeanLoss;
+    const auto [minAfter, meanAfter] = minAndMean(scaledJacobians(mesh));
+    // (a minimum above the one before, itself at least the first target, means no hex is inverted)
+    r.kept = minAfter > r.minBefore && meanAfter >= r.meanBefore - kStretchMeanLoss;
     if (!r.kept) mesh.nodes = start;
     r.minAfter = r.kept ? minAfter : r.minBefore;
     r.meanAfter = r.kept ? meanAfter : r.meanBefore;
@@ -95,7 +96,7 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         const double stretch = stretchTargetFor(p.facts.input.path, settings);
         const double reached = r.worstHexes->result.minAfter;
         if (stretch > r.worstHexes->options.target && reached >= r.worstHexes->options.target && reached < stretch)
-            r.stretch = stretchWorstHexes(mesh, &projector, stretch, slack);
+            r.stretch = stretchWorstHexes(mesh, settings.fixBoundary ? nullptr : &projector, stretch, slack);
     }
     r.fixBoundary = settings.fixBoundary;
     // The warning counts what is still inverted after the worst-hex pass too

@@ -299,12 +299,14 @@ TEST(Topology, QuadHolderPartsThenEdgesEqualTheFullTopologys) {
 }
 
 // Every hex's edge ids name edges with that hex edge's two ends, each edge
-// once, also where a hex repeats a node (a collapsed edge and a hex holding
-// an edge twice).
+// once, also where a hex repeats a node (collapsed edges, and a hex holding
+// one edge twice, as its local edges 0 and 1).
 TEST(Topology, HexEdgeIdsNameTheHexesOwnEnds) {
     HexMesh m = makeBlock(3, 2, 2);
     m.hexes[4][1] = m.hexes[4][0];  // edge 0 of hex 4 collapses to a point
     m.hexes[7][6] = m.hexes[7][2];
+    m.hexes[9][2] = m.hexes[9][0];  // local edges 0 and 1 of hex 9 join the same two nodes
+    m.hexes[9][3] = m.hexes[9][1];
     for (TopologyParts parts : {TopologyParts::All, TopologyParts::QuadHolders}) {
         Topology t = buildTopology(m, parts);
         if (parts == TopologyParts::QuadHolders) addHexEdges(t, m);

@@ -55,17 +55,18 @@ enum class TopologyParts : std::uint8_t { All, NodeMoves, QuadHolders };
 // range throw.
 Topology buildTopology(const HexMesh& mesh, TopologyParts parts = TopologyParts::All);
 
-// Throws isohex::Error, naming `who`, if `topo` cannot be buildTopology(mesh,
-// parts) or a fuller one (its hex or node counts differ, or it lacks the
-// parts): for functions that take a prebuilt topology instead of building
-// their own.
+// Throws isohex::Error, naming `who`, if `topo` was not built for this mesh
+// (its hex or node counts differ) or lacks a part `parts` has (All: every
+// part; NodeMoves: the edges; QuadHolders: the quads' holders): for
+// functions that take a prebuilt topology instead of building their own.
 void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who,
                        TopologyParts parts = TopologyParts::NodeMoves);
 
-// On a topology of `mesh` built with TopologyParts::NodeMoves, the part it
-// left empty, as buildTopology(mesh) gives it: quadHexesAll, or hexEdges
-// (edges are numbered again, to the same values). For work that needs the
-// two one after the other and not both at once (validate).
+// On a topology of `mesh` built with fewer parts, a part it left empty, as
+// buildTopology(mesh) gives it: quadHexesAll (on a NodeMoves topology), or
+// edges with hexEdges (on a QuadHolders one, or on a NodeMoves one, whose
+// edges are numbered again to the same values). For work that needs the two
+// one after the other and not both at once (validate adds the edges).
 void addQuadHolders(Topology& topo, const HexMesh& mesh);
 void addHexEdges(Topology& topo, const HexMesh& mesh);
 
