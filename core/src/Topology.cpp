@@ -135,14 +135,14 @@ void requireBuiltFor(const HexMesh& mesh, const Topology& topo, const std::strin
 }  // namespace
 
 void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::string& who, TopologyParts parts) {
-    if (parts == TopologyParts::All &&
-        (topo.hexEdges.size() != mesh.hexes.size() || topo.quadHexesAll.rows() != topo.quads.size()))
-        throw Error(who + ": needs a topology with every part; build it with buildTopology(mesh)");
     requireBuiltFor(mesh, topo, who);
-    if (parts != TopologyParts::QuadHolders && !mesh.hexes.empty() && topo.edges.empty())
+    const bool edges = parts != TopologyParts::QuadHolders, holders = parts != TopologyParts::NodeMoves;
+    if (edges && !mesh.hexes.empty() && topo.edges.empty())
         throw Error(who + ": needs a topology with its edges; build it with buildTopology(mesh) or add them "
                           "with addHexEdges");
-    if (parts == TopologyParts::QuadHolders && topo.quadHexesAll.rows() != topo.quads.size())
+    if (parts == TopologyParts::All && topo.hexEdges.size() != mesh.hexes.size())
+        throw Error(who + ": needs a topology with every part; build it with buildTopology(mesh)");
+    if (holders && topo.quadHexesAll.rows() != topo.quads.size())
         throw Error(who + ": needs a topology with the quads' holders; build it with buildTopology(mesh)");
 }
 

@@ -109,9 +109,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     }
     smoothing::optimizeMesh(sub, projector, smoothing::SmoothingOptions{});
     const smoothing::WorstHexResult raised = smoothing::raiseWorstHexes(sub, projector, worst);
-    if (scan && scan->stretchTarget > worst.target && raised.minAfter >= worst.target &&
-        raised.minAfter < scan->stretchTarget)
-        stretchWorstHexes(sub, projector, scan->stretchTarget, worst.surfaceSlack);
+    if (scan) stretchIfReached(sub, projector, worst.target, raised.minAfter, scan->stretchTarget, worst.surfaceSlack);
     const QualitySummary after = summarize(sub, computeQuality(sub));
     r.minAfter = after.scaledJacobian.min;
     r.invertedAfter = after.inverted;

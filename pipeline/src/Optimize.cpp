@@ -53,6 +53,12 @@ StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector
     return r;
 }
 
+std::optional<StretchResult> stretchIfReached(HexMesh& mesh, const smoothing::SurfaceProjector* projector,
+                                              double firstTarget, double reached, double stretch, double slack) {
+    if (!(stretch > firstTarget && reached >= firstTarget && reached < stretch)) return std::nullopt;
+    return stretchWorstHexes(mesh, projector, stretch, slack);
+}
+
 smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink) {
     Stage st(sink, "boundary_quads");
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
@@ -93,10 +99,9 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         r.worstHexes = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector,
                                     worstHexTargetFor(p.facts.input.path, settings), slack);
         r.worstHexes->surfaceToleranceVoxels = voxels;
-        const double stretch = stretchTargetFor(p.facts.input.path, settings);
-        const double reached = r.worstHexes->result.minAfter;
-        if (stretch > r.worstHexes->options.target && reached >= r.worstHexes->options.target && reached < stretch)
-            r.stretch = stretchWorstHexes(mesh, settings.fixBoundary ? nullptr : &projector, stretch, slack);
+        r.stretch = stretchIfReached(mesh, settings.fixBoundary ? nullptr : &projector, r.worstHexes->options.target,
+                                     r.worstHexes->result.minAfter, stretchTargetFor(p.facts.input.path, settings),
+                                     slack);
     }
     r.fixBoundary = settings.fixBoundary;
     // The warning counts what is still inverted after the worst-hex pass too

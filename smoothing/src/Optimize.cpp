@@ -120,17 +120,20 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
     double total = 8.0 * start.sum;                        // corner sum, the optimised objective
     const double corners = 8.0 * static_cast<double>(start.finite);
     std::vector<double> gain(N, 0.0);
+    // a node's own byte, set at its visit: the visit counts come from it after
+    // the sweep, with no counter shared by the threads on the sweep's path
+    std::vector<std::uint8_t> visited(N, 0);
     result_.converged = false;
 
     for (int sweep = 0; sweep < opt_.maxSweeps; ++sweep) {
         std::fill(gain.begin(), gain.end(), 0.0);
         std::fill(next.begin(), next.end(), std::uint8_t{0});
-        std::atomic<std::size_t> updates{0}, visits{0}, surfaceVisits{0};
+        std::fill(visited.begin(), visited.end(), std::uint8_t{0});
+        std::atomic<std::size_t> updates{0};
         sweepColours(colouring_.classes, [&](Index v) {
             const auto sv = static_cast<std::size_t>(v);
             if (!active[sv] || (mode_[sv] == Mode::Curve && !projector_->hasCurves())) return;
-            visits.fetch_add(1, std::memory_order_relaxed);
-            if (mode_[sv] != Mode::Interior) surfaceVisits.fetch_add(1, std::memory_order_relaxed);
+            visited[sv] = 1;
             auto& buf = buffers_->local();
             const Visit r = mode_[sv] == Mode::Surface ? surfaceStep(v, buf)
                             : mode_[sv] == Mode::Curve ? curveStep(v, buf)
@@ -145,6 +148,12 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         active.swap(next);
         double improvement = 0;
         for (double g : gain) improvement += g;
+        std::size_t visits = 0, surfaceVisits = 0;
+        for (std::size_t v = 0; v < N; ++v)
+            if (visited[v]) {
+                ++visits;
+                surfaceVisits += mode_[v] != Mode::Interior;
+            }
         // The running total subtracts the nodes' gains, which count centre
         // frames and corners of hexes that were inverted at the start (not
         // in start.sum), so it drifts low and could go negative after a dozen
@@ -154,9 +163,9 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         total -= improvement;
         ++result_.sweeps;
         result_.nodeUpdates += updates.load();
-        result_.nodeVisits += visits.load();
-        result_.surfaceNodeVisits += surfaceVisits.load();
-        result_.visitHistory.push_back(visits.load());
+        result_.nodeVisits += visits;
+        result_.surfaceNodeVisits += surfaceVisits;
+        result_.visitHistory.push_back(visits);
         result_.objectiveHistory.push_back(start.finite ? total / corners : 0.0);
         report("optimize", static_cast<double>(sweep + 1) / opt_.maxSweeps);
         if (!(improvement > opt_.relativeTolerance * before) ||

@@ -105,7 +105,7 @@ double worstHexTargetFor(const std::string& input, const MeshSettings& settings)
 // is lower (scans and label maps; the dual method, boundary free). Where the
 // first pass leaves every hex at or above its target, a second pass aims at
 // this one and is kept only if it lifts the minimum (stretchWorstHexes):
-// smooth scans reach 0.5 (skull_ct 0.313 -> 0.500) while scans with hexes
+// smooth scans reach 0.5 (skull_ct 0.313 -> 0.501) while scans with hexes
 // stuck below 0.3 are not slowed by a pass that cannot help them.
 double stretchTargetFor(const std::string& input, const MeshSettings& settings);
 

@@ -53,6 +53,12 @@ inline constexpr double kStretchMeanLoss = 0.005;
 StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
                                 double slack = 0);
 
+// stretchWorstHexes aimed at `stretch` where it applies: the first pass
+// (aimed at `firstTarget`) reached `reached` >= firstTarget, and `stretch` is
+// above both; otherwise nothing is done.
+std::optional<StretchResult> stretchIfReached(HexMesh& mesh, const smoothing::SurfaceProjector* projector,
+                                              double firstTarget, double reached, double stretch, double slack = 0);
+
 struct OptimizeResult {
     bool enabled = false;  // settings.optimize; nothing else is set without it
     bool fixBoundary = false;
