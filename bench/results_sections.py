@@ -5,7 +5,12 @@ bench/run writes its own sections of bench/RESULTS.md; other scripts in bench/
 sections of their own below them, each naming its command. Writing the file
 again must not lose those: every `## ` section of the old file whose heading
 bench/run does not write is carried over, in its old order, after the new text.
+
+The file is read and written as UTF-8 whatever the process's locale: the Gmsh
+baseline's library sets the C locale when it starts, after which Python's
+default text encoding is ASCII, and RESULTS.md has non-ASCII characters.
 """
+import os
 
 
 def sections(text):
@@ -34,3 +39,12 @@ def carry_sections(old, new):
     for body in kept:
         out += ("\n" if not out.endswith("\n\n") else "") + body
     return out
+
+
+def write_results_file(path, new):
+    """Writes `new` to `path`, carrying the sections of the file there (carry_sections), as UTF-8."""
+    if os.path.exists(path):
+        with open(path, encoding="utf-8") as fh:
+            new = carry_sections(fh.read(), new)
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(new)

@@ -2,8 +2,11 @@
 other bench scripts added below them (each with its command and figures) must
 survive that (bench/results_sections.py), checked on the repository's own
 RESULTS.md."""
+import locale
 import os
+import subprocess
 import sys
+import tempfile
 import unittest
 
 sys.path.insert(0, os.path.dirname(__file__))
@@ -11,7 +14,7 @@ from common import SOURCE  # noqa: E402
 
 sys.path.insert(0, os.path.join(SOURCE, "bench"))
 sys.dont_write_bytecode = True
-from results_sections import carry_sections, sections  # noqa: E402
+from results_sections import carry_sections, sections, write_results_file  # noqa: E402
 
 NEW = """# isohex benchmark results
 
@@ -50,6 +53,29 @@ class CarrySections(unittest.TestCase):
     def test_a_file_without_other_sections_is_the_new_text(self):
         self.assertEqual(carry_sections(NEW.replace("new", "old"), NEW), NEW)
         self.assertEqual(carry_sections("", NEW), NEW)
+
+
+    def test_written_as_utf8_after_a_library_set_the_c_locale(self):
+        # The Gmsh baseline's library sets the C locale; Python's default text
+        # encoding is ASCII from then on, and RESULTS.md has non-ASCII text.
+        # Run in a child so the locale change does not leak into other tests.
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "RESULTS.md")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write("# old\n\n## Other script \u2264 0.5 \u00d7 Gmsh\n\nkept \u2013 figures\n")
+            code = ("import locale, sys; sys.path.insert(0, sys.argv[1]); "
+                    "locale.setlocale(locale.LC_ALL, 'C'); "
+                    "assert locale.getpreferredencoding(False).lower() not in ('utf-8', 'utf8'), 'C locale is UTF-8'; "
+                    "from results_sections import write_results_file; "
+                    "write_results_file(sys.argv[2], '# new\\n\\n## Quality \\u2265 0.3\\n')")
+            env = dict(os.environ, PYTHONUTF8="0", LC_ALL="C.UTF-8")
+            p = subprocess.run([sys.executable, "-c", code, os.path.join(SOURCE, "bench"), path],
+                               capture_output=True, text=True, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            with open(path, encoding="utf-8") as f:
+                out = f.read()
+        self.assertTrue(out.startswith("# new\n\n## Quality \u2265 0.3\n"))
+        self.assertIn("## Other script \u2264 0.5 \u00d7 Gmsh\n\nkept \u2013 figures\n", out)
 
 
 if __name__ == "__main__":
