@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """The 27-tree's L3 mask (three marked corners of one face): its boundary, the structure a hex mesh of it must have,
-a search for one, and the checks a template has to pass. No template is known: see FINDINGS.
+a search for one, and the checks a template has to pass. No template is known (FINDINGS).
 
 Canonical placement: corners 0, 1, 2 marked (A = (0,0,0), B = (3,0,0), D = (0,3,0) in child units; C = (3,3,0) and
 the top unmarked). By the face rules (TransitionTemplates.hpp) the bottom z = 0 shows nine unit quads, x = 0 and
@@ -8,26 +8,29 @@ y = 0 the EDGE pattern along their bottom edge, x = 3 the VERTEX pattern at B, y
 boundary quads. The face patterns here are derived from any mask by those rules, so the checker serves every template
 (--check-cpp runs it on the tables octree/ has).
 
-FINDINGS
+FINDINGS (why no construction falls out; all by this tool or by hand from the face patterns)
   * Dual loops: the boundary's chords form two loops. The z = 0.5 ring (12 quads) bounds the bottom layer; ALL other
-    chords form one loop of 68 quad visits that crosses itself in 28 quads. So besides the bottom layer the mesh has
-    one sheet (plus any closed ones) whose boundary crosses itself 28 times: it self-intersects along at least 14
-    curves (columns of hexes). FACE's seven loops are all simple; this is why no layered or swept construction
-    exists for L3.
-  * Forced hex at C: the corner C has three boundary quads, so one hex H_C holds them and the whole unsplit edge at C;
-    its top face reaches the top corner (3,3,3). With the bottom layer (9 hexes, one per bottom quad) the rest is the
-    region U above a surface Sigma (z = 1 along x = 0 and y = 0, the VERTEX patterns' polyline (0,1)-(1,1)-(2,2)-(3,3)
-    on x = 3 and y = 3): 28 quads, whose chords form ONE loop crossing itself in every one of its 28 quads.
-  * At (3,3,3) U has four quads (top, the two VERTEX patterns' upper quads, H_C's top). Two hexes there (either
-    diagonal of the link) give a hex with three corners on a cube face that is not a boundary quad (a sliver), so at
-    least four hexes meet around an inner edge from (3,3,3).
-  * Forcing one hex per convex edge and corner of U (the hex K holding Sigma's quads at x in [2,3], y in [0,2], the
-    VERTEX quad (0,1)(1,1)(2,2)(0,2) of x = 3 and the y = 0 row quad behind them, its mirror K' on y = 3; the hexes
-    on the bottom-layer quads beside them) ends in a cavity bounded by three quads (odd: no hex mesh) or in a hex
-    with two faces on one boundary quad, for every choice of the free Sigma nodes tried: a mesh must break that rule
-    somewhere (several hexes at a convex edge or corner), which is where a pillow or a closed sheet would go.
-  * Exhaustive peeling (tools/hex_peel_search.py, no geometric filter, so this also bounds a pillowed core): U has no
-    hex mesh of up to 8 hexes.
+    chords form one loop of 68 quad visits that crosses itself in 28 quads. Besides the bottom layer the mesh has a
+    single sheet (plus any closed ones) whose boundary crosses itself 28 times, so it self-intersects along at least
+    14 columns of hexes. FACE's seven loops are all simple; no layered or swept construction exists for L3.
+  * The hex at C: the corner C has three boundary quads, so one hex holds them and the whole unsplit edge at C, and its
+    top face reaches the top corner T = (3,3,3). With the bottom layer (one hex per bottom quad) the rest is the region
+    U above a surface Sigma (z = 1 along x = 0 and y = 0, the VERTEX patterns' polyline (0,1)-(1,1)-(2,2)-(3,3) on
+    x = 3 and y = 3): 28 quads whose chords form ONE loop crossing itself in every one of them.
+  * Corners of U (a hex corner has three faces; a hex with three corners on a cube face, in no boundary quad of it,
+    leaves a zero angle there): at T, four quads (top, the upper VERTEX quads Q of x = 3 and Q' of y = 3, the C hex's
+    top F); both two-hex splits put the top quad with Q or Q' in a flat hex, so at least four hexes meet around an
+    inner edge from T. At (3,0,3) (top, Q, and the strip's quads s3, s4 of y = 0) two hexes need the top hex to hold
+    s4; at (0,3,3) likewise the x = 0 strip's s4; one hex cannot hold both (four edges at (0,0,3)), so one of these
+    corners has four hexes or more. If U's corner at (3,1,1) (Sigma's two quads at x in [2,3], y in [0,2] and Q's lower
+    neighbour (0,1)(1,1)(2,2)(0,2) of x = 3) is one hex K, K also holds the y = 0 row quad behind it and its top is the
+    quad (2,0,2)-(3,0,2)-(3,2,2)-P (P the Sigma node over (2,2)); then two hexes at (3,0,3) force the hex holding Q to
+    hold K's top and F as well, which is a two-hex split at T: so (3,0,3), and by symmetry (0,3,3), have four hexes
+    or more. Below z = 2 a hand construction (P = (2,2,2), which makes K a prism of Q's neighbour, K' its mirror,
+    unit cubes near A, one hex per convex edge) ends in a cavity bounded by three quads over Sigma's quad at (1,1):
+    odd, no hex mesh. A mesh breaks the one-hex rule there too (several hexes at a convex edge or corner).
+  * Exhaustive peeling (tools/hex_peel_search.py with no geometric filter, so this also bounds a pillowed core): U has
+    no hex mesh of up to 8 hexes (a minute); depth 9 did not finish in half an hour.
 
     tools/l3-template.py                       # the boundary, its dual loops, the bottom layer and U
     tools/l3-template.py --peel 8              # the peeling search on U (depth 9 runs for hours)
