@@ -12,7 +12,9 @@ FINDINGS (why no construction falls out; all by this tool or by hand from the fa
   * Dual loops: the boundary's chords form two loops. The z = 0.5 ring (12 quads) bounds the bottom layer; ALL other
     chords form one loop of 68 quad visits that crosses itself in 28 quads. Besides the bottom layer the mesh has a
     single sheet (plus any closed ones) whose boundary crosses itself 28 times, so it self-intersects along at least
-    14 columns of hexes. FACE's seven loops are all simple; no layered or swept construction exists for L3.
+    14 columns of hexes. Every loop of the four templates octree/ has is simple (FACE: seven); FACE-CORNER has one
+    loop crossing itself 16 times, TRIPOD two crossing themselves 3 times each. No layered or swept construction
+    exists for L3.
   * The hex at C: the corner C has three boundary quads, so one hex holds them and the whole unsplit edge at C, and its
     top face reaches the top corner T = (3,3,3). With the bottom layer (one hex per bottom quad) the rest is the region
     U above a surface Sigma (z = 1 along x = 0 and y = 0, the VERTEX patterns' polyline (0,1)-(1,1)-(2,2)-(3,3) on
@@ -32,7 +34,7 @@ FINDINGS (why no construction falls out; all by this tool or by hand from the fa
   * Exhaustive peeling (tools/hex_peel_search.py with no geometric filter, so this also bounds a pillowed core): U has
     no hex mesh of up to 8 hexes (a minute); depth 9 did not finish in half an hour.
 
-    tools/l3-template.py                       # the boundary, its dual loops, the bottom layer and U
+    tools/l3-template.py                       # dual loops of every mask, L3's bottom layer and U
     tools/l3-template.py --peel 8              # the peeling search on U (depth 9 runs for hours)
     tools/l3-template.py --check-cpp kFace     # the checker on a table of octree/src/TransitionTemplates.cpp
 """
@@ -239,20 +241,26 @@ def region_above(hexes, mask=MARKED):
     return out
 
 
+NAMED_MASKS = {"VERTEX": 0x01, "EDGE": 0x03, "FACE": 0x0F, "TWO-FACE": 0x3F, "L3": 0x07, "FACE-CORNER": 0x1F,
+               "TRIPOD": 0x17}
+
+
+def loop_summary(quads):
+    return ", ".join(f"({len(lp)}, {sum(1 for q in set(lp) if lp.count(q) == 2)})" for lp in dual_loops(quads))
+
+
 def report_boundary():
-    quads = boundary(MARKED)
-    loops = dual_loops(quads)
-    print(f"L3 boundary: {len(quads)} quads; dual loops (quad visits, self-crossings):",
-          ", ".join(f"({len(lp)}, {sum(1 for q in set(lp) if lp.count(q) == 2)})" for lp in loops))
+    print("dual loops of each mask's boundary as (quad visits, self-crossings):")
+    for name, mask in NAMED_MASKS.items():
+        quads = boundary(mask)
+        print(f"  {name:12s} {mask:#04x}: {len(quads)} quads; {loop_summary(quads)}")
     inner = {(1, 1): (12, 12, 12), (2, 1): (24, 12, 12), (1, 2): (12, 24, 12), (2, 2): (24, 24, 18)}
     layer = bottom_layer(sigma_nodes(inner))
     sj = min(min(corner_scaled_jacobians(h)) for h in layer)
     hc = layer[-1]
-    print(f"bottom layer: {len(layer)} hexes, min scaled Jacobian {sj:.3f}; the hex at C spans {hc[2]}-{hc[6]}")
+    print(f"L3's bottom layer: {len(layer)} hexes, min scaled Jacobian {sj:.3f}; the hex at C spans {hc[2]}-{hc[6]}")
     u = region_above(layer)
-    loops = dual_loops(u)
-    print(f"region U above it: {len(u)} quads; dual loops (quad visits, self-crossings):",
-          ", ".join(f"({len(lp)}, {sum(1 for q in set(lp) if lp.count(q) == 2)})" for lp in loops))
+    print(f"region U above it: {len(u)} quads; dual loops {loop_summary(u)}")
     return u
 
 
