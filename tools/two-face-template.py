@@ -28,14 +28,14 @@ nodes are chosen on it by a search for the largest minimum scaled Jacobian (belo
 """
 import argparse
 import itertools
+import os
 import sys
 
 import numpy as np
 
-S = 12  # lattice steps per child
-REF = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
-NEIGHBOURS = [(1, 3, 4), (2, 0, 5), (3, 1, 6), (0, 2, 7), (7, 5, 0), (4, 6, 1), (5, 7, 2), (6, 4, 3)]
-FACES = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True  # no __pycache__ beside the tools
+from template_rules import NEIGHBOURS, REF, S, check  # noqa: E402
 
 # The corner column's boundary nodes (child units): a, b, d rows at x = 0..3; C0, C3; the strips' middle nodes.
 BOUNDARY = {f'{r}{i}': p for i in range(4) for r, p in (('a', (i, 2, 2)), ('b', (i, 3, 2)), ('d', (i, 2, 3)))}
@@ -109,60 +109,6 @@ def build(core_nodes):
     return out
 
 
-def corner_scaled_jacobians(h):
-    p = np.array(h, float)
-    out = []
-    for c, (a, b, d) in enumerate(NEIGHBOURS):
-        m = np.array([p[a] - p[c], p[b] - p[c], p[d] - p[c]])
-        out.append(np.linalg.det(m) / np.prod(np.linalg.norm(m, axis=1)))
-    return out
-
-
-def volume(h):
-    p = np.array(h, float)
-    g = [(1 - 1 / np.sqrt(3)) / 2, (1 + 1 / np.sqrt(3)) / 2]
-    v = 0.0
-    for u in itertools.product(g, g, g):
-        j = np.zeros((3, 3))
-        for i in range(8):
-            w = [u[k] if REF[i][k] else 1 - u[k] for k in range(3)]
-            s = [1 if REF[i][k] else -1 for k in range(3)]
-            j += np.outer(p[i], [s[0] * w[1] * w[2], w[0] * s[1] * w[2], w[0] * w[1] * s[2]])
-        v += np.linalg.det(j) / 8
-    return v
-
-
-def check(hexes):
-    """Conformal tiling of the cube with the required face patterns; returns the minimum scaled Jacobian."""
-    faces = {}
-    for i, h in enumerate(hexes):
-        assert len(set(h)) == 8, "a hex with a repeated node"
-        for f in FACES:
-            faces.setdefault(tuple(sorted(h[k] for k in f)), []).append(i)
-    assert all(len(v) <= 2 for v in faces.values()), "a face of more than two hexes"
-    on = {}
-    for k, v in faces.items():
-        if len(v) == 1:
-            where = [(a, s) for a in range(3) for s in (0, 3 * S) if all(p[a] == s for p in k)]
-            assert where, "a boundary quad inside the cube"
-            on.setdefault(where[0], set()).add(k)
-    total = sum(volume(h) for h in hexes) / S ** 3
-    assert abs(total - 27) < 1e-9, total
-    sj = min(min(corner_scaled_jacobians(h)) for h in hexes)
-    assert sj > 0, "a corner with a non-positive Jacobian"
-    drop = lambda axis, quads: {tuple(sorted(tuple(c for a, c in enumerate(p) if a != axis) for p in q)) for q in quads}
-    q2 = lambda pts: tuple(sorted((int(S * u), int(S * w)) for u, w in pts))
-    unit9 = {q2([(a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)]) for a in range(3) for b in range(3)}
-    edge = {q2([(a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)]) for a in range(3) for b in range(2)}
-    edge |= {q2(q) for q in [((0, 2), (1, 2), (1, 2.5), (0, 3)), ((1, 2), (2, 2), (2, 2.5), (1, 2.5)),
-                             ((2, 2), (3, 2), (3, 3), (2, 2.5)), ((1, 2.5), (2, 2.5), (3, 3), (0, 3))]}
-    for axis, side in ((0, 0), (0, 3 * S), (1, 0), (2, 0)):
-        assert drop(axis, on[(axis, side)]) == unit9, (axis, side)
-    # y = 3 shows (x, z), z = 3 shows (x, y): the EDGE pattern with its marked edge at the second coordinate 0
-    assert drop(1, on[(1, 3 * S)]) == edge and drop(2, on[(2, 3 * S)]) == edge
-    return sj
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cpp", action="store_true", help="print the C++ table")
@@ -170,7 +116,7 @@ def main():
     a = ap.parse_args()
     nodes = default_core_nodes() if a.first or not CORE_NODES else CORE_NODES
     hexes = build(nodes)
-    sj = check(hexes)
+    sj = check(hexes, 0x3F)  # faces y = 0 and z = 0 marked
     print(f"{len(hexes)} hexes, volume 27, every face pattern as required, min scaled Jacobian {sj:.4f}",
           file=sys.stderr)
     if a.cpp:
