@@ -18,9 +18,10 @@ meshed with faces respecting the cell's planes. At the VERTEX node t11 = (1,1,3)
 three hexes around one inner edge e; the hex on A and the one on B share the face through e and t11-t22. At the convex
 corners c4 = (0,0,3) and a1 = (1,0,3) the natural hexes hold (T0, X0, Y0) and (A, Y1, the corner hex's x = 1 face);
 then the A hex's bottom shares two edges with the top of the unit cube below (so equals it) and puts the node below
-t22 at (2,1,2), the B hex at (1,2,2): contradiction. Every way out puts a third hex at a flat boundary edge or a
-second one at a convex edge, i.e. a sheet that does not reach the cell's surface; it has to close below, where the
-same argument repeats layer by layer down to the nine-quad bottom face.
+t22 at (2,1,2), the B hex at (1,2,2): contradiction. The ways out put a third hex at a flat boundary edge or a
+second one at a convex edge (hexes that meet the cell's faces only along an edge, as the two-face template's pillow
+does); followed down, the flat edges at z = 2 need the same in the layer below. The columns along x = 0 and y = 0
+cannot stay unit cubes in the top layer at all: the VERTEX quads B, D and A, C cross the lines x = 1 and y = 1.
 
 Searches (--search, --lens), all on the boundary's combinatorics only (a pillowed region's core may fold):
   * peeling, quad-driven (the boundary quad with the fewest valid hexes is covered first; a hex may also take two
@@ -265,6 +266,15 @@ def region(name):
     return orient(quads)
 
 
+def face_lens():
+    """The lens between the face template's top disk (its top quad and the U-turn quads of its x = 0 and y = 0
+    strips, once the strips' middle nodes are identified with the wall's top nodes) and the VERTEX pattern: 8 quads
+    on the rim (0,0) (1,0) (2,0) (3,0) (3,3) (0,3) (0,2) (0,1), inner VERTEX nodes (1,1) = 8 and (2,2) = 9."""
+    top = [(0, 1, 8, 7), (1, 2, 9, 8), (7, 8, 9, 6), (2, 3, 4, 9), (6, 9, 4, 5)]
+    bottom = [(0, 5, 4, 3), (0, 7, 6, 5), (0, 3, 2, 1)]
+    return top + bottom, [f"v{i}" for i in range(10)]
+
+
 def indexed(quads):
     pts = sorted({p for q in quads for p in q})
     at = {p: i for i, p in enumerate(pts)}
@@ -502,7 +512,7 @@ def main():
     ap.add_argument("--loops", action="store_true", help="dual loops of the template masks' boundaries")
     ap.add_argument("--check-two-face", action="store_true", help="run the checker on the two-face template")
     ap.add_argument("--search", nargs=2, metavar=("REGION", "MAX_HEXES"),
-                    help="peeling search on slab, notch, inner or outer")
+                    help="peeling search on slab, notch, inner, outer or face-lens")
     ap.add_argument("--lens", nargs=3, metavar=("CYLINDER", "MOVES_UP", "MOVES_DOWN"),
                     help="hex moves between the bottom and top disks of slab or notch")
     ap.add_argument("--max-quads", type=int, default=18, help="largest disk kept by --lens")
@@ -511,7 +521,7 @@ def main():
     if a.check_two_face:
         check_two_face()
     if a.search:
-        quads, pts = indexed(region(a.search[0]))
+        quads, pts = face_lens() if a.search[0] == "face-lens" else indexed(region(a.search[0]))
         assert valid_surface(quads)
         print(f"{a.search[0]}: {len(quads)} boundary quads")
         try:
