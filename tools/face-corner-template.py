@@ -438,6 +438,8 @@ def disk_canon(quads, rim):
             break
         label[next(v for v in best[1] if v not in label)] = nxt
         nxt += 1
+    if any(v not in label for q in quads for v in q):
+        return None  # a closed part apart from the disk (a hex glued on two opposite faces)
     return tuple(sorted(min(rotations(tuple(label[v] for v in q))) for q in quads))
 
 
@@ -450,7 +452,7 @@ def disk_moves(quads, rim, nid):
             disk = keep + new
             if disk_ok(disk, rim):
                 key = disk_canon(disk, rim)
-                if key not in seen:
+                if key is not None and key not in seen:
                     seen.add(key)
                     out.append((key, disk, hexv, nid2))
     return out
