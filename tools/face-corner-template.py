@@ -8,7 +8,7 @@ pattern at (0,0). 52 quads.
 Dual loops of the boundary (--loops). The chords of a closed quad surface (through opposite edges of each quad) form
 loops; every sheet of a hex mesh meets the boundary in such loops, and a loop that crosses itself bounds a sheet that
 intersects itself (each crossing is an end of a double curve). VERTEX, EDGE, FACE, TWO-FACE and FULL have only simple
-loops, which is why layers and one pillowed column mesh them. FACE-CORNER has three simple horizontal loops and ONE
+loops, and their meshes only embedded sheets (layers, bent layers, one pillow). FACE-CORNER has three simple loops and ONE
 loop through every other chord (68 quad passes) that crosses itself 16 times: 9 on the bottom face, 5 on the top
 VERTEX pattern, one in each strip's U-turn quad. So any mesh of it has a self-intersecting sheet with at least 8
 double curves (L3: one loop, 28 self-crossings; TRIPOD: two loops with 3 each).
@@ -26,11 +26,12 @@ cannot stay unit cubes in the top layer at all: the VERTEX quads B, D and A, C c
 Searches (--search, --lens), all on the boundary's combinatorics only (a pillowed region's core may fold):
   * peeling, quad-driven (the boundary quad with the fewest valid hexes is covered first; a hex may also take two
     opposite faces and split the region): the top slab (28 quads) has no mesh of <= 9 hexes, the slab without the
-    corner cube (26) none of <= 8, its ring-1 block [0,2]^2 x [2,3] (16, interface of 5 quads) none of <= 8, the
+    corner cube (26) none of <= 9, its ring-1 block [0,2]^2 x [2,3] (16, interface of 5 quads) none of <= 8, the
     ring-2 block (22) none of <= 8; on the two-face column it finds the 5-hex core;
   * the slab as a cylinder (a ring of 12 side quads between the bottom grid and the top disk): no sequence of <= 6
-    hex moves turns the 3x3 grid into the VERTEX pattern plus the two U-turn quads (bidirectional search over disk
-    quadrangulations with the rim fixed), nor the grid minus the corner cell into the top disk of the notched slab.
+    hex moves (3 from each side, disks of <= 18 and <= 16 quads) turns the 3x3 grid into the VERTEX pattern plus the
+    two U-turn quads (bidirectional search over disk quadrangulations with the rim fixed), nor the grid minus the
+    corner cell into the top disk of the notched slab.
 
     tools/face-corner-template.py --loops             # the dual loops of every template mask
     tools/face-corner-template.py --search slab 9     # peeling search on a region's boundary
