@@ -47,7 +47,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True  # no __pycache__ beside the tools
-from template_rules import HEX_FACES, REF, boundary, check, corner_scaled_jacobians, cpp_table, dual_loops  # noqa: E402,E501
+from template_rules import (HEX_FACES, REF, boundary, check, corner_scaled_jacobians, cpp_table, loop_summary,  # noqa: E402
+                            print_mask_loops)
 
 MARKED = 0x07  # L3: corners 0, 1, 2
 
@@ -104,19 +105,8 @@ def region_above(hexes, mask=MARKED):
     return out
 
 
-NAMED_MASKS = {"VERTEX": 0x01, "EDGE": 0x03, "FACE": 0x0F, "TWO-FACE": 0x3F, "L3": 0x07, "FACE-CORNER": 0x1F,
-               "TRIPOD": 0x17}
-
-
-def loop_summary(quads):
-    return ", ".join(f"({len(lp)}, {sum(1 for q in set(lp) if lp.count(q) == 2)})" for lp in dual_loops(quads))
-
-
 def report_boundary():
-    print("dual loops of each mask's boundary as (quad visits, self-crossings):")
-    for name, mask in NAMED_MASKS.items():
-        quads = boundary(mask)
-        print(f"  {name:12s} {mask:#04x}: {len(quads)} quads; {loop_summary(quads)}")
+    print_mask_loops()
     inner = {(1, 1): (12, 12, 12), (2, 1): (24, 12, 12), (1, 2): (12, 24, 12), (2, 2): (24, 24, 18)}
     layer = bottom_layer(sigma_nodes(inner))
     sj = min(min(corner_scaled_jacobians(h)) for h in layer)

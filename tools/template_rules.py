@@ -63,17 +63,24 @@ def face_pattern(mask, axis, side):
     return [frozenset(lift(p) for p in quad) for quad in pattern]
 
 
-def boundary(mask):
-    """Every face's quads in order (a quad: its corners as a tuple around it), for the dual-loop walk."""
-    out = []
+def cell_faces(mask):
+    """{(axis, side): the quads face (axis, side) must show, each as its corners in order around it}."""
+    out = {}
     for axis, side in itertools.product(range(3), (0, 1)):
         others = [a for a in range(3) if a != axis]
+        quads = []
         for quad in face_pattern(mask, axis, side):
             pts = list(quad)
             centre = np.mean(pts, axis=0)
             ang = [np.arctan2(p[others[1]] - centre[others[1]], p[others[0]] - centre[others[0]]) for p in pts]
-            out.append(tuple(p for _, p in sorted(zip(ang, pts))))
+            quads.append(tuple(p for _, p in sorted(zip(ang, pts))))
+        out[(axis, side)] = quads
     return out
+
+
+def boundary(mask):
+    """Every face's quads (cell_faces) in one list, for the dual-loop walk."""
+    return [q for quads in cell_faces(mask).values() for q in quads]
 
 
 def dual_loops(quads):
@@ -152,3 +159,20 @@ def cpp_table(name):
     body = re.search(r"const TemplateHex %s\[\] = \{(.*?)\n\};" % re.escape(name), text, re.S).group(1)
     rows = [re.findall(r"\{(-?\d+), (-?\d+), (-?\d+)\}", line) for line in body.splitlines()]
     return [[tuple(int(c) for c in p) for p in row] for row in rows if row]
+
+
+NAMED_MASKS = {"VERTEX": 0x01, "EDGE": 0x03, "FACE": 0x0F, "TWO-FACE": 0x3F, "L3": 0x07, "FACE-CORNER": 0x1F,
+               "TRIPOD": 0x17}
+
+
+def loop_summary(quads):
+    """Each dual loop as (quad visits, self-crossings)."""
+    return ", ".join(f"({len(lp)}, {sum(1 for q in set(lp) if lp.count(q) == 2)})" for lp in dual_loops(quads))
+
+
+def print_mask_loops():
+    """The dual loops of the five templates' masks and of the three without a template."""
+    print("dual loops of each mask's boundary as (quad visits, self-crossings):")
+    for name, mask in NAMED_MASKS.items():
+        quads = boundary(mask)
+        print(f"  {name:12s} {mask:#04x}: {len(quads)} quads; {loop_summary(quads)}")
