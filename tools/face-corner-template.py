@@ -25,7 +25,7 @@ cannot stay unit cubes in the top layer at all: the VERTEX quads B, D and A, C c
 
 Searches (--search, --lens), all on the boundary's combinatorics only (a pillowed region's core may fold):
   * peeling, quad-driven (the boundary quad with the fewest valid hexes is covered first; a hex may also take two
-    opposite faces and split the region): the top slab (28 quads) has no mesh of <= 9 hexes, the slab without the
+    opposite faces and split the region): the top slab (28 quads) has no mesh of <= 10 hexes, the slab without the
     corner cube (26) none of <= 9, its ring-1 block [0,2]^2 x [2,3] (16, interface of 5 quads) none of <= 8, the
     ring-2 block (22) none of <= 8; on the two-face column it finds the 5-hex core;
   * the slab as a cylinder (a ring of 12 side quads between the bottom grid and the top disk): no sequence of <= 6
@@ -34,7 +34,7 @@ Searches (--search, --lens), all on the boundary's combinatorics only (a pillowe
     corner cell into the top disk of the notched slab.
 
     tools/face-corner-template.py --loops             # the dual loops of every template mask
-    tools/face-corner-template.py --search slab 9     # peeling search on a region's boundary
+    tools/face-corner-template.py --search slab 10    # peeling search on a region's boundary
     tools/face-corner-template.py --lens slab 3 3     # cylinder: moves from the bottom disk and from the top disk
     tools/face-corner-template.py --check-two-face    # the generic checker on the two-face template's hexes
 """
