@@ -2,7 +2,8 @@
 `isohex --version` from the launcher equals the program's; a mesh format's
 plugin is loaded only when that format is read or written; a missing or
 damaged plugin is one error line naming it and what to do, exit status 1,
-with no output or temporary file left behind."""
+with no output or temporary file left behind; the folder isohex runs from is
+never searched for the libraries it loads."""
 import os
 import shutil
 import subprocess
@@ -51,7 +52,12 @@ class Plugins(unittest.TestCase):
         self.assertEqual(launcher.stdout, program.stdout)
 
     def test_launcher_without_the_program_says_so(self):
-        alone = self.folder("launcher_alone")
+        # The installed layout (bin/isohex, lib/isohex/) with bin/isohex-run missing.
+        root = self.folder("launcher_alone")
+        alone = os.path.join(root, "bin")
+        os.mkdir(alone)
+        os.mkdir(os.path.join(root, "lib"))
+        os.symlink(BUILD_PLUGINS, os.path.join(root, "lib", "isohex"))
         shutil.copy(ISOHEX, alone)
         proc = subprocess.run([os.path.join(alone, os.path.basename(ISOHEX)), "quality", self.vtu],
                               capture_output=True, text=True)
@@ -93,6 +99,36 @@ class Plugins(unittest.TestCase):
         self.assertEqual(err.count("\n"), 0, err)
         self.assertIn("libisohex_vtu.so", err)
         self.assertIn("could not be loaded", err)
+
+    def test_libraries_in_the_working_folder_are_not_loaded(self):
+        # Files named like isohex's own library and a system dependency, in the
+        # folder the command runs from: the loader must not look there (an
+        # empty run-path entry means the current directory).
+        cwd = self.folder("cwd_libraries")
+        for name in ("libtbb.so.12", "libisohex_core.so", "libITKCommon-5.2.so.1"):
+            with open(os.path.join(cwd, name), "wb") as f:
+                f.write(b"not a shared object\n")
+        env = dict(os.environ, ISOHEX_PLUGIN_DIR=BUILD_PLUGINS)
+        for args in (["--version"], ["quality", self.vtu]):
+            proc = subprocess.run([ISOHEX] + args, capture_output=True, text=True, env=env, cwd=cwd, timeout=300)
+            self.assertEqual(proc.returncode, 0, proc.stderr)
+            self.assertNotIn("error while loading shared libraries", proc.stderr)
+
+    def test_run_paths_are_absolute_or_origin_relative(self):
+        programs = [ISOHEX, os.path.join(os.path.dirname(ISOHEX), "isohex-run")]
+        plugins = [os.path.join(BUILD_PLUGINS, f) for f in sorted(os.listdir(BUILD_PLUGINS)) if f.endswith(".so")]
+        self.assertTrue(plugins)
+        ldd = subprocess.run(["ldd", programs[1]], capture_output=True, text=True, check=True).stdout
+        own = [ln.split("=>")[1].split("(")[0].strip() for ln in ldd.splitlines() if "libisohex_" in ln]
+        self.assertEqual(len(own), 2, ldd)  # libisohex_core.so and libisohex_imaging.so
+        for path in programs + plugins + own:
+            out = subprocess.run(["readelf", "-d", path], capture_output=True, text=True, check=True).stdout
+            for line in out.splitlines():
+                if "(RUNPATH)" in line or "(RPATH)" in line:
+                    entries = line.split("[", 1)[1].rsplit("]", 1)[0].split(":")
+                    for e in entries:
+                        self.assertTrue(e.startswith("/") or e.startswith("$ORIGIN"),
+                                        f"{path}: run-path entry {e!r} in {entries}")
 
 
 if __name__ == "__main__":
