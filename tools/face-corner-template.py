@@ -51,10 +51,6 @@ sys.dont_write_bytecode = True  # no __pycache__ beside the tools
 from hex_peel_search import rotations, valid_surface  # noqa: E402
 from template_rules import HEX_FACES, S, cell_faces, check, print_mask_loops  # noqa: E402
 
-def print_loops():
-    print_mask_loops()
-
-
 def check_two_face():
     here = os.path.dirname(os.path.abspath(__file__))
     spec = importlib.util.spec_from_file_location("tft", os.path.join(here, "two-face-template.py"))
@@ -407,7 +403,7 @@ def main():
     if a.lens:
         lens(a.lens[0], int(a.lens[1]), int(a.lens[2]), a.max_quads)
     if a.loops or not (a.check_two_face or a.search or a.lens):
-        print_loops()
+        print_mask_loops()
 
 
 if __name__ == "__main__":

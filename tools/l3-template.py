@@ -32,10 +32,10 @@ FINDINGS (why no construction falls out; all by this tool or by hand from the fa
     unit cubes near A, one hex per convex edge) ends in a cavity bounded by three quads over Sigma's quad at (1,1):
     odd, no hex mesh. A mesh breaks the one-hex rule there too (several hexes at a convex edge or corner).
   * Exhaustive peeling (tools/hex_peel_search.py with no geometric filter, so this also bounds a pillowed core): U has
-    no hex mesh of up to 8 hexes (a minute); depth 9 did not finish in half an hour.
+    no hex mesh of up to 8 hexes (a minute); depth 9 did not finish in 10 minutes.
 
     tools/l3-template.py                       # dual loops of every mask, L3's bottom layer and U
-    tools/l3-template.py --peel 8              # the peeling search on U (depth 9 runs for hours)
+    tools/l3-template.py --peel 8              # the peeling search on U (depth 9 did not finish in 10 minutes)
     tools/l3-template.py --check-cpp kFace     # the checker on a table of octree/src/TransitionTemplates.cpp
 """
 import argparse
