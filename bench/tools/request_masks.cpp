@@ -14,7 +14,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -37,11 +39,24 @@ void writeMask(const std::string& path, const std::array<int, 3>& dims, const st
     std::ofstream f(path, std::ios::binary);
     f.write(reinterpret_cast<const char*>(dims.data()), 12);
     for (const auto& a : arrays) f.write(reinterpret_cast<const char*>(a.data()), static_cast<std::streamsize>(a.size()));
+    f.close();
+    if (!f) throw std::runtime_error(path + ": cannot write (does its folder exist?)");
 }
 
 }  // namespace
 
+int run(int argc, char** argv);
+
 int main(int argc, char** argv) {
+    try {
+        return run(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "request_masks: %s\n", e.what());
+        return 1;
+    }
+}
+
+int run(int argc, char** argv) {
     using namespace isohex;
     if (argc < 3) {
         std::fprintf(stderr, "usage: request_masks INPUT OUTDIR [--size S] [--level L] [--iso V] [--labels] [--keep-largest] [--no-thickness]\n");
@@ -60,6 +75,7 @@ int main(int argc, char** argv) {
         else if (a == "--no-thickness") s.thicknessRefinement = false;
         else { std::fprintf(stderr, "unknown argument %s\n", a.c_str()); return 2; }
     }
+    std::filesystem::create_directories(out);
     const auto t0 = std::chrono::steady_clock::now();
     Quiet sink;
     const pipeline::Prepared p = pipeline::prepare(input, s, sink);
