@@ -9,8 +9,8 @@ cell may be a leaf; then a leaf whose 26 neighbouring cells of its level hold a 
 finer is split, until none is (1-level balance across faces, edges and corners). Counted: the leaves holding a
 labelled point, per level, against the uniform mesh's hexes (one per labelled point). For the 27-tree the total is
 box-cover-estimate.py's "band only" figure (the balance adds nothing there); its transition cells then take
-templates of 7 to 45 hexes each (tools/request-bound.py), while a dual octree scheme gives about one hex per
-octree vertex, so about one per leaf.
+templates of 7 to 45 hexes each (tools/request-bound.py), while a dual octree scheme gives one hex per octree
+vertex inside the object, of the order of its leaves plus what its balancing and pairing refine.
 
     tools/octree-leaf-bound.py MESH.vtu [--levels 4]     # MESH: a --no-pillow --method voxel uniform mesh
 """
