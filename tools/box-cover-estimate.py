@@ -87,10 +87,14 @@ def load_vtu(path):
     1), the grid step and the largest rounding residual (grid steps)."""
     import vtk
     from vtk.util.numpy_support import vtk_to_numpy
+    if not os.path.isfile(path):
+        sys.exit(f"{path}: no such file (give a uniform --no-pillow .vtu written by isohex mesh)")
     reader = vtk.vtkXMLUnstructuredGridReader()
     reader.SetFileName(path)
     reader.Update()
     grid = reader.GetOutput()
+    if grid is None or grid.GetPoints() is None or grid.GetNumberOfCells() == 0:
+        sys.exit(f"{path}: not a .vtu hex mesh VTK can read")
     pts = vtk_to_numpy(grid.GetPoints().GetData()).astype(np.float64)
     cells = grid.GetCells()
     conn = vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)

@@ -1,18 +1,23 @@
 #!/usr/bin/python3
 """How many leaves a balanced tree over a uniform mesh's grid needs, for an octree (2-refinement) and for the
-27-tree (3-refinement), under the label-change criterion (issue 37): a lower bound on any tree's size that no
-transition scheme changes, since every leaf holding a labelled point gives at least one hex.
+27-tree (3-refinement), under the label-change criterion (issue 37): lower bounds on a tree's mesh, since every
+leaf holding a labelled point gives at least one hex in a template scheme, and every octree vertex at a labelled
+point one hex in a dual scheme.
 
 A level-l cell (b^l grid points a side) may be a leaf where every point of it and one point around them hold one
 label (or none: cells outside the object hold no hex and may be coarse); every point takes the coarsest level whose
-cell may be a leaf; then a leaf whose 26 neighbouring cells of its level hold a point of a leaf more than one level
-finer is split, until none is (1-level balance across faces, edges and corners). Counted: the leaves holding a
-labelled point, per level, against the uniform mesh's hexes (one per labelled point). For the 27-tree the total is
-box-cover-estimate.py's "band only" figure (the balance adds nothing there); its transition cells then take
+cell may be a leaf; then a leaf touched by a leaf more than one level finer (a point of it in the one-point ring around the leaf)
+is split, until none is (1-level balance across faces, edges and corners). Counted: the leaves holding a
+labelled point, per level, against the uniform mesh's hexes (one per labelled point). For the 27-tree its transition
+cells then take
 templates of 7 to 45 hexes each (tools/request-bound.py), while a dual octree scheme gives one hex per octree
 vertex inside the object, of the order of its leaves plus what its balancing and pairing refine.
 
     tools/octree-leaf-bound.py MESH.vtu [--levels 4]     # MESH: a --no-pillow --method voxel uniform mesh
+
+It prints, for an octree, an octree closed with octree pairing (every child of a refined node refined, as the
+dual schemes of Maréchal and Gao need) and the 27-tree: the leaves per level and the labelled points that are a
+corner of a leaf holding one (a dual scheme puts one hex at each octree vertex).
 """
 import argparse, importlib.util, os, sys
 import numpy as np
@@ -27,10 +32,12 @@ def load_box_cover():
     return m
 
 def children(a, b):
+    """(X, Y, Z) -> (X/b, Y/b, Z/b, b^3): the points of each cell b points a side."""
     X, Y, Z = (s // b for s in a.shape)
     return a.reshape(X, b, Y, b, Z, b).transpose(0, 2, 4, 1, 3, 5).reshape(X, Y, Z, b ** 3)
 
 def up(a, b):
+    """A per-cell array spread to the cells' points (each value repeated b times along each axis)."""
     return a.repeat(b, 0).repeat(b, 1).repeat(b, 2)
 
 def neighbour_min(a):
@@ -45,68 +52,100 @@ def neighbour_min(a):
                 out = np.minimum(out, p[dx:dx + X, dy:dy + Y, dz:dz + Z])
     return out
 
-def leaves(occ, ero, b, levels):
-    """Per-point leaf level after the criterion (a level-l cell may be a leaf where every point of it is eroded,
-    i.e. the cell and one point around it hold one label) and 26-neighbour 1-level balance; counts of leaves
-    holding a labelled point per level."""
+def leaf_levels(occ, ero, b, levels):
+    """Padded labels and the coarsest level per point whose cell may be a leaf (all its points eroded or empty)."""
     n = b ** levels
     shape = [-(-s // n) * n for s in occ.shape]
     o = np.zeros(shape, dtype=np.int64); o[:occ.shape[0], :occ.shape[1], :occ.shape[2]] = occ
     e = np.zeros(shape, dtype=bool); e[:occ.shape[0], :occ.shape[1], :occ.shape[2]] = ero
     e |= o == 0  # empty points: not meshed; an empty cell may be coarse (it holds no hex)
-    # allowed[l]: level-l cells whose points are all eroded (or empty)
-    allowed = [None]
+    lv = np.zeros(shape, dtype=np.int16)
     cur = e
     for l in range(1, levels + 1):
         cur = children(cur, b).all(axis=-1)
-        allowed.append(cur)
-    # leaf level per finest point, top-down, then balance by lowering
-    lv = np.zeros(shape, dtype=np.int16)
-    for l in range(1, levels + 1):
-        lv = np.maximum(lv, (up(allowed[l], b ** l) * l).astype(np.int16))
-    # a level-l leaf must have every point within its 26 neighbouring level-l cells at level >= l-1
-    changed = True
+        lv = np.maximum(lv, (up(cur, b ** l) * l).astype(np.int16))
+    return o, lv
+
+
+def balance_once(lv, b, levels):
+    """Splits every leaf touched (across a face, an edge or a corner) by a leaf more than one level finer; whether
+    anything was split."""
+    changed = False
+    for l in range(levels, 0, -1):
+        cells = children(lv, b ** l)
+        exact = (cells.min(axis=-1) == l) & (cells.max(axis=-1) == l)
+        # the finest level among the leaf's points and the one-point ring around it: the leaves touching it
+        ring = children(neighbour_min(lv), b ** l).min(axis=-1)
+        bad = exact & (ring < l - 1)
+        if bad.any():
+            changed = True
+            lv[up(bad, b ** l)] = l - 1
+    return changed
+
+
+def pair_once(lv, b, levels):
+    """Octree pairing: where a node has a refined child, every child is refined; whether anything was split."""
+    changed = False
+    for l in range(levels, 0, -1):
+        # level-l nodes whose children (level l-1 cells) are not all leaves of level >= l-1
+        kids = children(lv, b ** (l - 1)).min(axis=-1)          # min level per level-(l-1) cell
+        nodes = children(kids, b)                                # per level-l node: its children's min levels
+        internal = nodes.min(axis=-1) < l - 1                    # some child is refined
+        bad = internal & (nodes.max(axis=-1) >= l - 1)           # ... and some child is a leaf of level l-1 or more
+        if bad.any():
+            changed = True
+            mask = up(bad, b ** l)
+            lv[mask] = np.minimum(lv[mask], l - 2)
+    return changed
+
+
+def leaves(occ, ero, b, levels, pairing=False):
+    """Leaf levels after the criterion, 1-level balance across faces, edges and corners and (with `pairing`) octree
+    pairing, closed together; per level the leaves holding a labelled point, and the labelled points that are a
+    corner of such a leaf (a dual scheme's hexes sit at the octree's vertices)."""
+    o, lv = leaf_levels(occ, ero, b, levels)
     rounds = 0
-    while changed:
-        changed = False
+    while True:
         rounds += 1
-        for l in range(levels, 0, -1):
-            cells = children(lv, b ** l)             # points per level-l cell
-            is_leaf = (cells.min(axis=-1) >= l)      # the cell is (inside) a leaf of level >= l
-            exact = is_leaf & (cells.max(axis=-1) == l)
-            nmin = neighbour_min(cells.min(axis=-1))
-            bad = exact & (nmin < l - 1)
-            if bad.any():
-                changed = True
-                mask = up(bad, b ** l)
-                lv[mask] = l - 1
-    # count leaves holding a labelled point
+        changed = balance_once(lv, b, levels)
+        if pairing:
+            changed = pair_once(lv, b, levels) or changed
+        if not changed:
+            break
     lab = o > 0
     counts = []
+    corner = np.zeros(tuple(s + 1 for s in lab.shape), dtype=bool)
     for l in range(0, levels + 1):
-        if l == 0:
-            counts.append(int((lab & (lv == 0)).sum()))
-            continue
         c_lv = children(lv, b ** l)
-        c_lab = children(lab, b ** l).any(axis=-1)
-        leaf = (c_lv.min(axis=-1) == l) & (c_lv.max(axis=-1) == l)
-        counts.append(int((leaf & c_lab).sum()))
-    return counts, rounds
+        leaf = (c_lv.min(axis=-1) == l) & (c_lv.max(axis=-1) == l) & children(lab, b ** l).any(axis=-1)
+        counts.append(int(leaf.sum()))
+        s = b ** l
+        for dx in (0, s):
+            for dy in (0, s):
+                for dz in (0, s):
+                    corner[dx:dx + lab.shape[0]:s, dy:dy + lab.shape[1]:s, dz:dz + lab.shape[2]:s] |= leaf
+    vertices = int((corner[:lab.shape[0], :lab.shape[1], :lab.shape[2]] & lab).sum())
+    return counts, vertices, rounds
+
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("vtu")
-    ap.add_argument("--levels", type=int, default=4)
+    """Prints the octree's, the paired octree's and the 27-tree's leaves and labelled leaf corners for one mesh."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("vtu", help="a uniform --no-pillow mesh (.vtu), e.g. --method voxel --no-optimize")
+    ap.add_argument("--levels", type=int, default=4, help="27-tree levels (the octree gets one more)")
     a = ap.parse_args()
     bc = load_box_cover()
     idx, mat, step, resid = bc.load_vtu(a.vtu)
     occ = bc.occupancy(idx, mat, 0)
     ero = bc.eroded(occ)
     uniform = int((occ > 0).sum())
-    for b, L in ((2, a.levels + 1), (3, a.levels)):
-        counts, rounds = leaves(occ, ero, b, L)
+    for b, L, pairing in ((2, a.levels + 1, False), (2, a.levels + 1, True), (3, a.levels, False)):
+        counts, vertices, rounds = leaves(occ, ero, b, L, pairing)
         tot = sum(counts)
-        print(f"{os.path.basename(a.vtu)}: b={b} levels {L}: leaves holding a labelled point per level {counts}; "
-              f"total {tot:,} = {tot / uniform:.3f} of uniform {uniform:,} (balance rounds {rounds})")
+        name = {2: "octree" + (", paired" if pairing else ""), 3: "27-tree"}[b]
+        print(f"{os.path.basename(a.vtu)}: {name}, levels {L}: leaves holding a labelled point per level {counts}; "
+              f"total {tot:,} = {tot / uniform:.3f} of uniform {uniform:,}; labelled leaf corners {vertices:,} = "
+              f"{vertices / uniform:.3f} (closure rounds {rounds})")
 
-main()
+if __name__ == "__main__":
+    main()

@@ -63,6 +63,10 @@ SIZES = {"plain": 1, "vertex": 7, "edge": 17, "face": 31, "two-face": 45, "full"
 
 
 def read(path, arrays):
+    """The `arrays` byte arrays of a mask file written by bench/tools/request_masks, indexed [x, y, z]."""
+    if not os.path.isfile(path):
+        raise SystemExit(f"{path}: no such file (write it with bench/tools/request_masks; l2.mask exists only for "
+                         f"trees with a level 2, so leave out --level2 for the others)")
     with open(path, "rb") as f:
         data = f.read()
     dx, dy, dz = struct.unpack("<3i", data[:12])

@@ -10,7 +10,10 @@
 // cell: its labelled grid points (0..27); then one byte per cell: 1 where its centre point is labelled
 // (the label a coarse leaf's hex takes, AdaptiveHexes.hpp). OUTDIR/l2.mask: level-2 dims, then the
 // level-2 request bits the same way (no other arrays). Prints one JSON object of counts.
+#include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -45,7 +48,20 @@ void writeMask(const std::string& path, const std::array<int, 3>& dims, const st
 
 }  // namespace
 
+namespace {
+
+// The number an option takes, or an error naming the option.
+double number(const std::string& option, const char* text) {
+    char* end = nullptr;
+    const double v = std::strtod(text, &end);
+    if (end == text || *end != '\0' || !std::isfinite(v))
+        throw std::runtime_error(option + " takes a number, not '" + text + "'");
+    return v;
+}
+
 int run(int argc, char** argv);
+
+}  // namespace
 
 int main(int argc, char** argv) {
     try {
@@ -55,6 +71,8 @@ int main(int argc, char** argv) {
         return 1;
     }
 }
+
+namespace {
 
 int run(int argc, char** argv) {
     using namespace isohex;
@@ -67,9 +85,9 @@ int run(int argc, char** argv) {
     s.adaptive = true;
     for (int i = 3; i < argc; ++i) {
         const std::string a = argv[i];
-        if (a == "--size" && i + 1 < argc) s.size = std::atof(argv[++i]);
-        else if (a == "--level" && i + 1 < argc) s.level = std::atoi(argv[++i]);
-        else if (a == "--iso" && i + 1 < argc) s.select.iso = std::atof(argv[++i]);
+        if (a == "--size" && i + 1 < argc) s.size = number(a, argv[++i]);
+        else if (a == "--level" && i + 1 < argc) s.level = static_cast<int>(number(a, argv[++i]));
+        else if (a == "--iso" && i + 1 < argc) s.select.iso = number(a, argv[++i]);
         else if (a == "--labels") s.load.labels = true;
         else if (a == "--keep-largest") s.keepLargest = true;
         else if (a == "--no-thickness") s.thicknessRefinement = false;
@@ -95,7 +113,10 @@ int run(int argc, char** argv) {
     };
     std::size_t labelled = 0;
     for (const auto v : p.labels.material) labelled += v != 0;
-    long long counts[3][4] = {};  // level 1..2: surface, thickness, union
+    long long counts[3][3] = {};  // level 1..2: surface, thickness, union
+    if (top < 2)
+        std::fprintf(stderr, "request_masks: the tree has %d level(s) above the finest: %s not written\n", top,
+                     top < 1 ? "l1.mask and l2.mask" : "l2.mask");
     for (int l = 1; l <= std::min(top, 2); ++l) {
         const auto dims = octree::levelDims(points, l);
         const std::size_t n = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
@@ -136,3 +157,5 @@ int run(int argc, char** argv) {
                 std::chrono::duration<double>(t1 - t0).count(), std::chrono::duration<double>(t2 - t1).count());
     return 0;
 }
+
+}  // namespace
