@@ -9,7 +9,7 @@ one point before the lowest labelled index on each axis unless --shift moves it)
   band only      the lower bound: every "inside" level-1 cell (its 27 points and one point around them have one
                  label, as refineAtLabelChanges) is one hex, every labelled point of the others ("band") one hex;
   ideal          any coarse region, transitions at 27 hexes: a cell is plain only if all its 26 neighbours are
-                 inside, the other inside cells count 27 (no template can do better than this at level 1);
+                 inside, the other inside cells count 27 (a bound for template sets whose transition cells cost 27 or more);
   plain closure  band refined, every inside cell left coarse, then the marked-node closure (closure-cascade.py's
                  close(), the replay of closeLevel): reproduces the tree's ~1.0x of uniform;
   boxes L1       greedy axis-aligned boxes of inside cells stay coarse, every other inside cell is requested
@@ -29,7 +29,7 @@ what that costs.
 
 Hex count: a labelled point in a refined level-1 cell is 1 hex; an unrefined cell (always inside, so 27 labelled
 points) is its kind's count: plain 1, vertex 7, edge 17, face 31, two-face 45, full 27 (hypothetical --add
-templates as closure-cascade.py's estimates: l3 25, face-corner 40, tripod 27); at level >= 2 an unrefined cell
+templates as bench/RESULTS.md's estimate in "Where the tree's hexes go": l3 25, face-corner 40, tripod 27); at level >= 2 an unrefined cell
 counts the same way and a refined one the sum of its children.
 
 Empty cells (no labelled point) hold no hexes. They are modelled as empty-plain: the label-change criterion
@@ -75,10 +75,11 @@ _spec = importlib.util.spec_from_file_location(
 cc = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(cc)
 
-HEXES = {"plain": 1, "vertex": 7, "edge": 17, "face": 31, "two-face": 45, "full": 27}
+# hexes per unrefined level-1 cell by its kind; tripod, l3 and face-corner are hypothetical (--add), sized as
+# bench/RESULTS.md estimates them ("Where the tree's hexes go")
+HEXES = {"plain": 1, "vertex": 7, "edge": 17, "face": 31, "two-face": 45, "full": 27,
+         "tripod": 27, "l3": 25, "face-corner": 40}
 PICK = "largest"
-for _name in ("tripod", "l3", "face-corner"):  # hypothetical templates (--add), as closure-cascade.py's estimates
-    HEXES[_name] = {"tripod": 27, "l3": 25, "face-corner": 40}[_name]
 
 
 # ---------------------------------------------------------------------------------------------------- input
@@ -136,10 +137,10 @@ def occupancy(idx, mat, shift):
 
 
 # ---------------------------------------------------------------------------------------------------- cells
-def blocks(a):
-    """(X, Y, Z) -> (X/3, Y/3, Z/3, 27): the children of each parent cell."""
-    X, Y, Z = (s // 3 for s in a.shape)
-    return a.reshape(X, 3, Y, 3, Z, 3).transpose(0, 2, 4, 1, 3, 5).reshape(X, Y, Z, 27)
+def blocks(a, b=3):
+    """(X, Y, Z) -> (X/b, Y/b, Z/b, b^3): the children of each parent cell b children a side."""
+    X, Y, Z = (s // b for s in a.shape)
+    return a.reshape(X, b, Y, b, Z, b).transpose(0, 2, 4, 1, 3, 5).reshape(X, Y, Z, b ** 3)
 
 
 def pad3(a, fill):

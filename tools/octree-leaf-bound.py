@@ -31,10 +31,8 @@ def load_box_cover():
     spec.loader.exec_module(m)
     return m
 
-def children(a, b):
-    """(X, Y, Z) -> (X/b, Y/b, Z/b, b^3): the points of each cell b points a side."""
-    X, Y, Z = (s // b for s in a.shape)
-    return a.reshape(X, b, Y, b, Z, b).transpose(0, 2, 4, 1, 3, 5).reshape(X, Y, Z, b ** 3)
+BC = load_box_cover()
+
 
 def up(a, b):
     """A per-cell array spread to the cells' points (each value repeated b times along each axis)."""
@@ -62,7 +60,7 @@ def leaf_levels(occ, ero, b, levels):
     lv = np.zeros(shape, dtype=np.int16)
     cur = e
     for l in range(1, levels + 1):
-        cur = children(cur, b).all(axis=-1)
+        cur = BC.blocks(cur, b).all(axis=-1)
         lv = np.maximum(lv, (up(cur, b ** l) * l).astype(np.int16))
     return o, lv
 
@@ -72,10 +70,10 @@ def balance_once(lv, b, levels):
     anything was split."""
     changed = False
     for l in range(levels, 0, -1):
-        cells = children(lv, b ** l)
+        cells = BC.blocks(lv, b ** l)
         exact = (cells.min(axis=-1) == l) & (cells.max(axis=-1) == l)
         # the finest level among the leaf's points and the one-point ring around it: the leaves touching it
-        ring = children(neighbour_min(lv), b ** l).min(axis=-1)
+        ring = BC.blocks(neighbour_min(lv), b ** l).min(axis=-1)
         bad = exact & (ring < l - 1)
         if bad.any():
             changed = True
@@ -88,8 +86,8 @@ def pair_once(lv, b, levels):
     changed = False
     for l in range(levels, 0, -1):
         # level-l nodes whose children (level l-1 cells) are not all leaves of level >= l-1
-        kids = children(lv, b ** (l - 1)).min(axis=-1)          # min level per level-(l-1) cell
-        nodes = children(kids, b)                                # per level-l node: its children's min levels
+        kids = BC.blocks(lv, b ** (l - 1)).min(axis=-1)          # min level per level-(l-1) cell
+        nodes = BC.blocks(kids, b)                                # per level-l node: its children's min levels
         internal = nodes.min(axis=-1) < l - 1                    # some child is refined
         bad = internal & (nodes.max(axis=-1) >= l - 1)           # ... and some child is a leaf of level l-1 or more
         if bad.any():
@@ -116,8 +114,8 @@ def leaves(occ, ero, b, levels, pairing=False):
     counts = []
     corner = np.zeros(tuple(s + 1 for s in lab.shape), dtype=bool)
     for l in range(0, levels + 1):
-        c_lv = children(lv, b ** l)
-        leaf = (c_lv.min(axis=-1) == l) & (c_lv.max(axis=-1) == l) & children(lab, b ** l).any(axis=-1)
+        c_lv = BC.blocks(lv, b ** l)
+        leaf = (c_lv.min(axis=-1) == l) & (c_lv.max(axis=-1) == l) & BC.blocks(lab, b ** l).any(axis=-1)
         counts.append(int(leaf.sum()))
         s = b ** l
         for dx in (0, s):
@@ -134,10 +132,9 @@ def main():
     ap.add_argument("vtu", help="a uniform --no-pillow mesh (.vtu), e.g. --method voxel --no-optimize")
     ap.add_argument("--levels", type=int, default=4, help="27-tree levels (the octree gets one more)")
     a = ap.parse_args()
-    bc = load_box_cover()
-    idx, mat, step, resid = bc.load_vtu(a.vtu)
-    occ = bc.occupancy(idx, mat, 0)
-    ero = bc.eroded(occ)
+    idx, mat, step, resid = BC.load_vtu(a.vtu)
+    occ = BC.occupancy(idx, mat, 0)
+    ero = BC.eroded(occ)
     uniform = int((occ > 0).sum())
     for b, L, pairing in ((2, a.levels + 1, False), (2, a.levels + 1, True), (3, a.levels, False)):
         counts, vertices, rounds = leaves(occ, ero, b, L, pairing)
