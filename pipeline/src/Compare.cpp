@@ -104,24 +104,58 @@ const char* variantLabel(CompareVariantKind kind) {
     return "?";
 }
 
+namespace {
+
+// The surface nodes the smoothing moved, with where it put them.
+HeldBack smoothedSurface(const HexMesh& before, const HexMesh& after) {
+    HeldBack moved;
+    for (std::size_t v = 0; v < before.nodes.size(); ++v)
+        if (before.nodes[v] != after.nodes[v]) {
+            moved.nodes.push_back(static_cast<Index>(v));
+            moved.targets.push_back(after.nodes[v]);
+        }
+    return moved;
+}
+
+// Puts every node still short of its target there: all variants end with the
+// one smoothed surface, whatever that does to their hexes.
+void finishOnTargets(HexMesh& mesh, const HeldBack& targets) {
+    for (std::size_t i = 0; i < targets.nodes.size(); ++i)
+        mesh.nodes[static_cast<std::size_t>(targets.nodes[i])] = targets.targets[i];
+}
+
+}  // namespace
+
 // a as extracted (and smoothed), b pillowed, c diced up to b's count, d (from
 // b) extracted down to a's. Each variant's seconds are the time of its sheet
-// operations (d's include b's pillowing).
+// operations (d's include b's pillowing). With the boundary fixed the surface
+// is smoothed on a copy of the extraction, whose held-back vertices (contour's
+// valid start) leave no hex inverted; b's sheet is inserted on that valid
+// mesh, then the surface nodes go to their smoothed positions as far as the
+// hexes stay valid, the sheet's copies following (as isohex mesh returns its
+// held-back vertices), and the rest of the way regardless, so that every
+// variant has the same surface on the isosurface.
 CompareVariants makeCompareVariants(const Prepared& p, const MeshSettings& settings, std::uint64_t seed,
                                     StageSink& sink) {
     CompareVariants out;
     HexMesh base = contour(p, settings, sink);
+    const HexMesh valid = base;
     // Once, before any sheet, so that all four variants share one surface mesh.
     if (settings.fixBoundary) out.boundaryQuads = smoothBoundaryOnIsosurface(base, p, sink);
+    const HeldBack surface = smoothedSurface(valid, base);
     auto& v = out.variants;
     v.resize(4);
     v[0] = {CompareVariantKind::NoSheet, base, {}, 0};
-    v[1] = {CompareVariantKind::Sheet, base, {}, 0};
+    v[1] = {CompareVariantKind::Sheet, valid, {}, 0};
     MeshSettings pillowed = settings;
     pillowed.pillow = true;
     {
         const Stopwatch t;
-        v[1].operations = toJson(pillowBoundary(v[1].mesh, pillowed, sink));
+        std::vector<isohex::PillowResult> passes;
+        // (reported as b's "held_back": the surface nodes the smoothing moved)
+        v[1].operations =
+            toJson(pillowBoundary(v[1].mesh, pillowed, sink, &passes, settings.fixBoundary ? &surface : nullptr));
+        finishOnTargets(v[1].mesh, surface);
         v[1].seconds += t.seconds();
     }
     v[2] = {CompareVariantKind::NoSheetDiced, base, {}, 0};

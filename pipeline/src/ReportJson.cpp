@@ -260,7 +260,7 @@ nlohmann::json toJson(const WorstHexPassResult& p) {
 }
 
 nlohmann::json toJson(const smoothing::BoundaryQuadResult& r) {
-    return {{"sweeps", r.sweeps}, {"moves", r.moves}, {"seconds", r.seconds}};
+    return {{"sweeps", r.sweeps}, {"moves", r.moves}, {"onto_surface", r.ontoSurface}, {"seconds", r.seconds}};
 }
 
 nlohmann::json toJson(const RelaxationResult& r) {

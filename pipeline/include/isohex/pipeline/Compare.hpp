@@ -9,10 +9,14 @@
 //      matches a
 // The protocol (settings.fixBoundary, the seed's): the boundary and interface
 // quads are smoothed on the isosurface once, on the extraction, before any
-// sheet is added, so every variant has the same surface mesh (the seed's
-// LBIE meshes had their surface improved by geometric flow, and pillowing
-// left it unchanged); then each variant's surface nodes are fixed and its
-// other nodes optimised (pipeline::optimize). Without fixBoundary (compare
+// sheet is added, so every variant has the same surface mesh, every node of
+// it on the isosurface (the seed's LBIE meshes had their surface improved by
+// geometric flow, and pillowing left it unchanged); b's sheet is inserted on
+// the extraction as contoured (held-back vertices, no hex inverted) and its
+// surface nodes then go to the smoothed surface, as far as the hexes stay
+// valid with the sheet's copies following, then the rest of the way (the
+// valid start isohex mesh uses); then each variant's surface nodes are fixed
+// and its other nodes optimised (pipeline::optimize). Without fixBoundary (compare
 // --move-boundary) nothing is smoothed first and surface nodes slide on the
 // isosurface while each variant is optimised.
 #include <cstdint>
