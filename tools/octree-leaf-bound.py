@@ -13,7 +13,11 @@ cells then take
 templates of 7 to 45 hexes each (tools/request-bound.py), while a dual octree scheme gives one hex per octree
 vertex inside the object, of the order of its leaves plus what its balancing and pairing refine.
 
-    tools/octree-leaf-bound.py MESH.vtu [--levels 4]     # MESH: a --no-pillow --method voxel uniform mesh
+    tools/octree-leaf-bound.py MESH.vtu [--levels 4] [--simple-surface]   # MESH: --no-pillow --method voxel
+
+--simple-surface also lets a cell straddle the surface where its window (the cell and one point around it) holds
+the object and the background as one 6-connected piece each: more permissive than the mesher's surface criterion
+and without its thickness criterion, so a lower bound (one material).
 
 It prints, for an octree, an octree closed with octree pairing (every child of a refined node refined, as the
 dual schemes of Maréchal and Gao need) and the 27-tree: the leaves per level and the labelled points that are a
@@ -50,8 +54,60 @@ def neighbour_min(a):
                 out = np.minimum(out, p[dx:dx + X, dy:dy + Y, dz:dz + Z])
     return out
 
-def leaf_levels(occ, ero, b, levels):
-    """Padded labels and the coarsest level per point whose cell may be a leaf (all its points eroded or empty)."""
+def windows(a, c):
+    """Per cell c points a side: its points and the one-point ring around them, (X/c, Y/c, Z/c, c+2, c+2, c+2)
+    (a copy; outside the array counts as 0)."""
+    p = np.pad(a, 1)
+    X, Y, Z = (s // c for s in a.shape)
+    s0, s1, s2 = p.strides
+    view = np.lib.stride_tricks.as_strided(p, (X, Y, Z, c + 2, c + 2, c + 2),
+                                           (c * s0, c * s1, c * s2, s0, s1, s2), writeable=False)
+    return view
+
+
+def one_component(mask):
+    """Per window of `mask` (K, s, s, s): whether its set points are one 6-connected component (or none)."""
+    K = mask.shape[0]
+    big = np.iinfo(np.int32).max
+    ids = np.where(mask, np.arange(mask.size, dtype=np.int32).reshape(mask.shape), big)
+    while True:
+        p = np.pad(ids, ((0, 0), (1, 1), (1, 1), (1, 1)), constant_values=big)
+        m = ids.copy()
+        for ax in (1, 2, 3):
+            for sh in (0, 2):
+                sl = [slice(None), slice(1, -1), slice(1, -1), slice(1, -1)]
+                sl[ax] = slice(sh, sh + ids.shape[ax])
+                m = np.minimum(m, p[tuple(sl)])
+        m = np.where(mask, m, big)
+        if np.array_equal(m, ids):
+            break
+        ids = m
+    flat = ids.reshape(K, -1)
+    lo = np.where(mask.reshape(K, -1), flat, big).min(axis=1)
+    hi = np.where(mask.reshape(K, -1), flat, -1).max(axis=1)
+    return (lo == big) | (lo == hi)
+
+
+def simple_surface(o, c):
+    """Cells c points a side whose window (the cell and one point around it) holds the object and the background
+    each as one 6-connected piece: a permissive form of the mesher's surface criterion (which also asks each
+    piece to have Euler characteristic 1 and to meet the window's border in one patch), for one material."""
+    w = windows(o > 0, c)
+    inside = w.reshape(w.shape[:3] + (-1,))
+    mixed = inside.any(axis=-1) & ~inside.all(axis=-1)
+    out = np.zeros(w.shape[:3], dtype=bool)
+    idx = np.argwhere(mixed)
+    for start in range(0, len(idx), 20000):  # in chunks: windows of 34^3 points are large
+        chunk = idx[start:start + 20000]
+        blk = w[chunk[:, 0], chunk[:, 1], chunk[:, 2]]
+        ok = one_component(blk) & one_component(~blk)
+        out[chunk[:, 0], chunk[:, 1], chunk[:, 2]] = ok
+    return out
+
+
+def leaf_levels(occ, ero, b, levels, surface=False):
+    """Padded labels and the coarsest level per point whose cell may be a leaf: all its points eroded or empty, or
+    (`surface`) its window holding one simple piece of object and of background (simple_surface)."""
     n = b ** levels
     shape = [-(-s // n) * n for s in occ.shape]
     o = np.zeros(shape, dtype=np.int64); o[:occ.shape[0], :occ.shape[1], :occ.shape[2]] = occ
@@ -61,7 +117,8 @@ def leaf_levels(occ, ero, b, levels):
     cur = e
     for l in range(1, levels + 1):
         cur = BC.blocks(cur, b).all(axis=-1)
-        lv = np.maximum(lv, (up(cur, b ** l) * l).astype(np.int16))
+        allowed = cur | simple_surface(o, b ** l) if surface else cur
+        lv = np.maximum(lv, (up(allowed, b ** l) * l).astype(np.int16))
     return o, lv
 
 
@@ -97,11 +154,11 @@ def pair_once(lv, b, levels):
     return changed
 
 
-def leaves(occ, ero, b, levels, pairing=False):
+def leaves(occ, ero, b, levels, pairing=False, surface=False):
     """Leaf levels after the criterion, 1-level balance across faces, edges and corners and (with `pairing`) octree
     pairing, closed together; per level the leaves holding a labelled point, and the labelled points that are a
     corner of such a leaf (a dual scheme's hexes sit at the octree's vertices)."""
-    o, lv = leaf_levels(occ, ero, b, levels)
+    o, lv = leaf_levels(occ, ero, b, levels, surface)
     rounds = 0
     while True:
         rounds += 1
@@ -131,13 +188,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("vtu", help="a uniform --no-pillow mesh (.vtu), e.g. --method voxel --no-optimize")
     ap.add_argument("--levels", type=int, default=4, help="27-tree levels (the octree gets one more)")
+    ap.add_argument("--simple-surface", action="store_true",
+                    help="also let a cell straddle the surface where its window holds one 6-connected piece of "
+                         "object and one of background (one material; permissive: a lower bound)")
     a = ap.parse_args()
     idx, mat, step, resid = BC.load_vtu(a.vtu)
     occ = BC.occupancy(idx, mat, 0)
     ero = BC.eroded(occ)
     uniform = int((occ > 0).sum())
     for b, L, pairing in ((2, a.levels + 1, False), (2, a.levels + 1, True), (3, a.levels, False)):
-        counts, vertices, rounds = leaves(occ, ero, b, L, pairing)
+        counts, vertices, rounds = leaves(occ, ero, b, L, pairing, a.simple_surface)
         tot = sum(counts)
         name = {2: "octree" + (", paired" if pairing else ""), 3: "27-tree"}[b]
         print(f"{os.path.basename(a.vtu)}: {name}, levels {L}: leaves holding a labelled point per level {counts}; "
