@@ -79,7 +79,6 @@ _spec.loader.exec_module(cc)
 # bench/RESULTS.md estimates them ("Where the tree's hexes go")
 HEXES = {"plain": 1, "vertex": 7, "edge": 17, "face": 31, "two-face": 45, "full": 27,
          "tripod": 27, "l3": 25, "face-corner": 40}
-PICK = "largest"
 
 
 # ---------------------------------------------------------------------------------------------------- input
@@ -283,16 +282,16 @@ def histogram(kinds_arr, where=None):
     return ", ".join(f"{n} {c:,}" for n, c in zip(names, counts)) or "none"
 
 
-def run_level(nonempty, allowed, child_hexes, kind, promote, boxes_gap, label, verbose):
+def run_level(nonempty, allowed, child_hexes, kind, promote, boxes_gap, label, verbose, pick="largest"):
     """One level: choose the coarse cells among `allowed` (all of them, or greedy boxes when boxes_gap is not
-    None), refine every other cell with a hex, replay the closure. Returns per cell the hexes and whether it ended
-    plain (unrefined, plain kind)."""
+    None, picked as greedy_boxes' `pick`), refine every other cell with a hex, replay the closure. Returns per
+    cell the hexes and whether it ended plain (unrefined, plain kind)."""
     if boxes_gap is None:
         coarse = allowed
         note = "all allowed cells requested coarse"
     else:
         t = time.time()
-        boxes, coarse, rejected = greedy_boxes(allowed, boxes_gap, PICK)
+        boxes, coarse, rejected = greedy_boxes(allowed, boxes_gap, pick)
         sides = sorted((tuple(h - l for l, h in zip(lo, hi)) for lo, hi in boxes), key=np.prod, reverse=True)
         note = (f"{len(boxes)} boxes kept ({int(coarse.sum()):,} cells; largest {sides[:3]}), {rejected} rejected, "
                 f"{time.time() - t:.1f} s")
@@ -315,16 +314,16 @@ def run_level(nonempty, allowed, child_hexes, kind, promote, boxes_gap, label, v
     return hexes, plain
 
 
-def estimate(occ, levels, boxes_gap, kind, promote, verbose):
+def estimate(occ, levels, boxes_gap, kind, promote, verbose, pick="largest"):
     points, inside = level1(occ)
     nonempty = points > 0
-    hexes, plain = run_level(nonempty, inside, points, kind, promote, boxes_gap, "level 1", verbose)
+    hexes, plain = run_level(nonempty, inside, points, kind, promote, boxes_gap, "level 1", verbose, pick)
     rows = [int(hexes.sum())]
     for lvl in range(2, levels + 1):
         hexes_p = blocks(pad3(hexes, 0)).sum(axis=-1)
         nonempty = blocks(pad3(nonempty, False)).any(axis=-1)
         allowed = blocks(pad3(plain, False)).all(axis=-1)
-        hexes, plain = run_level(nonempty, allowed, hexes_p, kind, promote, boxes_gap, f"level {lvl}", verbose)
+        hexes, plain = run_level(nonempty, allowed, hexes_p, kind, promote, boxes_gap, f"level {lvl}", verbose, pick)
         rows.append(int(hexes.sum()))
     return rows
 
@@ -343,8 +342,6 @@ def main():
                     help="greedy order: the largest cube grown (default), or of up to 400 large cubes grown the box "
                     "that saves most")
     args = ap.parse_args()
-    global PICK
-    PICK = args.pick
     if args.ball:
         idx, name = ball(args.ball), f"ball r={args.ball:g}"
         mat = np.ones(len(idx), dtype=np.int64)
@@ -382,7 +379,7 @@ def main():
         print("  plain closure of the band:")
         table.append(("plain closure", estimate(occ, 1, None, kind, promote, verbose)[0]))
     print(f"  box cover (gap {args.gap}):")
-    rows = estimate(occ, args.levels, args.gap, kind, promote, verbose)
+    rows = estimate(occ, args.levels, args.gap, kind, promote, verbose, args.pick)
     table.append(("boxes level 1", rows[0]))
     for lvl, n in enumerate(rows[1:], start=2):
         table.append((f"boxes levels 1-{lvl}", n))
