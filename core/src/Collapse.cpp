@@ -129,9 +129,10 @@ std::size_t duplicateHexes(const HexMesh& mesh) {
 }
 
 // Throws if the collapse removed every hex of a material, or made a kind of
-// topological defect the mesh did not have.
-void requireSound(const HexMesh& before, const std::set<std::string>& defectsBefore, const HexMesh& after,
-                  Index sheet) {
+// topological defect the mesh did not have; else returns the defect kinds of
+// `after` (topologicalDefects).
+std::set<std::string> requireSound(const HexMesh& before, const std::set<std::string>& defectsBefore,
+                                   const HexMesh& after, Index sheet) {
     const std::set<std::int32_t> was(before.material.begin(), before.material.end());
     const std::set<std::int32_t> is(after.material.begin(), after.material.end());
     for (std::int32_t m : was)
@@ -143,10 +144,12 @@ void requireSound(const HexMesh& before, const std::set<std::string>& defectsBef
             throw Error("cannot collapse sheet " + std::to_string(sheet) + ": the result would have " +
                         std::to_string(d) + " defect(s) of kind duplicate_hex");
     const ValidityReport rep = validate(after);
-    for (const auto& key : defectKinds(rep))
+    std::set<std::string> kinds = defectKinds(rep);
+    for (const auto& key : kinds)
         if (!defectsBefore.count(key))
             throw Error("cannot collapse sheet " + std::to_string(sheet) + ": the result would have " +
                         std::to_string(rep.count(key)) + " defect(s) of kind " + key);
+    return kinds;
 }
 
 }  // namespace
@@ -158,14 +161,15 @@ std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& shee
 }
 
 std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet,
-                     const std::set<std::string>& defectsBefore) {
+                     const std::set<std::string>& defectsBefore, std::set<std::string>* defectsAfter) {
     if (sheet < 0 || static_cast<std::size_t>(sheet) >= sheets.count())
         throw Error("collapse: no sheet " + std::to_string(sheet));
     const CollapsePlan plan = planEdgeCollapses(mesh, topo, sheets, sheet);
     HexMesh out = collapsedMesh(mesh, topo, sheets, sheet, plan);
-    requireSound(mesh, defectsBefore, out, sheet);
+    std::set<std::string> kinds = requireSound(mesh, defectsBefore, out, sheet);
     const std::size_t removed = mesh.hexCount() - out.hexCount();
     mesh = std::move(out);
+    if (defectsAfter) *defectsAfter = std::move(kinds);
     return removed;
 }
 

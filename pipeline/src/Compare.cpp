@@ -28,13 +28,15 @@ struct SheetEditState {
     std::set<std::string> defects;         // only when extracting
 };
 
-SheetEditState sheetEditState(const HexMesh& mesh, bool extracting) {
+// `defects`: topologicalDefects(mesh) when the caller has it (a collapse
+// that just succeeded), else it is computed when extracting.
+SheetEditState sheetEditState(const HexMesh& mesh, bool extracting, std::set<std::string>* defects = nullptr) {
     SheetEditState st;
     st.topo = buildTopology(mesh);
     st.sheets = buildSheets(mesh, st.topo);
     if (extracting) {
         st.fundamental = fundamentalSheets(mesh, st.topo, st.sheets);
-        st.defects = topologicalDefects(mesh);
+        st.defects = defects ? std::move(*defects) : topologicalDefects(mesh);
     }
     return st;
 }
@@ -69,9 +71,10 @@ nlohmann::json extractUntil(HexMesh& mesh, std::size_t target, std::uint64_t see
         const auto pick = randomSheets(st.sheets, 1, seed + round, st.fundamental);
         if (pick.empty()) break;
         try {
-            collapse(mesh, st.topo, st.sheets, pick[0], st.defects);
+            std::set<std::string> after;
+            collapse(mesh, st.topo, st.sheets, pick[0], st.defects, &after);
             ++extracted;
-            st = sheetEditState(mesh, true);
+            st = sheetEditState(mesh, true, &after);
         } catch (const Error&) {
             ++refused;
             if (refused > 50 + 10 * extracted) break;  // nothing left that can go

@@ -287,6 +287,25 @@ TEST(Collapse, RemovingThePillowRestoresTheOriginalMeshExactly) {
     EXPECT_EQ(m.material, original.material);
 }
 
+TEST(Collapse, GivesTheCollapsedMeshsDefectKindsOnlyWhenItSucceeds) {
+    HexMesh m = classifiedBlock(3, 3, 2);
+    const PillowResult r = pillowAllMaterials(m).front();
+    const Topology t = buildTopology(m);
+    const DualSheets s = buildSheets(m, t);
+    const Index pillow = sheetThroughEdge(m, t, s, r.firstNewNode, r.copyOf[0]);
+    std::set<std::string> after{"not written"};
+    collapse(m, t, s, pillow, topologicalDefects(m), &after);
+    EXPECT_EQ(after, topologicalDefects(m));
+
+    HexMesh plate = classifiedBlock(3, 3, 1);
+    const Topology tp = buildTopology(plate);
+    const DualSheets sp = buildSheets(plate, tp);
+    std::set<std::string> untouched{"not written"};
+    EXPECT_THROW(collapse(plate, tp, sp, sheetThroughEdge(plate, tp, sp, 0, 16), topologicalDefects(plate), &untouched),
+                 Error);
+    EXPECT_EQ(untouched, std::set<std::string>{"not written"});
+}
+
 TEST(Collapse, RefusesToCollapseASurfaceThroughTheSolid) {
     // in a 1-hex-thick plate every z-edge joins the top and bottom surfaces
     HexMesh m = classifiedBlock(3, 3, 1);

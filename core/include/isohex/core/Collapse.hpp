@@ -24,8 +24,11 @@ std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& shee
 std::set<std::string> topologicalDefects(const HexMesh& mesh);
 
 // The same, given topologicalDefects(mesh): a caller that tries several
-// sheets of one mesh validates it once instead of once per attempt.
+// sheets of one mesh validates it once instead of once per attempt. With
+// `defectsAfter`, a collapse that succeeds also gives topologicalDefects of
+// the collapsed mesh (from the validation it made anyway), so a loop of
+// collapses never validates a mesh twice.
 std::size_t collapse(HexMesh& mesh, const Topology& topo, const DualSheets& sheets, Index sheet,
-                     const std::set<std::string>& defectsBefore);
+                     const std::set<std::string>& defectsBefore, std::set<std::string>* defectsAfter = nullptr);
 
 }  // namespace isohex
