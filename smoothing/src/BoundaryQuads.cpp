@@ -120,18 +120,30 @@ double pillowCorners(const std::vector<Vec3>& P, const QuadSurface& s, Index u) 
     return sum;
 }
 
-// The cost node v's position changes: in each of its quads its own corner and
-// the two next to it, against the sweep's normals; and the pillow corners
-// (pillowCorners) of v and of each node it shares an edge with, once each.
-double nodeCost(const std::vector<Vec3>& P, const std::vector<Vec3>& normal, const QuadSurface& s, Index v) {
-    double sum = 0;
+// Node v and each node it shares a quad edge with, once each, in the order of
+// v's quads: the nodes whose pillow corners v's position changes.
+std::vector<Index> edgeNeighbourhood(const QuadSurface& s, Index v) {
     std::vector<Index> near{v};
     for (std::uint32_t qi : s.of[static_cast<std::size_t>(v)]) {
         const auto& q = s.quads[qi];
         const int i = cornerOf(q, v);
-        for (int d : {0, 1, 3}) sum += cornerCost(P, normal, q, (i + d) % 4);
         for (int d : {1, 3})
             if (std::find(near.begin(), near.end(), q[(i + d) % 4]) == near.end()) near.push_back(q[(i + d) % 4]);
+    }
+    return near;
+}
+
+// The cost node v's position changes: in each of its quads its own corner and
+// the two next to it, against the sweep's normals; and the pillow corners
+// (pillowCorners) of the nodes of `near` (edgeNeighbourhood(s, v), the same
+// for every position the visit tries).
+double nodeCost(const std::vector<Vec3>& P, const std::vector<Vec3>& normal, const QuadSurface& s, Index v,
+                const std::vector<Index>& near) {
+    double sum = 0;
+    for (std::uint32_t qi : s.of[static_cast<std::size_t>(v)]) {
+        const auto& q = s.quads[qi];
+        const int i = cornerOf(q, v);
+        for (int d : {0, 1, 3}) sum += cornerCost(P, normal, q, (i + d) % 4);
     }
     for (Index u : near) sum += pillowCorners(P, s, u);
     return sum;
@@ -162,7 +174,8 @@ struct NodeStep {
 int moveNode(HexMesh& mesh, const NodeStep& c, Index v) {
     const std::size_t i = static_cast<std::size_t>(v);
     const Vec3 start = mesh.nodes[i];
-    const double before = nodeCost(mesh.nodes, c.normal, c.surface, v);
+    const std::vector<Index> near = edgeNeighbourhood(c.surface, v);
+    const double before = nodeCost(mesh.nodes, c.normal, c.surface, v, near);
     Vec3 centre{0, 0, 0};
     double edge = 0;
     const auto& quads = c.surface.of[i];
@@ -185,7 +198,7 @@ int moveNode(HexMesh& mesh, const NodeStep& c, Index v) {
             const Vec3 p = c.projector.project(surface, x);
             if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
             mesh.nodes[i] = p;
-            const double cost = nodeCost(mesh.nodes, c.normal, c.surface, v);
+            const double cost = nodeCost(mesh.nodes, c.normal, c.surface, v, near);
             if (cost < best) {
                 best = cost;
                 bestAt = p;
