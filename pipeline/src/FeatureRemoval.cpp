@@ -13,6 +13,7 @@
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/LocalRetry.hpp"
 
 namespace isohex::pipeline {
 
@@ -62,11 +63,9 @@ std::vector<FineFeature> featuresNear(const Meshing& m, const std::vector<Index>
     return out;
 }
 
-// The labels with the features given the label around them, repaired, meshed
-// again on the field repaired for them.
-Meshing meshWithout(const Meshing& m, const std::vector<FineFeature>& features, const MeshSettings& settings,
-                    StageSink& sink, std::size_t& repairedPoints) {
-    const Prepared& p = m.prepared;
+// The labels with the features given the label around them, repaired, on
+// the field repaired for them.
+Prepared withoutFeatures(const Prepared& p, const std::vector<FineFeature>& features, std::size_t& repairedPoints) {
     Prepared q = p;
     for (const FineFeature& f : features)
         for (std::size_t pt : f.points) q.labels.material[pt] = f.replacedBy;
@@ -78,7 +77,39 @@ Meshing meshWithout(const Meshing& m, const std::vector<FineFeature>& features, 
     repairedPoints = repaired->changedPoints();
     q.repairedDomain = std::move(repaired);
     q.facts.grid.topology = octree::regionTopology(q.labels);
-    return meshLabels(std::move(q), settings, sink);
+    return q;
+}
+
+// One meshing without the features, relaxed, and what is left below the target.
+struct Candidate {
+    Meshing meshing;
+    std::optional<RelaxationResult> relaxation;
+    Below below;
+    std::optional<RetryRegion> region;  // with local meshing
+};
+
+// Meshes `q` (best's labels without the features) again: with local meshing
+// (`keptKeys` not empty) only within `cells` grid cells of the points it
+// changed, the rest keeping best's optimised nodes; else the whole.
+Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<NodeKey>& keptKeys, int cells,
+                      const MeshSettings& settings, StageSink& sink, double target) {
+    Candidate c;
+    if (keptKeys.empty()) {
+        c.meshing = meshLabels(q, settings, sink);
+    } else {
+        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
+        std::vector<NodeKey> keys;
+        LocalRegion region;
+        c.meshing = meshLabelsNear(q, settings, sink, best, keptKeys, changed, cells, keys, region);
+        c.region = regionRecord(region);
+    }
+    c.relaxation = relaxToMinQuality(c.meshing.mesh, c.meshing.prepared, settings, sink);
+    c.below = belowOf(c.meshing.mesh, target);
+    return c;
+}
+
+bool better(const Below& after, const Below& before) {
+    return after.min > before.min || (after.min == before.min && after.hexes.size() < before.hexes.size());
 }
 
 }  // namespace
@@ -111,20 +142,27 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
         r.features.push_back({f.shape, f.material, f.replacedBy, f.at, f.volume, f.points.size()});
     sink.note("info", "meshing again without " + std::to_string(features.size()) +
                           " feature(s) finer than an element next to the hexes below " + shortNumber(target));
-    Meshing again;
+    // Local meshing as the retries do it: the near neighbourhood of the
+    // changed points, then the wide one if that did not help.
+    std::vector<NodeKey> keptKeys;
+    if (localRetryApplies(best.prepared, settings)) keptKeys = meshingKeys(best.prepared, settings);
+    std::optional<Candidate> c;
     try {
-        again = meshWithout(best, features, settings, sink, r.repairedPoints);
+        const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
+        c = meshWithout(best, q, keptKeys, kLocalRetryCells, settings, sink, target);
+        if (!keptKeys.empty() && !better(c->below, before))
+            c = meshWithout(best, q, keptKeys, kWideRetryCells, settings, sink, target);
     } catch (const Error& e) {
         r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
         r.seconds = clock.seconds();
         return r;
     }
-    std::optional<RelaxationResult> relaxedAgain = relaxToMinQuality(again.mesh, again.prepared, settings, sink);
-    const Below after = belowOf(again.mesh, target);
-    r.minAfter = after.min;
-    r.belowAfter = after.hexes.size();
-    r.kept = after.min > before.min || (after.min == before.min && after.hexes.size() < before.hexes.size());
+    r.region = c->region;
+    r.minAfter = c->below.min;
+    r.belowAfter = c->below.hexes.size();
+    r.kept = better(c->below, before);
     if (r.kept) {
+        Meshing& again = c->meshing;
         again.contouredHexes = again.mesh.hexCount();
         again.contouredNodes = again.mesh.nodeCount();
         if (uniformKept) {
@@ -132,7 +170,7 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
             again.adaptive->hexLevel.assign(again.mesh.hexCount(), 0);
         }
         best = std::move(again);
-        relaxation = std::move(relaxedAgain);
+        relaxation = std::move(c->relaxation);
     }
     r.seconds = clock.seconds();
     return r;

@@ -60,10 +60,9 @@ Submesh cutOut(const HexMesh& mesh, const std::vector<std::uint8_t>& free) {
     return s;
 }
 
-// Grid cells within kLocalRetryCells of an edited point, sorted.
-std::vector<std::int64_t> cellsNear(const octree::Grid& grid, const std::vector<std::size_t>& edited) {
+// Grid cells within `r` cells of an edited point, sorted.
+std::vector<std::int64_t> cellsNear(const octree::Grid& grid, const std::vector<std::size_t>& edited, int r) {
     std::vector<std::int64_t> near;
-    const int r = kLocalRetryCells;
     for (std::size_t p : edited) {
         const auto [i, j, k] = grid.coords(p);
         for (int c = k - r; c <= k + r; ++c)
@@ -83,43 +82,65 @@ PartWindow wholeWindow(const octree::Grid& grid) {
     return w;
 }
 
-// Starts `mesh` (node keys `keys`) from the optimised `kept` mesh and
-// optimises the hexes around the nodes near the edits (see the header).
-LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
-                              const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
-                              const Prepared& prepared, const MeshSettings& settings, StageSink& sink) {
-    const Stopwatch clock;
-    LocalRegion r;
-    r.meshHexes = mesh.hexCount();
-    // the kept mesh's nodes by key
+// Starts `mesh` (node keys `keys`) from the optimised `kept` mesh and marks
+// the nodes free to move (see the header). A node the kept mesh has too,
+// away from the edits, also takes the kept node's class: the labels there
+// are unchanged, so a different class is the kept run's own doing (the
+// optimiser makes a curve node a surface node where its curve runs through a
+// quad with two more of its nodes), which optimising the node's few hexes
+// alone would undo and leave flat. Only where the surfaces and curves are
+// numbered as in the kept mesh; otherwise such a node is freed.
+std::vector<std::uint8_t> startFromKept(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
+                                        const std::vector<NodeKey>& keptKeys, const std::vector<std::int64_t>& near,
+                                        LocalRegion& r) {
     std::vector<std::pair<NodeKey, Index>> byKey(keptKeys.size());
     for (std::size_t v = 0; v < keptKeys.size(); ++v) byKey[v] = {keptKeys[v], static_cast<Index>(v)};
     std::sort(byKey.begin(), byKey.end());
-    const std::vector<std::int64_t> near = cellsNear(prepared.labels.grid, edited);
+    const bool sameNumbering = mesh.surfaces == kept.surfaces && mesh.curves == kept.curves;
     std::vector<std::uint8_t> free(mesh.nodeCount(), 0);
     for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
         const NodeKey k = keys[v];
+        const bool isNear = std::binary_search(near.begin(), near.end(), k.cell);
         const auto it = std::lower_bound(byKey.begin(), byKey.end(), std::make_pair(k, Index{-1}));
-        const bool matched = it != byKey.end() && it->first == k;
-        if (matched) {
+        if (it == byKey.end() || it->first != k) {
+            free[v] = 1;
+        } else {
             const auto u = static_cast<std::size_t>(it->second);
             mesh.nodes[v] = kept.nodes[u];
             ++r.carried;
+            const bool changed = mesh.nodeClass[v] != kept.nodeClass[u];
+            if (changed && !isNear && sameNumbering) mesh.nodeClass[v] = kept.nodeClass[u];
+            free[v] = isNear || (changed && !sameNumbering);
         }
-        const bool changed =
-            !matched || mesh.nodeClass[v].kind != kept.nodeClass[static_cast<std::size_t>(it->second)].kind ||
-            mesh.nodeClass[v].id != kept.nodeClass[static_cast<std::size_t>(it->second)].id;
-        free[v] = changed || std::binary_search(near.begin(), near.end(), k.cell);
         r.nodes += free[v];
     }
+    return free;
+}
+
+// Starts `mesh` from the optimised `kept` mesh and optimises the hexes
+// around the nodes within `cells` cells of the edits (see the header).
+LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
+                              const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
+                              const Prepared& prepared, const MeshSettings& settings, StageSink& sink) {
+    const Stopwatch clock;
+    LocalRegion r;
+    r.cells = cells;
+    r.meshHexes = mesh.hexCount();
+    const std::vector<std::int64_t> near = cellsNear(prepared.labels.grid, edited, cells);
+    const std::vector<std::uint8_t> free = startFromKept(mesh, keys, kept, keptKeys, near, r);
     Submesh s = cutOut(mesh, free);
     r.hexes = s.mesh.hexCount();
     // The second max-min target is decided on a whole mesh, never on a window
     // (a window's minimum says nothing of the rest).
     MeshSettings window = settings;
     window.worstHexTarget = settings.worstHexTarget.value_or(kDefaultWorstHexTarget);
-    r.optimization = optimize(s.mesh, prepared, window, sink, false);
-    for (std::size_t i = 0; i < s.from.size(); ++i) mesh.nodes[static_cast<std::size_t>(s.from[i])] = s.mesh.nodes[i];
+    r.optimization = optimize(s.mesh, prepared, window, sink, false, OptimizeScope::Neighbourhood);
+    // positions back, and the classes of the free nodes (the optimiser's set-up may demote curve nodes)
+    for (std::size_t i = 0; i < s.from.size(); ++i) {
+        const auto v = static_cast<std::size_t>(s.from[i]);
+        mesh.nodes[v] = s.mesh.nodes[i];
+        if (free[v]) mesh.nodeClass[v] = s.mesh.nodeClass[i];
+    }
     r.seconds = clock.seconds();
     return r;
 }
@@ -140,7 +161,7 @@ std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& s
 }
 
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
-                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
+                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
                        std::vector<NodeKey>& keys, LocalRegion& region) {
     Meshing m;
     m.prepared = std::move(prepared);
@@ -152,9 +173,29 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
     std::vector<isohex::PillowResult> passes;
     m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
     if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(m.mesh));
-    region = optimiseNearEdits(m.mesh, keys, kept.mesh, keptKeys, edited, m.prepared, settings, sink);
+    region = optimiseNearEdits(m.mesh, keys, kept.mesh, keptKeys, edited, cells, m.prepared, settings, sink);
     m.optimization = kept.optimization;
     return m;
+}
+
+std::vector<std::size_t> changedPoints(const octree::Labels& before, const octree::Labels& after) {
+    std::vector<std::size_t> changed;
+    for (std::size_t p = 0; p < after.material.size(); ++p)
+        if (before.material[p] != after.material[p]) changed.push_back(p);
+    return changed;
+}
+
+RetryRegion regionRecord(const LocalRegion& region) {
+    const smoothing::SmoothingResult& o = region.optimization.smoothingResult;
+    return RetryRegion{region.nodes,
+                       region.hexes,
+                       region.meshHexes,
+                       region.carried,
+                       region.cells,
+                       o.invertedBefore,
+                       static_cast<std::size_t>(o.untangleSweeps),
+                       static_cast<std::size_t>(o.sweeps),
+                       region.seconds};
 }
 
 }  // namespace isohex::pipeline

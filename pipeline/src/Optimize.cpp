@@ -70,7 +70,7 @@ smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Pr
 }
 
 OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
-                        bool warnLeftInverted) {
+                        bool warnLeftInverted, OptimizeScope scope) {
     OptimizeResult r;
     r.enabled = settings.optimize;
     if (!settings.optimize) return r;
@@ -78,6 +78,7 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     smoothing::SmoothingOptions opt;
     opt.fixBoundary = settings.fixBoundary;
     opt.offSurfaceNodesOntoSurface = !settings.tangledStart;
+    if (scope == OptimizeScope::Neighbourhood) opt.relativeTolerance = 0;
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     // The optimiser builds its own topology and keeps only the node-to-hex

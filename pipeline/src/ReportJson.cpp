@@ -71,6 +71,19 @@ nlohmann::json toJson(const StuckCounts& c) {
             {"min_not_inverted", c.minValid}};
 }
 
+// The neighbourhood optimised again; the rest kept its nodes.
+nlohmann::json toJson(const RetryRegion& r) {
+    return {{"cells", r.cells},
+            {"nodes", r.nodes},
+            {"hexes", r.hexes},
+            {"mesh_hexes", r.meshHexes},
+            {"nodes_carried", r.carried},
+            {"inverted_before", r.invertedBefore},
+            {"untangle_sweeps", r.untangleSweeps},
+            {"sweeps", r.sweeps},
+            {"seconds", r.seconds}};
+}
+
 nlohmann::json toJson(const RetryAttempt& a) {
     nlohmann::json j = {{"attempt", a.attempt}, {"before", toJson(a.before)}, {"edits", nlohmann::json::array()},
                         {"kept", a.kept}};
@@ -78,12 +91,7 @@ nlohmann::json toJson(const RetryAttempt& a) {
         j["edits"].push_back({{"grid_point", e.gridPoint}, {"at", e.at}, {"from", e.from}, {"to", e.to}});
     if (a.notMeshedBecause) j["not_meshed_because"] = *a.notMeshedBecause;
     if (a.after) j["after"] = toJson(*a.after);
-    if (const auto& r = a.region)  // the neighbourhood optimised again; the rest kept its nodes
-        j["region"] = {{"cells", r->cells},          {"nodes", r->nodes},
-                       {"hexes", r->hexes},          {"mesh_hexes", r->meshHexes},
-                       {"nodes_carried", r->carried}, {"inverted_before", r->invertedBefore},
-                       {"untangle_sweeps", r->untangleSweeps}, {"sweeps", r->sweeps},
-                       {"seconds", r->seconds}};
+    if (a.region) j["region"] = toJson(*a.region);
     return j;
 }
 
@@ -291,6 +299,7 @@ nlohmann::json toJson(const FeatureRemovalResult& r) {
                         {"repaired_points", r.repairedPoints},
                         {"seconds", r.seconds}};
     if (r.notMeshedBecause) j["not_meshed_because"] = *r.notMeshedBecause;
+    if (r.region) j["region"] = toJson(*r.region);
     return j;
 }
 

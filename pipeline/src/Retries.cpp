@@ -79,10 +79,10 @@ std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std:
 
 // Meshes the edited labels `q` again on the field repaired for them; returns
 // how many grid points that field changes. Local retries contour and pillow
-// the whole grid but optimise only around the edits (`keys` then receives
-// the new mesh's node keys, `tried` its region).
-std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::PointEdit>& edits, Meshing& again,
-                       std::vector<NodeKey>& keys, RetryAttempt& tried) {
+// the whole grid but optimise only within `cells` grid cells of the edits
+// (`keys` then receives the new mesh's node keys, `tried` its region).
+std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::PointEdit>& edits, int cells,
+                       Meshing& again, std::vector<NodeKey>& keys, RetryAttempt& tried) {
     const Prepared& p = s.best.prepared;
     if (!s.sampled) s.sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, s.grid));
     auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *s.sampled, q.labels);
@@ -96,11 +96,8 @@ std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::Poi
     std::vector<std::size_t> edited;
     for (const auto& e : edits) edited.push_back(e.point);
     LocalRegion region;
-    again = meshLabelsNear(std::move(q), s.settings, s.sink, s.best, s.keptKeys, edited, keys, region);
-    const smoothing::SmoothingResult& o = region.optimization.smoothingResult;
-    tried.region = RetryRegion{region.nodes, region.hexes, region.meshHexes, region.carried, kLocalRetryCells,
-                               o.invertedBefore, static_cast<std::size_t>(o.untangleSweeps),
-                               static_cast<std::size_t>(o.sweeps), region.seconds};
+    again = meshLabelsNear(std::move(q), s.settings, s.sink, s.best, s.keptKeys, edited, cells, keys, region);
+    tried.region = regionRecord(region);
     return repairedPoints;
 }
 
@@ -136,23 +133,20 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
                             (stuck.inverted.empty() ? " nearly flat" : " inverted") + " hex(es) change material");
     Meshing again;
     std::vector<NodeKey> keys;
-    std::optional<Prepared> whole;  // for meshing the whole again
-    if (s.local) whole = q;
-    std::size_t repairedPoints = meshEdited(s, q, edits, again, keys, tried);
+    std::optional<Prepared> wide;  // for the wide neighbourhood
+    if (s.local) wide = q;
+    std::size_t repairedPoints = meshEdited(s, q, edits, kLocalRetryCells, again, keys, tried);
     ++s.result.meshedAgain;
     Stuck now = stuckHexes(again.mesh, floor);
     bool better = now.betterThan(stuck, floor);
-    if (whole && (!better || (!stuck.inverted.empty() && now.inverted.size() >= stuck.inverted.size()))) {
-        // The neighbourhood alone did not help, or left the inverted hexes
-        // it was for (where kept nodes meet new ones it can leave a hex
-        // flat): the whole mesh again, as before.
-        s.sink.note("info", "retry " + std::to_string(n) + ": optimising the neighbourhood of the edits did not help; "
-                                "meshing the whole again");
-        s.local = false;
-        tried.region.reset();
-        repairedPoints = meshEdited(s, *whole, edits, again, keys, tried);
-        s.local = true;
-        s.keptKeys.clear();  // made again from the mesh kept, when needed
+    if (wide && (!better || (!stuck.inverted.empty() && now.inverted.size() >= stuck.inverted.size()))) {
+        // The near neighbourhood did not help, or left the inverted hexes it
+        // was for (where kept nodes meet new ones it can leave a hex flat):
+        // the wide one, never the whole volume.
+        s.sink.note("info", "retry " + std::to_string(n) + ": optimising " + std::to_string(kLocalRetryCells) +
+                                " cells around the edits did not help; optimising " +
+                                std::to_string(kWideRetryCells) + " cells around them");
+        repairedPoints = meshEdited(s, *wide, edits, kWideRetryCells, again, keys, tried);
         now = stuckHexes(again.mesh, floor);
         better = now.betterThan(stuck, floor);
     }

@@ -3,7 +3,9 @@ label map with a one-voxel speck or a one-voxel pocket misses --min-quality 0.6
 with --keep-features; by default the
 feature is removed, listed in the report (position, volume) and the minimum is
 reached, judged by VTK's vtkMeshQuality on the written file; the same volumes
-without the feature (a ball, a plate) remove nothing. (A tunnel one voxel wide
+without the feature (a ball, a plate) remove nothing. The meshing without the
+feature optimises only a neighbourhood of it: every node farther away keeps
+the position it had in the mesh with the feature. (A tunnel one voxel wide
 through a plate four voxels thick reaches 0.6 without removal; the tunnel
 search is tested on label grids in tests/pipeline/test_local_features.cpp.)"""
 import json
@@ -12,12 +14,13 @@ import sys
 import unittest
 
 import numpy as np
+from vtk.util import numpy_support as ns
 
 sys.path.insert(0, os.path.dirname(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "samples"))
 from common import EXIT_BELOW_QUALITY, run, workdir  # noqa: E402
 from make_phantoms import write_nifti  # noqa: E402
-from vtk_tools import vtk_sj  # noqa: E402
+from vtk_tools import read_vtu, vtk_sj  # noqa: E402
 
 Q = 0.6
 
@@ -37,8 +40,11 @@ class FeatureRemoval(unittest.TestCase):
         for name, a in (("ball", ball), ("speck", speck), ("pocket", pocket), ("plate", plate)):
             write_nifti(os.path.join(cls.dir, name + ".nii.gz"), a)
 
+    def out(self, name, *extra):
+        return os.path.join(self.dir, name + "".join(extra).replace("-", "_") + ".vtu")
+
     def mesh(self, name, *extra):
-        out = os.path.join(self.dir, name + "".join(extra).replace("-", "_") + ".vtu")
+        out = self.out(name, *extra)
         report = out[:-4] + ".json"
         p = run(["mesh", os.path.join(self.dir, name + ".nii.gz"), "--labels", "--size", "1", "--min-quality",
                  str(Q), "--threads", "1", "-o", out, "--report", report, "-q", "--force", *extra], check=False)
@@ -67,7 +73,24 @@ class FeatureRemoval(unittest.TestCase):
         np.testing.assert_allclose(f["at"], at, atol=1e-9)
         self.assertEqual(f["volume"], float(f["grid_points"]))  # 1 mm voxels, --size 1
         self.assertEqual((f["material"], f["replaced_by"]), (material, replaced_by))
+        self.check_far_nodes_kept(self.out(name, "--allow-below", "--keep-features"), self.out(name), r, at)
         return f
+
+    def check_far_nodes_kept(self, with_feature, without, removal, at):
+        # Only the hexes near the feature were optimised again; every node
+        # outside the neighbourhood (a box of region["cells"] grid cells
+        # around each changed grid point, plus the node's half cell and one
+        # more for the repair) is where the mesh with the feature had it, to
+        # the bit.
+        region = removal["region"]
+        self.assertLess(region["hexes"], 0.5 * region["mesh_hexes"])
+        a = ns.vtk_to_numpy(read_vtu(with_feature).GetPoints().GetData())
+        b = ns.vtk_to_numpy(read_vtu(without).GetPoints().GetData())
+        far = np.abs(a - np.asarray(at)).max(axis=1) > region["cells"] + 1.5
+        self.assertGreater(far.sum(), 0.5 * len(a))
+        kept = {tuple(x) for x in b}
+        moved = sum(1 for x in a[far] if tuple(x) not in kept)
+        self.assertEqual(moved, 0, f"{moved} of {far.sum()} far nodes moved")
 
     def test_one_voxel_speck_is_removed_and_listed(self):
         f = self.check_removed("speck", "speck", [15, 15, 29], 1, 0)

@@ -4,7 +4,8 @@
 // retries and the bounded relaxation, a speck, pocket, one-point strand or
 // tunnel of the element grid's labels next to them is given the label around
 // it (never a material's only piece), the labels are repaired and meshed
-// again, and the result is kept when its worst hex is better. Each feature removed is reported with its
+// again, optimising only around the changed grid points (LocalRetry.hpp),
+// and the result is kept when its worst hex is better. Each feature removed is reported with its
 // position and volume. Off when the mesh reaches Q.
 #include <cstddef>
 #include <cstdint>
@@ -38,6 +39,7 @@ struct FeatureRemovalResult {
     double minBefore = 0, minAfter = 0;    // degenerate as 0
     std::size_t belowBefore = 0, belowAfter = 0;
     std::size_t repairedPoints = 0;        // points the repair changed after the removal
+    std::optional<RetryRegion> region;     // the neighbourhood optimised again (LocalRetry.hpp)
     double seconds = 0;
 };
 

@@ -1,18 +1,21 @@
 #pragma once
-// A retry's meshing kept to a neighbourhood of its grid edits. The edited
-// labels are contoured and pillowed again (the whole grid: a small part of
-// the time), then every node that the kept mesh has too (same NodeKey: the
-// grid cell of its contouring vertex and its sheet) takes its optimised
-// position there; only the nodes within `kLocalRetryCells` grid cells of an
-// edit, the nodes the kept mesh does not have and those whose class changed
-// move, and only the hexes around them are optimised (a submesh whose other
-// nodes are fixed). The rest of the volume keeps its optimised nodes.
+// Meshing again kept to a neighbourhood of grid edits (the retries' and
+// feature removal's). The edited labels are contoured and pillowed again
+// (the whole grid: a small part of the time), then every node that the kept
+// mesh has too (same NodeKey: the grid cell of its contouring vertex and its
+// sheet) takes its optimised position there; only the nodes within a few
+// grid cells of an edit, the nodes the kept mesh does not have and those
+// whose class changed move, and only the hexes around them are optimised (a
+// submesh whose other nodes are fixed). The rest of the volume keeps its
+// optimised nodes: neither the retries nor feature removal optimise the
+// whole volume again.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/octree/Grid.hpp"
+#include "isohex/octree/Labels.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Part.hpp"
@@ -20,8 +23,11 @@
 
 namespace isohex::pipeline {
 
-// How far (grid cells, in each axis) around an edited grid point nodes move.
+// How far (grid cells, in each axis) around an edited grid point nodes move:
+// first the near neighbourhood, then, when that did not help, the wide one
+// (the kept nodes at the near one's border can hold a hex flat).
 inline constexpr int kLocalRetryCells = 3;
+inline constexpr int kWideRetryCells = 9;
 
 // Whether a retry can be local: one sheet layer at most, no adaptive tree,
 // not a part (those number their nodes otherwise).
@@ -33,6 +39,7 @@ std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& s
 
 // What a local re-optimisation touched.
 struct LocalRegion {
+    int cells = 0;              // the neighbourhood's half-width in grid cells
     std::size_t nodes = 0;      // nodes free to move
     std::size_t hexes = 0;      // hexes optimised (those with a free node)
     std::size_t carried = 0;    // nodes that took their position from the kept mesh
@@ -43,11 +50,19 @@ struct LocalRegion {
 
 // Contours and pillows the edited labels `prepared`, starts the mesh from the
 // optimised `kept` mesh (node keys `keptKeys`) and optimises the
-// neighbourhood of the grid points `edited` (indices into the labels' grid),
-// as above. `keys` receives the new mesh's node keys. The result's
-// optimization is kept's (the whole-mesh run); the local one is in `region`.
+// neighbourhood of `cells` grid cells around the grid points `edited`
+// (indices into the labels' grid), as above. `keys` receives the new mesh's
+// node keys. The result's optimization is kept's (the whole-mesh run); the
+// local one is in `region`.
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
-                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited,
+                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
                        std::vector<NodeKey>& keys, LocalRegion& region);
+
+// The grid points whose material differs between `before` and `after` (the
+// same grid): what a local meshing of `after` must free around.
+std::vector<std::size_t> changedPoints(const octree::Labels& before, const octree::Labels& after);
+
+// The report's record of a local meshing.
+RetryRegion regionRecord(const LocalRegion& region);
 
 }  // namespace isohex::pipeline

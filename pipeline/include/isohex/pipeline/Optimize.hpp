@@ -2,6 +2,7 @@
 // The optimisation stage: untangling and mean-ratio optimisation with surface
 // nodes kept on the isosurface (smoothing::optimizeMesh through a
 // FieldProjector), then the max-min pass on the hexes it leaves poor.
+#include <cstdint>
 #include <optional>
 
 #include "isohex/core/HexMesh.hpp"
@@ -72,9 +73,16 @@ struct OptimizeResult {
 // fixed (smoothing::smoothBoundaryQuads).
 smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink);
 
+// What a run of the optimiser covers. A neighbourhood (LocalRetry.hpp) is
+// mostly nodes already optimised around a few new ones: its mean-ratio
+// sweeps stop when no node is active, not on a fraction of its summed
+// objective (which the optimised nodes dominate, so the sweeps stopped after
+// one with the new nodes barely moved).
+enum class OptimizeScope : std::uint8_t { Whole, Neighbourhood };
+
 // Stage "optimize". Unless `warnLeftInverted` is false, a warning names the
 // hexes still inverted after it.
 OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& settings, StageSink& sink,
-                        bool warnLeftInverted = true);
+                        bool warnLeftInverted = true, OptimizeScope scope = OptimizeScope::Whole);
 
 }  // namespace isohex::pipeline

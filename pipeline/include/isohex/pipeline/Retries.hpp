@@ -48,7 +48,7 @@ struct RetryEdit {
 // Where a retry re-optimised (LocalRetry.hpp): the rest kept its nodes.
 struct RetryRegion {
     std::size_t nodes = 0, hexes = 0, meshHexes = 0, carried = 0;
-    int cells = 0;  // kLocalRetryCells
+    int cells = 0;  // the neighbourhood's half-width in grid cells (LocalRetry.hpp)
     std::size_t invertedBefore = 0, untangleSweeps = 0, sweeps = 0;
     double seconds = 0;
 };
