@@ -77,6 +77,13 @@ std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std:
     return at;
 }
 
+// `cells` for optimising the whole volume again.
+constexpr int kWholeVolume = 0;
+
+std::string scopeText(int cells) {
+    return cells == kWholeVolume ? "the whole volume" : std::to_string(cells) + " cells around the edits";
+}
+
 // Meshes the edited labels `q` again on the field repaired for them; returns
 // how many grid points that field changes. Local retries contour and pillow
 // the whole grid but optimise only within `cells` grid cells of the edits
@@ -88,7 +95,7 @@ std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::Poi
     auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *s.sampled, q.labels);
     const std::size_t repairedPoints = repaired->changedPoints();
     q.repairedDomain = std::move(repaired);
-    if (!s.local) {
+    if (!s.local || cells == kWholeVolume) {
         again = meshLabels(std::move(q), s.settings, s.sink);
         return repairedPoints;
     }
@@ -131,25 +138,29 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     s.sink.note("info", "meshing again (retry " + std::to_string(n) + " of " + std::to_string(maxRetries) + "): " +
                             std::to_string(edits.size()) + " grid point(s) next to " + std::to_string(work.size()) +
                             (stuck.inverted.empty() ? " nearly flat" : " inverted") + " hex(es) change material");
+    // The near neighbourhood, then the wide one, then (the last resort) the
+    // whole volume, until one helps: where kept nodes meet new ones a
+    // neighbourhood can leave a hex flat, or the inverted hexes it was for.
+    const std::vector<int> scopes = s.local ? std::vector<int>{kLocalRetryCells, kWideRetryCells, kWholeVolume}
+                                            : std::vector<int>{kWholeVolume};
     Meshing again;
     std::vector<NodeKey> keys;
-    std::optional<Prepared> wide;  // for the wide neighbourhood
-    if (s.local) wide = q;
-    std::size_t repairedPoints = meshEdited(s, q, edits, kLocalRetryCells, again, keys, tried);
-    ++s.result.meshedAgain;
-    Stuck now = stuckHexes(again.mesh, floor);
-    bool better = now.betterThan(stuck, floor);
-    if (wide && (!better || (!stuck.inverted.empty() && now.inverted.size() >= stuck.inverted.size()))) {
-        // The near neighbourhood did not help, or left the inverted hexes it
-        // was for (where kept nodes meet new ones it can leave a hex flat):
-        // the wide one, never the whole volume.
-        s.sink.note("info", "retry " + std::to_string(n) + ": optimising " + std::to_string(kLocalRetryCells) +
-                                " cells around the edits did not help; optimising " +
-                                std::to_string(kWideRetryCells) + " cells around them");
-        repairedPoints = meshEdited(s, *wide, edits, kWideRetryCells, again, keys, tried);
+    std::size_t repairedPoints = 0;
+    Stuck now;
+    bool better = false;
+    for (std::size_t i = 0; i < scopes.size(); ++i) {
+        if (i > 0)
+            s.sink.note("info", "retry " + std::to_string(n) + ": optimising " + scopeText(scopes[i - 1]) +
+                                    " did not help; optimising " + scopeText(scopes[i]));
+        Prepared edited = q;
+        keys.clear();
+        tried.region.reset();
+        repairedPoints = meshEdited(s, edited, edits, scopes[i], again, keys, tried);
         now = stuckHexes(again.mesh, floor);
         better = now.betterThan(stuck, floor);
+        if (better && (stuck.inverted.empty() || now.inverted.size() < stuck.inverted.size())) break;
     }
+    ++s.result.meshedAgain;
     tried.after = now.counts();
     tried.kept = better;
     s.result.attempts.push_back(tried);
@@ -159,7 +170,7 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
         again.contouredNodes = again.mesh.nodeCount();
         again.prepared.facts.grid.repairedFieldPoints = repairedPoints;
         s.best = std::move(again);
-        if (s.local) s.keptKeys = std::move(keys);
+        s.keptKeys = std::move(keys);  // empty after a whole meshing: made again when needed
         s.result.stuck = std::move(now);
         s.result.pointsEdited += edits.size();
     }

@@ -398,10 +398,11 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # leaves none there.)
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
         a = os.path.join(self.dir, "jhu_3.5mm_no_retry.vtu")
-        # (--max-deviation 0: no boundary relaxation after the retries either,
-        # so the hex the retries are for stays inverted)
+        # (--max-deviation 0 and --keep-features: no boundary relaxation or
+        # feature removal after the retries either, so the hex the retries
+        # are for stays inverted)
         p = run_below_allowed(["mesh", src, "--labels", "--size", "3.5", "--retries", "0", "--max-deviation", "0",
-                               "--tangled-start", "--threads", 2, "-o", a, "--report", a + ".json", "-q", "--force"], a)
+                               "--keep-features", "--tangled-start", "--threads", 2, "-o", a, "--report", a + ".json", "-q", "--force"], a)
         with open(a + ".json") as f:
             ra = json.load(f)
         b, rb = self.mesh("jhu_3.5mm_retry", src, "--labels", "--size", "3.5", "--tangled-start")
