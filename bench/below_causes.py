@@ -4,7 +4,8 @@
 Q counted by the shape of the element grid's labels next to them (the report's
 quality.below_target_by_shape: speck, pocket, strand, tunnel, thin sheet, repair
 site, triple line, smooth boundary, interior), with VTK's minimum on the written
-file and what feature removal did (quality.means).
+file and what feature removal did (quality.means: features, minimum before and
+after, seconds, and the neighbourhood it optimised again).
 
     bench/below_causes.py [--isohex build/cli/isohex] [--data /work/shared/data]
                           [--q 0.3] [--keep-features] [--only NAME ...] [--out DIR]
@@ -28,6 +29,8 @@ SHORT = ["speck", "pocket", "strand", "tunnel", "thin sheet", "repair site", "tr
 
 def inputs(data):
     c = [("skull_ct --iso 2.9", "skull_ct.nii.gz", ["--iso", "2.9"]),
+         ("ch2bet 4 mm", "ch2bet.nii.gz", ["--size", "4", "--keep-largest"]),
+         ("ch2bet 3 mm", "ch2bet.nii.gz", ["--size", "3", "--keep-largest"]),
          ("ch2bet 2 mm", "ch2bet.nii.gz", ["--size", "2", "--keep-largest"]),
          ("ch2bet 1 mm", "ch2bet.nii.gz", ["--size", "1", "--keep-largest"])]
     c += [(f"JHU {s} mm", "JHU-WhiteMatter-labels-2mm.nii.gz", ["--labels", "--size", s]) for s in JHU_SIZES]
@@ -53,7 +56,9 @@ def run(a, name, path, opts):
         f = feat[0]
         vol = sum(x["volume"] for x in f["features"])
         fr = (f"{len(f['features'])} removed ({vol:.3g} mm^3), {f['min_scaled_jacobian_before']:.3f} -> "
-              f"{f['min_scaled_jacobian_after']:.3f} ({'kept' if f['kept'] else 'not kept'})")
+              f"{f['min_scaled_jacobian_after']:.3f} ({'kept' if f['kept'] else 'not kept'}), {f['seconds']:.1f} s")
+        if "region" in f:  # the neighbourhood optimised again (LocalRetry.hpp)
+            fr += f", {f['region']['hexes']:,} hexes optimised again ({f['region']['cells']} cells)"
         if "not_meshed_because" in f:
             fr = "none found" if f["features"] == [] else f["not_meshed_because"][:80]
     cells = " | ".join(str(shapes.get(s, 0)) for s in SHAPES)
