@@ -90,7 +90,7 @@ struct Candidate {
 
 // Meshes `q` (best's labels without the features) again: with local meshing
 // (`keptKeys` not empty) only within `cells` grid cells of the points it
-// changed, the rest keeping best's optimised nodes; else the whole.
+// changed, the rest keeping best's optimised nodes; else the whole volume.
 Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<NodeKey>& keptKeys, int cells,
                       const MeshSettings& settings, StageSink& sink, double target) {
     Candidate c;
@@ -142,16 +142,20 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
         r.features.push_back({f.shape, f.material, f.replacedBy, f.at, f.volume, f.points.size()});
     sink.note("info", "meshing again without " + std::to_string(features.size()) +
                           " feature(s) finer than an element next to the hexes below " + shortNumber(target));
-    // Local meshing as the retries do it: the near neighbourhood of the
-    // changed points, then the wide one if that did not help.
+    // As the retries do it: the near neighbourhood of the changed points,
+    // then the wide one, then (the last resort) the whole volume, until one
+    // is better.
     std::vector<NodeKey> keptKeys;
     if (localRetryApplies(best.prepared, settings)) keptKeys = meshingKeys(best.prepared, settings);
+    const std::vector<int> scopes =
+        keptKeys.empty() ? std::vector<int>{0} : std::vector<int>{kLocalRetryCells, kWideRetryCells, 0};
     std::optional<Candidate> c;
     try {
         const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
-        c = meshWithout(best, q, keptKeys, kLocalRetryCells, settings, sink, target);
-        if (!keptKeys.empty() && !better(c->below, before))
-            c = meshWithout(best, q, keptKeys, kWideRetryCells, settings, sink, target);
+        for (int cells : scopes) {
+            c = meshWithout(best, q, cells == 0 ? std::vector<NodeKey>{} : keptKeys, cells, settings, sink, target);
+            if (better(c->below, before)) break;
+        }
     } catch (const Error& e) {
         r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
         r.seconds = clock.seconds();
