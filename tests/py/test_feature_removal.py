@@ -35,9 +35,11 @@ class FeatureRemoval(unittest.TestCase):
         speck, pocket = ball.copy(), ball.copy()
         speck[15, 15, 29] = 1   # two voxels off the ball
         pocket[15, 15, 15] = 0  # at its centre
+        halves = np.where(ball & (x >= 16), 2, ball).astype(np.uint8)  # two materials: a curve where both meet the outside
+        halves[15, 15, 29] = 1
         plate = np.zeros((n, n, n), np.uint8)
         plate[4:28, 4:28, 14:18] = 1
-        for name, a in (("ball", ball), ("speck", speck), ("pocket", pocket), ("plate", plate)):
+        for name, a in (("ball", ball), ("speck", speck), ("pocket", pocket), ("plate", plate), ("halves", halves)):
             write_nifti(os.path.join(cls.dir, name + ".nii.gz"), a)
 
     def out(self, name, *extra):
@@ -99,6 +101,23 @@ class FeatureRemoval(unittest.TestCase):
     def test_one_voxel_pocket_is_filled_and_listed(self):
         f = self.check_removed("pocket", "pocket", [15, 15, 15], 0, 1)
         self.assertEqual(f["volume"], 1.0)
+
+    def test_far_nodes_keep_their_optimised_positions_next_to_a_curve(self):
+        # Two materials meet the outside along a curve, whose nodes the
+        # optimiser demotes to surface nodes where the curve runs through a
+        # quad with two more of its nodes. The meshing without the speck
+        # takes those nodes with the rest; freeing them as "changed" (the
+        # fresh contouring makes them curve nodes again) optimised them alone
+        # (JHU at 1 mm: 66 hexes left below 0.005).
+        kept, _, q_kept = self.mesh("halves", "--allow-below", "--keep-features")
+        p, _, q = self.mesh("halves", "--allow-below")
+        (r,) = self.removal(q)
+        self.assertIs(r["kept"], True)
+        self.assertEqual([f["shape"] for f in r["features"]], ["speck"])
+        self.assertGreaterEqual(q["min"], q_kept["min"])
+        self.assertIn("region", r, "the whole volume was optimised again, not the speck's neighbourhood")
+        self.check_far_nodes_kept(self.out("halves", "--allow-below", "--keep-features"),
+                                  self.out("halves", "--allow-below"), r, [15, 15, 29])
 
     def test_controls_without_features_remove_nothing(self):
         for name in ("ball", "plate"):
