@@ -491,8 +491,9 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
     const char* g = "Quality";
     t.push_back(number<std::optional<double>>(
         "min-quality", g,
-        "Certified minimum scaled Jacobian of the mesh written (default 0 for scans and label maps: no inverted or "
-        "degenerate hex; 0.5 for triangle surfaces, 0.2 with --method sheets). The max-min pass aims at it; a mesh "
+        "Certified minimum scaled Jacobian of the mesh written (default 0.3 for intensity scans; 0 for label maps "
+        "and with --no-optimize: no inverted or degenerate hex; 0.5 for triangle surfaces, 0.2 with --method "
+        "sheets). The max-min pass aims at it; a mesh "
         "left below it is not written (unless --allow-below), its places are named, and the command exits with "
         "status 4",
         "scaled Jacobian 0..1", [](MeshArgs& a) -> auto& { return a.settings.minQuality; }, between(0.0, 1.0)));

@@ -28,7 +28,10 @@ const char* causeText(BelowCause cause) {
 double minQualityFor(const std::string& input, const MeshSettings& settings) {
     if (settings.minQuality) return *settings.minQuality;
     if (settings.method == Method::Sheets) return kDefaultMinQualitySheetMethod;
-    return imaging::isSurfaceFile(input) ? kDefaultMinQualitySurface : kDefaultMinQualityScan;
+    if (imaging::isSurfaceFile(input)) return kDefaultMinQualitySurface;
+    if (settings.load.labels) return kDefaultMinQualityLabelMap;
+    return settings.optimize && !settings.fixBoundary ? kDefaultMinQualityIntensity
+                                                      : kDefaultMinQualityIntensityWithoutMeans;
 }
 
 double worstHexTargetFor(const std::string& input, const MeshSettings& settings) {
@@ -123,7 +126,8 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     const double voxel = p.selection->materials.front().field.voxelSize();
-    RelaxationResult r = relaxBoundary(mesh, projector, target, maxDeviation * voxel, tolerance * voxel, voxel);
+    RelaxationResult r = relaxBoundary(mesh, projector, std::min(1.0, target + kRelaxationMargin), maxDeviation * voxel,
+                                       tolerance * voxel, voxel);
     st.finish();
     return r;
 }

@@ -73,16 +73,25 @@ struct QualityCertificate {
     std::optional<std::array<std::size_t, kLocalShapes>> belowByShape;
 };
 
-// The default Q for a scan or label map, and for a closed triangle surface
-// (meshed as a level set or by the sheet method). Chosen by measurement
-// (VTK on the written files): every surface of the bench and test data
-// reaches 0.5 with the max-min pass aimed at it; the JHU labels at 2.5-6 mm
-// reach only 0.044-0.096 and ch2bet at 2 mm 0.154 with every means of today,
-// so a scan's default promises no inverted or degenerate hex. The sheet
-// method's volume fit trades the worst hexes for volume down to 0.3, and
-// femur.off ends at 0.284 with it (0.5 asked of the max-min pass), so its
-// default is 0.2, which femur, sphere966 and knot1 reach.
-inline constexpr double kDefaultMinQualityScan = 0.0;
+// The default Q, chosen by measurement (VTK on the written files;
+// bench/RESULTS.md, "Feature removal and retries optimise a neighbourhood"):
+// - an intensity scan (CT, MRI, a smooth field): 0.3, which skull_ct, ch2bet
+//   at 1-4 mm and the phantoms reach with the relaxation and feature removal;
+// - a label map: 0, no inverted or degenerate hex, since the JHU labels at
+//   2.5-6 mm reach only 0.067-0.177 with every means of today;
+// - a closed triangle surface: 0.5, which every surface of the bench and test
+//   data reaches with the max-min pass aimed at it; with the sheet method
+//   0.2, since its volume fit trades the worst hexes for volume (femur.off
+//   ends at 0.284 with 0.5 asked of the max-min pass);
+// - an intensity scan meshed with --no-optimize or --fix-boundary: 0, since
+//   those runs ask for the mesh without the means that reach 0.3.
+inline constexpr double kDefaultMinQualityIntensity = 0.3;
+inline constexpr double kDefaultMinQualityLabelMap = 0.0;
+inline constexpr double kDefaultMinQualityIntensityWithoutMeans = 0.0;
+// The relaxation aims this far above Q: a max-min pass stops when its worst
+// hex reaches its target, and one aimed at Q exactly left ch2bet at 2 mm one
+// hex at 0.2994 against a Q of 0.3.
+inline constexpr double kRelaxationMargin = 0.01;
 // The max-min pass's target when neither --worst-hex-target nor a higher
 // --min-quality sets it, and the second target it aims at from there once
 // every hex has reached the first (stretchTargetFor).
