@@ -156,6 +156,9 @@ void WorstHexPass::finish() {
     res_.minAfter = *std::min_element(sj_.begin(), sj_.end());
     res_.belowAfter = countBelow();
     res_.nodesMoved = static_cast<std::size_t>(std::count(everMoved_.begin(), everMoved_.end(), 1));
+    if (opt_.listMovedNodes)
+        for (std::size_t v = 0; v < everMoved_.size(); ++v)
+            if (everMoved_[v]) res_.movedNodes.push_back(static_cast<Index>(v));
     res_.surfaceNodesReleased = static_cast<std::size_t>(std::count(released_.begin(), released_.end(), 1));
 }
 

@@ -111,6 +111,9 @@ struct WorstHexOptions {
     // the start of the visit if that is shorter (0: no bound; 0.2 was chosen
     // against 0.1 and 0.3).
     double minEdge = 0.2;
+    // List the nodes that moved in the result (a caller that measures only
+    // what moved then keeps no copy of every node).
+    bool listMovedNodes = false;
 };
 
 struct WorstHexResult {
@@ -129,6 +132,7 @@ struct WorstHexResult {
     std::size_t surfaceNodesOffAfter = 0;   // ... and after it, farther than surfaceSlack
     std::size_t surfaceNodesWithinSlack = 0;  // left off their surface by at most surfaceSlack
     double returnSeconds = 0;               // time in the return
+    std::vector<Index> movedNodes;          // ascending, with WorstHexOptions::listMovedNodes
 };
 
 // Surface nodes move only with a projector, Curve nodes only with one that
