@@ -88,16 +88,16 @@ struct Candidate {
     std::optional<RetryRegion> region;  // with local meshing
 };
 
-// Meshes `q` (best's labels without the features) again: with local meshing
-// (`keptKeys` not empty) only within `cells` grid cells of the points it
-// changed, the rest keeping best's optimised nodes; else the whole volume.
-Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<NodeKey>& keptKeys, int cells,
-                      const MeshSettings& settings, StageSink& sink, double target) {
+// Meshes `q` (best's labels without the features) again: only within
+// `cells` grid cells of the `changed` grid points, the rest keeping best's
+// optimised nodes (node keys `keptKeys`), or the whole volume (kWholeVolume).
+Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<NodeKey>& keptKeys,
+                      const std::vector<std::size_t>& changed, int cells, const MeshSettings& settings,
+                      StageSink& sink, double target) {
     Candidate c;
-    if (keptKeys.empty()) {
+    if (cells == kWholeVolume) {
         c.meshing = meshLabels(q, settings, sink);
     } else {
-        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
         std::vector<NodeKey> keys;
         LocalRegion region;
         c.meshing = meshLabelsNear(q, settings, sink, best, keptKeys, changed, cells, keys, region);
@@ -145,15 +145,15 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
     // As the retries do it: the near neighbourhood of the changed points,
     // then the wide one, then (the last resort) the whole volume, until one
     // is better.
+    const bool local = localRetryApplies(best.prepared, settings);
     std::vector<NodeKey> keptKeys;
-    if (localRetryApplies(best.prepared, settings)) keptKeys = meshingKeys(best.prepared, settings);
-    const std::vector<int> scopes =
-        keptKeys.empty() ? std::vector<int>{0} : std::vector<int>{kLocalRetryCells, kWideRetryCells, 0};
+    if (local) keptKeys = meshingKeys(best.prepared, settings);
     std::optional<Candidate> c;
     try {
         const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
-        for (int cells : scopes) {
-            c = meshWithout(best, q, cells == 0 ? std::vector<NodeKey>{} : keptKeys, cells, settings, sink, target);
+        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
+        for (int cells : remeshScopes(local)) {
+            c = meshWithout(best, q, keptKeys, changed, cells, settings, sink, target);
             if (better(c->below, before)) break;
         }
     } catch (const Error& e) {

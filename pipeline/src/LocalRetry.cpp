@@ -178,6 +178,11 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
     return m;
 }
 
+std::vector<int> remeshScopes(bool local) {
+    if (!local) return {kWholeVolume};
+    return {kLocalRetryCells, kWideRetryCells, kWholeVolume};
+}
+
 std::vector<std::size_t> changedPoints(const octree::Labels& before, const octree::Labels& after) {
     std::vector<std::size_t> changed;
     for (std::size_t p = 0; p < after.material.size(); ++p)

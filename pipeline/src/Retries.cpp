@@ -77,9 +77,6 @@ std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std:
     return at;
 }
 
-// `cells` for optimising the whole volume again.
-constexpr int kWholeVolume = 0;
-
 std::string scopeText(int cells) {
     return cells == kWholeVolume ? "the whole volume" : std::to_string(cells) + " cells around the edits";
 }
@@ -141,8 +138,7 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     // The near neighbourhood, then the wide one, then (the last resort) the
     // whole volume, until one helps: where kept nodes meet new ones a
     // neighbourhood can leave a hex flat, or the inverted hexes it was for.
-    const std::vector<int> scopes = s.local ? std::vector<int>{kLocalRetryCells, kWideRetryCells, kWholeVolume}
-                                            : std::vector<int>{kWholeVolume};
+    const std::vector<int> scopes = remeshScopes(s.local);
     Meshing again;
     std::vector<NodeKey> keys;
     std::size_t repairedPoints = 0;

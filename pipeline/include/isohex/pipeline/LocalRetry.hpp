@@ -28,6 +28,13 @@ namespace isohex::pipeline {
 // (the kept nodes at the near one's border can hold a hex flat).
 inline constexpr int kLocalRetryCells = 3;
 inline constexpr int kWideRetryCells = 9;
+// The scope that optimises the whole volume again (the last resort).
+inline constexpr int kWholeVolume = 0;
+
+// The scopes a meshing again tries in turn until one helps: the near
+// neighbourhood, the wide one, the whole volume; only the whole volume where
+// local meshing does not apply.
+std::vector<int> remeshScopes(bool local);
 
 // Whether a retry can be local: one sheet layer at most, no adaptive tree,
 // not a part (those number their nodes otherwise).
