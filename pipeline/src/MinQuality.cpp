@@ -88,7 +88,12 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     smoothing::WorstHexOptions o;
     o.target = target;
     o.surfaceSlack = maxDeviation;
-    o.meanRounds = 0;  // only the nodes of the hexes below the target move
+    // Only the nodes of the hexes below the target move, and then, in the
+    // mean rounds, the nodes next to them, each as far as no hex goes below
+    // the target: a move that lifts one hex lowers its neighbours, and on
+    // ch2bet 2 mm and the JHU labels the relaxation alone cost the mesh
+    // 0.004 and 0.006 of its mean.
+    o.meanOnlyNearMoved = true;
     // surface nodes leave their surface by the slack alone: no release of
     // inverted hexes' nodes by edge lengths, no joint moves (the optimiser
     // and its pass had those)

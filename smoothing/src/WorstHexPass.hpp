@@ -93,6 +93,8 @@ private:
     std::vector<double> floorsOf(const NodeHexes& nh) const;
     // After node v moved: its hexes' entries of sj_.
     void refreshAround(std::size_t v);
+    // nearMoved_ from everMoved_.
+    void markNearMoved();
     std::size_t countBelow() const;
 
     // --- the joint moves (JointRelease.cpp)
@@ -123,6 +125,9 @@ private:
     double meanFloor_ = 0;
     bool meanRounds_ = false;  // the mean rounds have work (a hex below meanBelow)
     std::vector<std::uint8_t> everMoved_, released_;
+    // With meanOnlyNearMoved: the nodes the mean rounds may move (those
+    // sharing a hex with a node moved before them); empty otherwise.
+    std::vector<std::uint8_t> nearMoved_;
     // A compass visit is a function of where the nodes of the node's hexes
     // are (and of fixed data: its normal, the target, the projector), so a
     // node whose last visit in the same kind of round moved nothing, and none

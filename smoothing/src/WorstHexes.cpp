@@ -143,6 +143,7 @@ void WorstHexPass::meanRestore() {
     // take one below the worst hex they start from (a mesh whose worst hex is
     // above the target keeps it: the torus phantom lost 0.011 of it).
     meanFloor_ = std::max(opt_.target, sj_.empty() ? 0.0 : *std::min_element(sj_.begin(), sj_.end()));
+    if (opt_.meanOnlyNearMoved) markNearMoved();
     for (int round = 0; round < opt_.meanRounds && runRound({.mean = true}); ++round) {
         ++res_.meanRounds;
     }
@@ -192,6 +193,15 @@ void WorstHexPass::refreshAround(std::size_t v) {
         sj_[static_cast<std::size_t>(*h)] = usableScaledJacobian(hexCoords(mesh_, *h));
 }
 
+void WorstHexPass::markNearMoved() {
+    nearMoved_.assign(N_, 0);
+    for (std::size_t v = 0; v < N_; ++v) {
+        if (!everMoved_[v]) continue;
+        for (const Index* h = topo_->nodeHexes.begin(v); h != topo_->nodeHexes.end(v); ++h)
+            for (Index u : mesh_.hexes[static_cast<std::size_t>(*h)]) nearMoved_[static_cast<std::size_t>(u)] = 1;
+    }
+}
+
 std::size_t WorstHexPass::countBelow() const {
     return static_cast<std::size_t>(std::count_if(sj_.begin(), sj_.end(), [&](double s) { return s < opt_.target; }));
 }
@@ -209,7 +219,8 @@ std::vector<std::uint8_t> WorstHexPass::pickNodes(RoundKind kind) const {
                 const double s = sj_[static_cast<std::size_t>(*h)];
                 in = kind.release ? !(s > 0) : s < below;
             }
-            pick[v] = in && movable(static_cast<Index>(v));
+            const bool near = !kind.mean || nearMoved_.empty() || nearMoved_[v];
+            pick[v] = in && near && movable(static_cast<Index>(v));
         }
     });
     return pick;

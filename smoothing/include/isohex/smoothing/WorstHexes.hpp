@@ -93,6 +93,11 @@ struct WorstHexOptions {
     // off).
     int meanRounds = 2;
     double meanBelow = 0.9;
+    // With this, the mean rounds move only nodes that share a hex with a
+    // node the earlier rounds of this pass moved: a caller that lifts a few
+    // hexes (the boundary relaxation) gives back the mean its moves took
+    // from their neighbours, without a round over the whole mesh.
+    bool meanOnlyNearMoved = false;
     double meanFirstStep = 1.0 / 16.0;
     int meanMovesPerVisit = 8;
     // At the very end, surface nodes farther than returnTolerance local edge
