@@ -391,3 +391,77 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
     EXPECT_NEAR(box.nodes[sv][2], 2.6, 1e-12);
     EXPECT_EQ(rb.surfaceNodesWithinSlack, 0u);
 }
+
+TEST(WorstHexes, MeanRoundsNearMovedNodesMoveOnlyTheirNeighboursAndGiveBackTheMean) {
+    // A pillowed ball, optimised, with one interior node pushed aside so that
+    // the hexes around it fall below the target. With meanOnlyNearMoved (the
+    // boundary relaxation's setting) the mean rounds may move only nodes that
+    // share a hex with a node the max-min rounds moved: every node where the
+    // result differs from the pass without mean rounds shares a hex with a
+    // node that pass moved. They must still raise the mean over that pass,
+    // and keep every hex above the smaller of its value and the target. The
+    // unrestricted mean rounds move nodes farther away (the sheet's hexes
+    // are all below meanBelow), so the restriction is what keeps them put.
+    const double radius = 3.0;
+    const test::SphereProjector sphere({0, 0, 0}, radius);
+    HexMesh start = optimisedPillowedBall(sphere);
+    const Topology topo = buildTopology(start, TopologyParts::NodeMoves);
+    // the interior node farthest out: a node of the sheet, whose hexes are
+    // below meanBelow, so the mean rounds have work around it
+    Index pushed = kNone;
+    double farthest = -1;
+    for (std::size_t v = 0; v < start.nodeCount(); ++v) {
+        if (start.nodeClass[v].kind != NodeKind::Interior || topo.nodeOnBoundary[v]) continue;
+        const Vec3& p = start.nodes[v];
+        const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        if (r > farthest) farthest = r, pushed = static_cast<Index>(v);
+    }
+    ASSERT_NE(pushed, kNone);
+    // pushed along the sphere (perpendicular to its radius, in the plane of it and the z axis or x axis)
+    Vec3& p = start.nodes[static_cast<std::size_t>(pushed)];
+    const Vec3 axis = std::abs(p[2]) < 0.9 * farthest ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+    Vec3 t{axis[1] * p[2] - axis[2] * p[1], axis[2] * p[0] - axis[0] * p[2], axis[0] * p[1] - axis[1] * p[0]};
+    const double tn = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    const double push = 0.4 * smoothing::meanEdgeLengthAt(start, topo, pushed);
+    for (int a = 0; a < 3; ++a) p[static_cast<std::size_t>(a)] += push * t[static_cast<std::size_t>(a)] / tn;
+    const double target = 0.6;
+    const std::vector<double> s0 = scaledJacobians(start);
+    ASSERT_LT(*std::min_element(s0.begin(), s0.end()), target);
+
+    HexMesh off = start, near = start, full = start;
+    WorstHexOptions o;
+    o.target = target;
+    o.meanRounds = 0;
+    raiseWorstHexes(off, &sphere, o);
+    o.meanRounds = WorstHexOptions{}.meanRounds;
+    o.meanOnlyNearMoved = true;
+    const auto rn = raiseWorstHexes(near, &sphere, o);
+    o.meanOnlyNearMoved = false;
+    raiseWorstHexes(full, &sphere, o);
+
+    std::vector<std::uint8_t> nextToMoved(start.nodeCount(), 0);
+    for (std::size_t v = 0; v < start.nodeCount(); ++v) {
+        if (off.nodes[v] == start.nodes[v]) continue;
+        for (const Index* h = topo.nodeHexes.begin(v); h != topo.nodeHexes.end(v); ++h)
+            for (Index u : start.hexes[static_cast<std::size_t>(*h)]) nextToMoved[static_cast<std::size_t>(u)] = 1;
+    }
+    std::size_t movedByNear = 0, movedByFull = 0;
+    for (std::size_t v = 0; v < start.nodeCount(); ++v) {
+        if (near.nodes[v] != off.nodes[v]) {
+            ++movedByNear;
+            EXPECT_TRUE(nextToMoved[v]) << "node " << v << " moved by the mean rounds, away from the moved nodes";
+        }
+        movedByFull += full.nodes[v] != off.nodes[v];
+    }
+    EXPECT_GT(movedByNear, 0u);
+    EXPECT_GT(movedByFull, movedByNear);
+    const std::vector<double> so = scaledJacobians(off), sn = scaledJacobians(near);
+    double meanOff = 0, meanNear = 0;
+    for (std::size_t h = 0; h < so.size(); ++h) {
+        meanOff += so[h] / static_cast<double>(so.size());
+        meanNear += sn[h] / static_cast<double>(sn.size());
+        EXPECT_GE(sn[h], std::min(so[h], target)) << "hex " << h;
+    }
+    EXPECT_GT(meanNear, meanOff);
+    EXPECT_GE(rn.meanRounds, 1);
+}
