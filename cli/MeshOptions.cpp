@@ -504,7 +504,8 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
     t.push_back(number<std::optional<double>>(
         "max-deviation", g,
         "How far, in voxels, boundary and interface nodes may leave the isosurface to lift hexes still below "
-        "--min-quality after the optimiser and the retries (default 0.5; reported as quality.means)",
+        "--min-quality after the optimiser and the retries (default 0.5; reported as quality.means; label maps "
+        "with the default --min-quality of 0 are relaxed towards 0.3)",
         "voxels 0..5", [](MeshArgs& a) -> auto& { return a.settings.maxDeviation; }, between(0.0, 5.0, "(voxels)")));
     t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
     t.push_back(onOff("keep-features", g,

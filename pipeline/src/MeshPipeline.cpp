@@ -42,10 +42,11 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
     std::vector<std::string> warnings;  // after preparation's
     std::optional<FeatureRemovalResult> features;
     if (settings.optimize) {
-        RetryResult retries = retryStuckHexes(m, settings, sink, warnings);
-        if (settings.method == Method::Dual) r.retries = std::move(retries);
+        RetryResult retries = retryStuckHexes(m, settings, sink);
         r.relaxation = relaxToMinQuality(m.mesh, m.prepared, settings, sink);
         features = removeFineFeatures(m, settings, sink, r.relaxation);
+        warnStuckHexes(m, retries, settings, sink, warnings);
+        if (settings.method == Method::Dual) r.retries = std::move(retries);
     }
     // A part's cut nodes stayed frozen through every stage that moves nodes.
     if (m.partNodes) unfreezeCutNodes(m.mesh, *m.partNodes);

@@ -34,6 +34,13 @@ double minQualityFor(const std::string& input, const MeshSettings& settings) {
                                                       : kDefaultMinQualityIntensityWithoutMeans;
 }
 
+double relaxationTargetFor(const std::string& input, const MeshSettings& settings) {
+    const double q = minQualityFor(input, settings);
+    const bool labelMapDefault = !settings.minQuality && settings.load.labels && settings.method == Method::Dual &&
+                                 !imaging::isSurfaceFile(input);
+    return labelMapDefault ? std::max(q, kRelaxationTargetLabelMap) : q;
+}
+
 double worstHexTargetFor(const std::string& input, const MeshSettings& settings) {
     return std::max(settings.worstHexTarget.value_or(kDefaultWorstHexTarget), minQualityFor(input, settings));
 }
@@ -136,7 +143,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const double tolerance = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
     const double maxDeviation = settings.maxDeviation.value_or(kDefaultMaxDeviation);
     if (!(maxDeviation > tolerance)) return std::nullopt;
-    const double target = minQualityFor(p.facts.input.path, settings);
+    const double target = relaxationTargetFor(p.facts.input.path, settings);
     if (!anyBelow(mesh, target)) return std::nullopt;
     Stage st(sink, "relax");
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
@@ -144,6 +151,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const double voxel = p.selection->materials.front().field.voxelSize();
     RelaxationResult r = relaxBoundary(mesh, projector, std::min(1.0, target + kRelaxationMargin), maxDeviation * voxel,
                                        tolerance * voxel, voxel);
+    r.target = target;
     st.finish();
     return r;
 }

@@ -273,6 +273,7 @@ nlohmann::json toJson(const smoothing::BoundaryQuadResult& r) {
 
 nlohmann::json toJson(const RelaxationResult& r) {
     return {{"mean", "boundary_relaxation"},
+            {"target", r.target},
             {"max_deviation_voxels", r.maxDeviationVoxels},
             {"surface_nodes_off", r.nodesOff},
             {"largest_deviation_voxels", r.largestDeviationVoxels},

@@ -173,19 +173,6 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     return true;
 }
 
-// The warnings for what is left stuck after the retries.
-void warnLeft(RetryState& s, int maxRetries, double floor, std::vector<std::string>& warnings) {
-    const RetryResult& r = s.result;
-    const std::string more =
-        r.meshedAgain == 0 ? "" : " (after meshing again " + std::to_string(r.meshedAgain) + " time(s) with grid edits)";
-    const std::string left = warnInverted(s.sink, s.best.mesh, r.stuck.inverted,
-                                          s.best.optimization.smoothingResult.untangleFailures.size(), more,
-                                          s.settings.fixBoundary);
-    if (!left.empty()) warnings.push_back(left);
-    const std::string flat = warnFlat(s.sink, s.best.mesh, r.stuck, floor, r.meshedAgain, maxRetries);
-    if (!flat.empty()) warnings.push_back(flat);
-}
-
 }  // namespace
 
 Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& sink) {
@@ -217,8 +204,7 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     return m;
 }
 
-RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSink& sink,
-                            std::vector<std::string>& warnings) {
+RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSink& sink) {
     const Stopwatch clock;
     const bool dual = settings.method == Method::Dual;
     const int maxRetries = dual ? settings.retries.value_or(kDefaultRetries) : 0;
@@ -254,8 +240,23 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
         best.adaptive->hexLevel.assign(best.mesh.hexCount(), 0);
     }
     s.result.seconds = clock.seconds();
-    warnLeft(s, maxRetries, floor, warnings);
     return std::move(s.result);
+}
+
+void warnStuckHexes(const Meshing& best, const RetryResult& retries, const MeshSettings& settings, StageSink& sink,
+                    std::vector<std::string>& warnings) {
+    Stuck now;
+    if (retries.floor > 0) now = stuckHexes(best.mesh, retries.floor);
+    else now.inverted = invertedHexes(best.mesh);
+    const std::string more = retries.meshedAgain == 0 ? ""
+                                                      : " (after meshing again " + std::to_string(retries.meshedAgain) +
+                                                            " time(s) with grid edits)";
+    const std::string left = warnInverted(sink, best.mesh, now.inverted,
+                                          best.optimization.smoothingResult.untangleFailures.size(), more,
+                                          settings.fixBoundary);
+    if (!left.empty()) warnings.push_back(left);
+    const std::string flat = warnFlat(sink, best.mesh, now, retries.floor, retries.meshedAgain, retries.allowed);
+    if (!flat.empty()) warnings.push_back(flat);
 }
 
 }  // namespace isohex::pipeline

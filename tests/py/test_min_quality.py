@@ -112,6 +112,31 @@ class MinQuality(unittest.TestCase):
         self.assertEqual(q["min_quality_certified"], bool(sj.min() >= 0.3))
         self.assertEqual(p.returncode == 0, q["min_quality_certified"])
 
+    def test_a_label_map_is_certified_at_0_and_still_relaxed_towards_0_3(self):
+        # Label maps promise no inverted or degenerate hex by default, but their
+        # boundary relaxation aims at 0.3: against the same run with the
+        # relaxation off (a deviation under the surface tolerance) the worst
+        # hex must rise and the mean must not fall, with no feature removed.
+        relaxed, report = self.paths("labels_default")
+        pinned, _ = self.paths("labels_pinned")
+        p = run(["mesh", JHU, "--labels", "--size", "4", "-o", relaxed, "--report", report, "-q", "--force"],
+                check=False)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        run(["mesh", JHU, "--labels", "--size", "4", "--max-deviation", "0.05", "-o", pinned, "-q", "--force"])
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.0, True, True))
+        relax = [m for m in q["means"] if m["mean"] == "boundary_relaxation"]
+        self.assertEqual(len(relax), 1, q["means"])
+        self.assertEqual(relax[0]["target"], 0.3)
+        self.assertLessEqual(relax[0]["largest_deviation_voxels"], 0.5 + 1e-6)
+        self.assertEqual([m for m in q["means"] if m["mean"] == "feature_removal"], [])
+        a, b = vtk_sj(pinned), vtk_sj(relaxed)
+        self.assertEqual(len(a), len(b))
+        self.assertGreater(b.min(), a.min() + 1e-4)
+        self.assertGreaterEqual(b.mean(), a.mean())
+        self.assertLess(int((b < 0.2).sum()), int((a < 0.2).sum()))
+
     def test_max_deviation_needs_moving_surface_nodes(self):
         p = run(["mesh", self.sphere, "--iso", "50", "--max-deviation", "0.5", "--fix-boundary", "-o",
                  os.path.join(self.dir, "x.vtu")], check=False)

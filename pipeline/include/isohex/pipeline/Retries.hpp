@@ -79,9 +79,14 @@ struct RetryResult {
 Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& sink);
 
 // Retries where `best` has stuck hexes (settings.retries times at most, with
-// Method::Dual only), replacing `best` by every better meshing; then warns of
-// the inverted and flat hexes left, adding the warnings to `warnings`.
-RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSink& sink,
-                            std::vector<std::string>& warnings);
+// Method::Dual only), replacing `best` by every better meshing.
+RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSink& sink);
+
+// Warns of the hexes inverted or below the retries' floor in `best.mesh`,
+// adding the warnings to `warnings`. Called on the mesh written, after the
+// means that follow the retries (the relaxation, feature removal), which may
+// lift what the retries left: a warning names only hexes the file has.
+void warnStuckHexes(const Meshing& best, const RetryResult& retries, const MeshSettings& settings, StageSink& sink,
+                    std::vector<std::string>& warnings);
 
 }  // namespace isohex::pipeline
