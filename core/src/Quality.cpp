@@ -235,7 +235,7 @@ QualitySummary summarize(const HexMesh& mesh, const HexQuality& q) {
         [&](const tbb::blocked_range<std::size_t>& r, SummaryAcc a) {
             for (std::size_t h = r.begin(); h != r.end(); ++h) {
                 const double sj = q.scaledJacobian[h];
-                if (sj > 1.0 + 1e-9) {
+                if (scaledJacobianCollapsed(sj)) {
                     ++a.degenerate;
                     ++a.below;
                 } else {

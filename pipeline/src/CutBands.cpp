@@ -80,7 +80,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     const std::vector<double> sj = scaledJacobians(mesh);
     const double target = seedTarget(mesh, onCut, sj, scan);
     for (std::size_t h = 0; h < mesh.hexCount(); ++h)
-        if (!(sj[h] >= target) || sj[h] > 1.0 + 1e-9)
+        if (!(sj[h] >= target) || scaledJacobianCollapsed(sj[h]))
             for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
     const std::vector<std::uint8_t> band = bandNodes(mesh, seeds, rings);
     std::vector<Index> from;

@@ -30,7 +30,7 @@ Below belowOf(const HexMesh& mesh, double target) {
     Below b;
     std::vector<std::pair<double, Index>> below;
     for (std::size_t h = 0; h < sj.size(); ++h) {
-        const double v = sj[h] > 1.0 + 1e-9 ? 0.0 : sj[h];
+        const double v = scaledJacobianCollapsed(sj[h]) ? 0.0 : sj[h];
         b.min = std::min(b.min, v);
         if (belowTarget(sj[h], target)) below.emplace_back(v, static_cast<Index>(h));
     }

@@ -165,7 +165,7 @@ QualityCertificate certifyQuality(const HexMesh& mesh, double target, const Loca
     std::size_t counted = 0;
     c.achieved = sj.empty() ? 0.0 : 1.0;
     for (std::size_t h = 0; h < sj.size(); ++h) {
-        const bool degenerate = sj[h] > 1.0 + 1e-9;  // Verdict's 1e30: a collapsed edge
+        const bool degenerate = scaledJacobianCollapsed(sj[h]);  // Verdict's 1e30: a collapsed edge
         const double v = degenerate ? 0.0 : sj[h];
         c.achieved = std::min(c.achieved, v);
         if (!degenerate) {

@@ -39,7 +39,7 @@ Stuck stuckHexes(const HexMesh& mesh, double floor) {
     std::vector<std::pair<double, Index>> low;
     for (std::size_t h = 0; h < sj.size(); ++h) {
         // scaledJacobian's value above 1 marks a degenerate hex: as flat as can be
-        const double v = sj[h] > 1 ? 0.0 : sj[h];
+        const double v = scaledJacobianCollapsed(sj[h]) ? 0.0 : sj[h];
         s.min = std::min(s.min, v);
         if (inv[h]) continue;
         s.minValid = std::min(s.minValid, v);

@@ -92,7 +92,7 @@ public:
         }
         e.lowest = lowest;
         const double sj = clampScaledJacobian(best);
-        return sj > 1.0 + 1e-9 ? -2.0 : sj;
+        return scaledJacobianCollapsed(sj) ? -2.0 : sj;
     }
 
     // Gradient of the summed value(k, .) over the node's hexes at p: per

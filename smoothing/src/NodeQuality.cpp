@@ -12,7 +12,7 @@ using namespace vec;
 
 double usableScaledJacobian(const HexCoords& x) {
     const double s = scaledJacobian(x);
-    return s > 1.0 + 1e-9 ? -2.0 : s;
+    return scaledJacobianCollapsed(s) ? -2.0 : s;
 }
 
 double minScaledJacobianAround(const HexMesh& mesh, const Topology& topo, Index v, const Vec3& p) {

@@ -97,7 +97,7 @@ bool WorstHexPass::measureStart() {
     if (mesh_.hexCount() == 0) return false;
     sj_ = scaledJacobians(mesh_);
     for (double& s : sj_)
-        if (s > 1.0 + 1e-9) s = -2.0;
+        if (scaledJacobianCollapsed(s)) s = -2.0;
     res_.minBefore = sj_.empty() ? 0.0 : *std::min_element(sj_.begin(), sj_.end());
     res_.belowBefore = countBelow();
     res_.minAfter = res_.minBefore;

@@ -92,6 +92,21 @@ class MinQuality(unittest.TestCase):
         self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.5, True, True))
         self.assertGreaterEqual(vtk_sj(out).min(), 0.5)
 
+    def test_a_surface_in_metres_gets_no_warning_about_flat_hexes_it_does_not_have(self):
+        # femur.off is in metres: its interior cubes' scaled Jacobian came out a
+        # rounding error above 1 and was taken for a collapsed hex, so every
+        # femur mesh was written with "N hex(es) stay nearly flat, lowest 0"
+        src = os.path.join(SHARED_DATA, "femur.off")
+        out, report = self.paths("femur_default")
+        p = run(["mesh", src, "-o", out, "--report", report, "--force"])
+        with open(report) as f:
+            rep = json.load(f)
+        sj = vtk_sj(out)
+        self.assertGreaterEqual(sj.min(), 0.5)
+        self.assertNotIn("nearly flat", p.stderr)
+        self.assertEqual([w for w in rep["warnings"] if "flat" in w or "inverted" in w], [])
+        self.assertEqual(rep["retries"]["meshed_again"], 0)
+
     def test_boundary_relaxation_is_bounded_and_reported(self):
         # a label atlas whose worst hexes sit at junctions: above the surface
         # tolerance the relaxation runs and reports how far nodes went

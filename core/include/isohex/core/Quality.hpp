@@ -19,8 +19,14 @@ using HexCoords = std::array<Vec3, 8>;
 // Verdict's HexScaledJacobian: the minimum of a.(b x c)/(|a||b||c|) over the
 // 8 corners (edge vectors along kCornerNeighbours) and the centre principal
 // axes. Returns 1e30, like Verdict, when any of those vectors has squared
-// length <= 1e-30 (a collapsed hex): treat values > 1 as degenerate.
+// length <= 1e-30 (a collapsed hex): scaledJacobianCollapsed tells it apart.
 double scaledJacobian(const HexCoords& x);
+
+// Whether a scaledJacobian value marks a collapsed (degenerate) hex. A valid
+// value is at most 1, but a perfect cube can give 1 plus a rounding error
+// (on meshes of a few centimetres in metres), hence the tolerance: with a
+// plain `> 1` such cubes were counted as degenerate.
+inline bool scaledJacobianCollapsed(double sj) { return sj > 1.0 + 1e-9; }
 
 // The pieces of scaledJacobian, for callers that evaluate a hex again and
 // again with one node moved (the worst-hex pass keeps the frames the node is

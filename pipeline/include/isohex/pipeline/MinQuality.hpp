@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/pipeline/LocalFeatures.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
@@ -150,7 +151,7 @@ QualityCertificate certifyQuality(const HexMesh& mesh, double target, const Loca
 
 // Whether certifyQuality counts a scaled Jacobian as below `target`: below
 // it, not positive, or Verdict's degenerate value.
-inline bool belowTarget(double sj, double target) { return sj > 1.0 + 1e-9 || !(sj > 0) || sj < target; }
+inline bool belowTarget(double sj, double target) { return scaledJacobianCollapsed(sj) || !(sj > 0) || sj < target; }
 
 // One line per place (at most `lines`, then how many more): position,
 // material, value and cause.
