@@ -97,9 +97,8 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     o.surfaceSlack = maxDeviation;
     // Only the nodes of the hexes below the target move, and then, in the
     // mean rounds, the nodes next to them, each as far as no hex goes below
-    // the target: a move that lifts one hex lowers its neighbours, and on
-    // ch2bet 2 mm and the JHU labels the relaxation alone cost the mesh
-    // 0.004 and 0.006 of its mean.
+    // the target: a move that lifts one hex lowers its neighbours (down to
+    // the target), and the mean rounds give that back where it was taken.
     o.meanOnlyNearMoved = true;
     // surface nodes leave their surface by the slack alone: no release of
     // inverted hexes' nodes by edge lengths, no joint moves (the optimiser
