@@ -77,6 +77,16 @@ std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std:
     return at;
 }
 
+// What the retries work on and the warnings name: with a floor, the
+// inverted and the flat hexes; without one, the inverted hexes alone (no
+// pass over the scaled Jacobians).
+Stuck leftStuck(const HexMesh& mesh, double floor) {
+    if (floor > 0) return stuckHexes(mesh, floor);
+    Stuck s;
+    s.inverted = invertedHexes(mesh);
+    return s;
+}
+
 std::string scopeText(int cells) {
     return cells == kWholeVolume ? "the whole volume" : std::to_string(cells) + " cells around the edits";
 }
@@ -219,8 +229,7 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
     RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best.prepared, used), {}};
     s.result.allowed = maxRetries;
     s.result.floor = floor;
-    if (floor > 0) s.result.stuck = stuckHexes(best.mesh, floor);
-    else s.result.stuck.inverted = invertedHexes(best.mesh);
+    s.result.stuck = leftStuck(best.mesh, floor);
     Eigen::Matrix3d axes;
     for (int a = 0; a < 3; ++a)
         for (int c = 0; c < 3; ++c) axes(c, a) = s.grid.axes[a][c];
@@ -245,9 +254,7 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
 
 void warnStuckHexes(const Meshing& best, const RetryResult& retries, const MeshSettings& settings, StageSink& sink,
                     std::vector<std::string>& warnings) {
-    Stuck now;
-    if (retries.floor > 0) now = stuckHexes(best.mesh, retries.floor);
-    else now.inverted = invertedHexes(best.mesh);
+    const Stuck now = leftStuck(best.mesh, retries.floor);
     const std::string more = retries.meshedAgain == 0 ? ""
                                                       : " (after meshing again " + std::to_string(retries.meshedAgain) +
                                                             " time(s) with grid edits)";

@@ -93,7 +93,7 @@ inline constexpr double kDefaultMinQualityIntensityWithoutMeans = 0.0;
 // A label map is certified at kDefaultMinQualityLabelMap, but its boundary
 // relaxation still aims at this (relaxationTargetFor): on the JHU labels at
 // every size of the bench it raised the minimum or kept it, raised the mean
-// (by 0.001-0.011) and left fewer hexes below 0.2, for 0.3-0.7 s and 5-20%
+// (by 0.001-0.011) and left fewer hexes below 0.2, for 0.15-0.75 s and 5-20%
 // more interface nodes beyond 0.1 voxel (within --max-deviation).
 inline constexpr double kRelaxationTargetLabelMap = 0.3;
 // The relaxation aims this far above Q: a max-min pass stops when its worst
