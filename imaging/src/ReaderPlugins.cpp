@@ -21,6 +21,10 @@ const ItkReaders& itkReaders() {
 
 const ExrReader& exrReader() { return plugin::load<ExrReader>("exr", "reads OpenEXR slices"); }
 
+const SurfaceReader& surfaceReader() {
+    return plugin::load<SurfaceReader>("assimp", "reads triangle surfaces (.stl, .obj, .ply, .off) with Assimp");
+}
+
 }  // namespace detail
 
 bool preloadReader(const std::filesystem::path& input) {
@@ -40,7 +44,11 @@ bool preloadReader(const std::filesystem::path& input) {
             detail::itkReaders();
             return true;
         }
-        if (lower(input.extension().string()) == ".vdb" || isSurfaceFile(input.string())) return true;
+        if (lower(input.extension().string()) == ".vdb") return true;
+        if (isSurfaceFile(input.string())) {
+            detail::surfaceReader();
+            return true;
+        }
         detail::itkReaders();
         return true;
     } catch (const Error&) {

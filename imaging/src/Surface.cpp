@@ -1,5 +1,6 @@
-// Triangle surfaces: Assimp reads every format; this file only welds, checks
-// and voxelises.
+// Triangle surfaces: Assimp reads every format (in a plugin loaded on first
+// use, AssimpRead.cpp); this file checks the files Assimp mishandles before,
+// the surface after, and voxelises.
 #include "isohex/imaging/Surface.hpp"
 
 #include <algorithm>
@@ -17,11 +18,9 @@
 
 #include <unistd.h>
 
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 #include <openvdb/tools/MeshToVolume.h>
 
+#include "ReaderPlugins.hpp"
 #include "isohex/core/DisjointSets.hpp"
 #include "isohex/core/Error.hpp"
 
@@ -33,42 +32,6 @@ std::string at(const Vec3& p) {
     s.precision(6);
     s << "(" << p[0] << ", " << p[1] << ", " << p[2] << ")";
     return s.str();
-}
-
-struct Vec3Hash {
-    std::size_t operator()(const Vec3& p) const {
-        std::size_t h = 0;
-        for (double c : p) h = h * 1000003u ^ std::hash<double>()(c == 0.0 ? 0.0 : c);  // -0 == +0
-        return h;
-    }
-};
-
-void appendNode(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent,
-                TriangleSurface& out, std::unordered_map<Vec3, std::int32_t, Vec3Hash>& weld) {
-    const aiMatrix4x4 m = parent * node.mTransformation;
-    for (unsigned k = 0; k < node.mNumMeshes; ++k) {
-        const aiMesh& mesh = *scene.mMeshes[node.mMeshes[k]];
-        std::vector<std::int32_t> ids(mesh.mNumVertices);
-        for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
-            const aiVector3D p = m * mesh.mVertices[v];
-            const Vec3 q{double(p.x), double(p.y), double(p.z)};
-            auto [it, fresh] = weld.emplace(q, std::int32_t(out.vertices.size()));
-            if (fresh) out.vertices.push_back(q);
-            ids[v] = it->second;
-        }
-        for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
-            const aiFace& face = mesh.mFaces[f];
-            if (face.mNumIndices != 3) continue;  // points and lines carry no volume
-            const std::array<std::int32_t, 3> t{ids[face.mIndices[0]], ids[face.mIndices[1]],
-                                                ids[face.mIndices[2]]};
-            if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
-                ++out.droppedDegenerate;
-                continue;
-            }
-            out.triangles.push_back(t);
-        }
-    }
-    for (unsigned c = 0; c < node.mNumChildren; ++c) appendNode(scene, *node.mChildren[c], m, out, weld);
 }
 
 }  // namespace
@@ -446,45 +409,26 @@ TriangleSurface loadSurface(const std::filesystem::path& path) {
         throw Error(file + ": no such file. Check the path (relative paths start at " +
                     std::filesystem::current_path().string() + ").");
     }
-    Assimp::Importer importer;
-    // Normals and texture coordinates would keep coincident corners apart.
-    // Corners are welded by appendNode where their coordinates are equal;
-    // Assimp's own aiProcess_JoinIdenticalVertices also joins corners closer
-    // than an absolute 1e-5, which welded a sphere of radius 1e-9 into a
-    // non-manifold knot of triangles.
-    importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS,
-                                aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
-                                    aiComponent_COLORS | aiComponent_TEXCOORDS);
-    const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate;
-    const aiScene* scene = nullptr;
     std::string ext = path.extension().string();
     for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    std::string offText;
     if (ext == ".off") {
         // Assimp 5.2's OFF reader loses faces when '#' comment lines sit
         // between the blocks (assimp issue 2228); the OFF format allows them,
         // so hand Assimp the text without comments.
         std::ifstream in(path, std::ios::binary);
-        std::string text, line;
+        std::string line;
         while (std::getline(in, line)) {
             if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
             if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-            text += line;
-            text += '\n';
+            offText += line;
+            offText += '\n';
         }
-        checkOffCounts(file, text);
-        scene = importer.ReadFileFromMemory(text.data(), text.size(), flags, "off");
-    } else {
-        if (ext == ".ply") checkPlyLayout(file);
-        scene = importer.ReadFile(file, flags);
+        checkOffCounts(file, offText);
+    } else if (ext == ".ply") {
+        checkPlyLayout(file);
     }
-    if (!scene || !scene->mRootNode) {
-        throw Error(file + ": cannot be read as a triangle surface (" + boundedMessage(importer.GetErrorString()) +
-                    "). Supported: .stl (ascii/binary), .obj, .ply, .off; check the file is complete.");
-    }
-    TriangleSurface s;
-    s.source = file;
-    std::unordered_map<Vec3, std::int32_t, Vec3Hash> weld;
-    appendNode(*scene, *scene->mRootNode, aiMatrix4x4(), s, weld);
+    TriangleSurface s = detail::surfaceReader().read(file, ext == ".off" ? &offText : nullptr);
     // Assimp reads "nan" in an OBJ or binary STL as a coordinate, and the
     // level set's bounding box breaks on coordinates near 1e200.
     for (std::size_t i = 0; i < s.vertices.size(); ++i)

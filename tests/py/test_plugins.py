@@ -11,7 +11,7 @@ import sys
 import unittest
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import ISOHEX, workdir  # noqa: E402
+from common import ISOHEX, SHARED_DATA, phantoms, workdir  # noqa: E402
 
 # The build tree's plugins are in BUILD/lib/isohex, beside BUILD/cli/isohex.
 BUILD_PLUGINS = os.path.abspath(os.path.join(os.path.dirname(ISOHEX), "..", "lib", "isohex"))
@@ -83,6 +83,35 @@ class Plugins(unittest.TestCase):
         for text in ("libisohex_msh.so", "missing", "ISOHEX_PLUGIN_DIR", "isohex_plugins"):
             self.assertIn(text, err)
         self.assertEqual(os.listdir(out), [])
+
+    def test_a_scan_is_meshed_without_loading_the_surface_reader(self):
+        # Assimp (with draco, minizip and the rest) is loaded only to read a
+        # triangle surface: a scan meshes with no surface plugin present, and
+        # the dynamic loader never opens libassimp on the way.
+        no_assimp = self.folder("no_assimp", [p for p in sorted(os.listdir(BUILD_PLUGINS))
+                                              if p.endswith(".so") and p != "libisohex_assimp.so"])
+        sphere = os.path.join(phantoms("plugins"), "sphere.nii.gz")
+        out = os.path.join(self.dir, "sphere.vtu")
+        env = dict(os.environ, ISOHEX_PLUGIN_DIR=no_assimp, LD_DEBUG="files")
+        proc = subprocess.run([ISOHEX, "mesh", sphere, "--iso", "50", "--size", "4", "-o", out, "--force", "-q"],
+                              capture_output=True, text=True, env=env, timeout=300)
+        self.assertEqual(proc.returncode, 0, proc.stderr[-2000:])
+        self.assertGreater(os.path.getsize(out), 0)
+        self.assertIn("libisohex_vtu.so", proc.stderr)  # LD_DEBUG names what was opened
+        opened = [ln.strip() for ln in proc.stderr.splitlines() if "libassimp" in ln]
+        self.assertEqual(opened[:3], [])
+
+    def test_a_surface_without_its_reader_plugin_says_what_it_is_for(self):
+        surface = os.path.join(SHARED_DATA, "sphere966.off")
+        self.assertTrue(os.path.exists(surface), surface)
+        only_vtu = self.folder("only_vtu_3", ["libisohex_vtu.so"])
+        out = os.path.join(self.dir, "surface.vtu")
+        proc = isohex(["mesh", surface, "-o", out, "-q"], only_vtu)
+        err = proc.stderr.strip()
+        self.assertEqual(proc.returncode, 1, err)
+        self.assertEqual(err.count("\n"), 0, err)
+        self.assertIn("libisohex_assimp.so (reads triangle surfaces", err)
+        self.assertFalse(os.path.exists(out))
 
     def test_reading_without_the_plugin_says_what_it_is_for(self):
         proc = isohex(["quality", self.vtu], self.folder("empty"))
