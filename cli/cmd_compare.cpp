@@ -1,6 +1,7 @@
 // isohex compare INPUT: the seed's experiment (section 5.3) in one command:
 // the options parsed, the variants made and optimised by pipeline/Compare.hpp,
 // their table printed and their JSON, histogram and meshes written.
+#include <algorithm>
 #include <charconv>
 #include <filesystem>
 #include <cstdio>
@@ -34,6 +35,7 @@ struct CompareArgs {
     std::string plot;
     std::string meshDir;
     std::uint64_t seed = 1;
+    std::string variants = "a,b,c,d";
     bool moveBoundary = false;
     MeshArgs args;
 };
@@ -49,6 +51,36 @@ CLI::Validator seedValidator() {
                        : "--seed takes a whole number from 0 to 18446744073709551615 (got '" + v + "')";
         },
         "", "whole number");
+}
+
+// --variants: some of a, b, c, d, comma-separated, each once.
+std::vector<pipeline::CompareVariantKind> parseVariants(const std::string& text, std::string* why = nullptr) {
+    std::vector<pipeline::CompareVariantKind> out;
+    std::size_t start = 0;
+    while (start <= text.size()) {
+        const std::size_t comma = std::min(text.find(',', start), text.size());
+        const std::string key = text.substr(start, comma - start);
+        const auto kind = pipeline::variantOfKey(key);
+        if (!kind || std::find(out.begin(), out.end(), *kind) != out.end()) {
+            if (why) *why = kind ? "names " + key + " twice" : "has '" + key + "', which is not a, b, c or d";
+            return {};
+        }
+        out.push_back(*kind);
+        start = comma + 1;
+    }
+    return out;
+}
+
+CLI::Validator variantsValidator() {
+    return CLI::Validator(
+        [](const std::string& v) {
+            std::string why;
+            return parseVariants(v, &why).empty()
+                       ? "--variants takes some of a, b, c, d separated by commas, e.g. a,b (got '" + v + "': it " +
+                             why + ")"
+                       : std::string();
+        },
+        "", "LIST");
 }
 
 // The settings every variant is meshed with: the mesh options checked, and
@@ -79,7 +111,7 @@ std::string variantMeshPath(const CompareArgs& c, const std::string& key) {
     return (std::filesystem::path(c.meshDir) / ("variant_" + key + ".vtu")).string();
 }
 
-// Every output, checked before the four meshings (the variant meshes too);
+// Every output, checked before the meshings (the variant meshes too);
 // the folder of the variant meshes is made.
 std::vector<std::string> compareOutputs(const CompareArgs& c) {
     std::vector<std::string> outputs;
@@ -89,7 +121,8 @@ std::vector<std::string> compareOutputs(const CompareArgs& c) {
         std::error_code ec;
         std::filesystem::create_directories(c.meshDir, ec);
         if (ec) throw Error(c.meshDir + ": cannot create the folder for the variant meshes: " + ec.message());
-        for (const char* k : {"a", "b", "c", "d"}) outputs.push_back(variantMeshPath(c, k));
+        for (pipeline::CompareVariantKind k : parseVariants(c.variants))
+            outputs.push_back(variantMeshPath(c, pipeline::variantKey(k)));
     }
     checkOutputPaths(outputs, {c.input}, c.args.run.force);
     return outputs;
@@ -153,6 +186,10 @@ void addCompareCommand(CLI::App& app) {
     cmd->add_option("--plot", c->plot, "Write an SVG histogram of the scaled Jacobian per variant here");
     cmd->add_option("--mesh-dir", c->meshDir, "Also write each variant's mesh (variant_a.vtu ...) into this folder");
     cmd->add_option("--seed", c->seed, "Seed for the random sheet choices (default 1)")->check(seedValidator());
+    cmd->add_option("--variants", c->variants,
+                    "Which variants to make, e.g. a,b (default a,b,c,d): c and d (random sheets diced in or "
+                    "extracted) take most of the time on a large scan, and grow with the square of its size")
+        ->check(variantsValidator());
     cmd->add_flag("--move-boundary", c->moveBoundary,
                   "Let surface nodes slide on the isosurface (default: fixed, the seed's protocol)");
     addMeshOptions(cmd, c->args);
@@ -166,7 +203,7 @@ void addCompareCommand(CLI::App& app) {
         runIsolated(c->input, outputs, [&] {
             ProgressSink sink(c->args.run.progressMode());
             const pipeline::Prepared p = pipeline::prepare(c->input, s, sink);
-            pipeline::CompareVariants variants = pipeline::makeCompareVariants(p, s, c->seed, sink);
+            pipeline::CompareVariants variants = pipeline::makeCompareVariants(p, s, c->seed, sink, parseVariants(c->variants));
             std::vector<HistogramSeries> series;
             nlohmann::json out = optimizeVariants(variants, p, s, *c, sink, series);
             out["versions"] = versionsJson();

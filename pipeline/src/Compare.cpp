@@ -1,5 +1,7 @@
 #include "isohex/pipeline/Compare.hpp"
 
+#include <algorithm>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -107,6 +109,12 @@ const char* variantLabel(CompareVariantKind kind) {
     return "?";
 }
 
+std::optional<CompareVariantKind> variantOfKey(const std::string& key) {
+    for (CompareVariantKind k : kAllCompareVariants)
+        if (key == variantKey(k)) return k;
+    return std::nullopt;
+}
+
 namespace {
 
 // The surface nodes the smoothing moved, with where it put them.
@@ -129,54 +137,73 @@ void finishOnTargets(HexMesh& mesh, const HeldBack& targets) {
 
 }  // namespace
 
-// a as extracted (and smoothed), b pillowed, c diced up to b's count, d (from
-// b) extracted down to a's. Each variant's seconds are the time of its sheet
-// operations (d's include b's pillowing). With the boundary fixed the surface
-// is smoothed on a copy of the extraction, whose held-back vertices (contour's
-// valid start) leave no hex inverted; b's sheet is inserted on that valid
-// mesh, then the surface nodes go to their smoothed positions as far as the
-// hexes stay valid, the sheet's copies following (as isohex mesh returns its
-// held-back vertices), and the rest of the way regardless, so that every
-// variant has the same surface on the isosurface.
+namespace {
+
+// b: the extraction as contoured (held-back vertices, no hex inverted), the
+// sheet pillowed in, then every surface node on the smoothed surface.
+CompareVariant sheetVariant(const HexMesh& valid, const HeldBack& surface, const MeshSettings& settings,
+                            StageSink& sink) {
+    CompareVariant b{CompareVariantKind::Sheet, valid, {}, 0};
+    MeshSettings pillowed = settings;
+    pillowed.pillow = true;
+    const Stopwatch t;
+    std::vector<isohex::PillowResult> passes;
+    // (reported as b's "held_back": the surface nodes the smoothing moved)
+    b.operations = toJson(pillowBoundary(b.mesh, pillowed, sink, &passes, settings.fixBoundary ? &surface : nullptr));
+    finishOnTargets(b.mesh, surface);
+    b.seconds += t.seconds();
+    return b;
+}
+
+// c: a with random sheets diced in up to b's hex count.
+CompareVariant dicedVariant(const HexMesh& base, std::size_t target, std::uint64_t seed, StageSink& sink) {
+    CompareVariant c{CompareVariantKind::NoSheetDiced, base, {}, 0};
+    sink.begin("dice");
+    const Stopwatch t;
+    c.operations = diceUntil(c.mesh, target, seed);
+    c.seconds += t.seconds();
+    sink.end("dice", c.seconds);
+    return c;
+}
+
+// d: b with random non-fundamental sheets extracted down to a's hex count
+// (its seconds include b's pillowing).
+CompareVariant extractedVariant(const CompareVariant& b, std::size_t target, std::uint64_t seed, StageSink& sink) {
+    CompareVariant d{CompareVariantKind::SheetExtracted, b.mesh, {}, 0};
+    sink.begin("extract sheets");
+    const Stopwatch t;
+    d.operations = extractUntil(d.mesh, target, seed);
+    d.seconds += t.seconds() + b.seconds;
+    sink.end("extract sheets", t.seconds());
+    return d;
+}
+
+}  // namespace
+
+// With the boundary fixed the surface is smoothed on a copy of the
+// extraction, whose held-back vertices (contour's valid start) leave no hex
+// inverted; b's sheet is inserted on that valid mesh, then the surface nodes
+// go to their smoothed positions as far as the hexes stay valid, the sheet's
+// copies following (as isohex mesh returns its held-back vertices), and the
+// rest of the way regardless, so that every variant has the same surface on
+// the isosurface.
 CompareVariants makeCompareVariants(const Prepared& p, const MeshSettings& settings, std::uint64_t seed,
-                                    StageSink& sink) {
+                                    StageSink& sink, const std::vector<CompareVariantKind>& wanted) {
+    auto want = [&](CompareVariantKind k) { return std::find(wanted.begin(), wanted.end(), k) != wanted.end(); };
     CompareVariants out;
     HexMesh base = contour(p, settings, sink);
     const HexMesh valid = base;
-    // Once, before any sheet, so that all four variants share one surface mesh.
+    // Once, before any sheet, so that all variants share one surface mesh.
     if (settings.fixBoundary) out.boundaryQuads = smoothBoundaryOnIsosurface(base, p, sink);
     const HeldBack surface = smoothedSurface(valid, base);
-    auto& v = out.variants;
-    v.resize(4);
-    v[0] = {CompareVariantKind::NoSheet, base, {}, 0};
-    v[1] = {CompareVariantKind::Sheet, valid, {}, 0};
-    MeshSettings pillowed = settings;
-    pillowed.pillow = true;
-    {
-        const Stopwatch t;
-        std::vector<isohex::PillowResult> passes;
-        // (reported as b's "held_back": the surface nodes the smoothing moved)
-        v[1].operations =
-            toJson(pillowBoundary(v[1].mesh, pillowed, sink, &passes, settings.fixBoundary ? &surface : nullptr));
-        finishOnTargets(v[1].mesh, surface);
-        v[1].seconds += t.seconds();
-    }
-    v[2] = {CompareVariantKind::NoSheetDiced, base, {}, 0};
-    {
-        sink.begin("dice");
-        const Stopwatch t;
-        v[2].operations = diceUntil(v[2].mesh, v[1].mesh.hexCount(), seed);
-        v[2].seconds += t.seconds();
-        sink.end("dice", v[2].seconds);
-    }
-    v[3] = {CompareVariantKind::SheetExtracted, v[1].mesh, {}, 0};
-    {
-        sink.begin("extract sheets");
-        const Stopwatch t;
-        v[3].operations = extractUntil(v[3].mesh, base.hexCount(), seed);
-        v[3].seconds += t.seconds() + v[1].seconds;
-        sink.end("extract sheets", t.seconds());
-    }
+    std::optional<CompareVariant> b;
+    if (want(CompareVariantKind::Sheet) || want(CompareVariantKind::NoSheetDiced) ||
+        want(CompareVariantKind::SheetExtracted))
+        b = sheetVariant(valid, surface, settings, sink);
+    if (want(CompareVariantKind::NoSheet)) out.variants.push_back({CompareVariantKind::NoSheet, base, {}, 0});
+    if (want(CompareVariantKind::Sheet)) out.variants.push_back(*b);
+    if (want(CompareVariantKind::NoSheetDiced)) out.variants.push_back(dicedVariant(base, b->mesh.hexCount(), seed, sink));
+    if (want(CompareVariantKind::SheetExtracted)) out.variants.push_back(extractedVariant(*b, base.hexCount(), seed, sink));
     return out;
 }
 

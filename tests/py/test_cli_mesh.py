@@ -135,6 +135,33 @@ class Phantoms(unittest.TestCase):
         for key in "abcd":
             self.assertIn(f"{key}: ", text)
 
+    def test_compare_variants_a_and_b_are_those_of_the_full_comparison(self):
+        # --variants b,a makes only those (in the order a, b), and they are
+        # the full comparison's: c and d are made after them and from b.
+        torus = os.path.join(self.dir, "torus.nii.gz")
+        full, part = os.path.join(self.dir, "cmp_full"), os.path.join(self.dir, "cmp_ab")
+        run(["compare", torus, "--iso", "50", "--size", "3", "--mesh-dir", full, "--force", "-q"])
+        js = os.path.join(self.dir, "cmp_ab.json")
+        run(["compare", torus, "--iso", "50", "--size", "3", "--variants", "b,a", "--mesh-dir", part, "--json", js,
+             "--force", "-q"])
+        self.assertEqual(sorted(os.listdir(part)), ["variant_a.vtu", "variant_b.vtu"])
+        with open(js) as f:
+            self.assertEqual([v["variant"] for v in json.load(f)["variants"]], ["a", "b"])
+        for key in "ab":
+            with open(os.path.join(full, f"variant_{key}.vtu"), "rb") as f, \
+                    open(os.path.join(part, f"variant_{key}.vtu"), "rb") as g:
+                self.assertEqual(f.read(), g.read(), key)
+
+    def test_compare_refuses_a_variant_list_it_cannot_make(self):
+        torus = os.path.join(self.dir, "torus.nii.gz")
+        for given, why in (("a,e", "'e', which is not a, b, c or d"), ("b,b", "names b twice"), ("", "''")):
+            p = run(["compare", torus, "--variants", given, "--json", os.path.join(self.dir, "never.json")],
+                    check=False)
+            self.assertNotEqual(p.returncode, 0)
+            self.assertIn("--variants takes some of a, b, c, d", p.stderr)
+            self.assertIn(why, p.stderr)
+            self.assertFalse(os.path.exists(os.path.join(self.dir, "never.json")))
+
     def test_compare_warnings_name_its_own_option(self):
         # compare fixes the boundary unless --move-boundary; its warnings told
         # the user to drop --fix-boundary, an option they never passed.

@@ -31,7 +31,7 @@ class SeedExperiment(unittest.TestCase):
     def setUpClass(cls):
         cls.dir = workdir("compare")
         cls.json = os.path.join(cls.dir, "skull.json")
-        run(["compare", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), "--iso", "2.9", "--mesh-dir", cls.dir,
+        run(["compare", os.path.join(SHARED_DATA, "skull_ct.nii.gz"), "--iso", "2.9", "--variants", "a,b", "--mesh-dir", cls.dir,
              "--json", cls.json, "--force", "-q"])
         cls.grid = {k: read_vtu(os.path.join(cls.dir, f"variant_{k}.vtu")) for k in "ab"}
         cls.sj = {k: vtk_sj(g) for k, g in cls.grid.items()}

@@ -46,17 +46,28 @@ struct CompareVariant {
 
 const char* variantKey(CompareVariantKind kind);    // "a" ... "d"
 const char* variantLabel(CompareVariantKind kind);  // "no sheet", ...
+// The kind whose key is `key` ("a" ... "d"), or nothing.
+std::optional<CompareVariantKind> variantOfKey(const std::string& key);
+// Every kind, in the order a, b, c, d.
+inline constexpr CompareVariantKind kAllCompareVariants[] = {
+    CompareVariantKind::NoSheet, CompareVariantKind::Sheet, CompareVariantKind::NoSheetDiced,
+    CompareVariantKind::SheetExtracted};
 
 struct CompareVariants {
     // The surface smoothing every variant shares (with settings.fixBoundary).
     std::optional<smoothing::BoundaryQuadResult> boundaryQuads;
-    std::vector<CompareVariant> variants;  // a, b, c, d
+    std::vector<CompareVariant> variants;  // those asked for, in the order a, b, c, d
 };
 
-// The four variants before optimisation, from one extraction (smoothed on the
-// isosurface first with settings.fixBoundary); `seed` draws the random sheets.
+// The variants in `wanted` (any order; each once) before optimisation, from
+// one extraction (smoothed on the isosurface first with settings.fixBoundary);
+// `seed` draws the random sheets. c's count and d's start are b's mesh, so b
+// is made when any of b, c, d is wanted, and kept only when b is. The random
+// sheet operations (c and d) are what grows with the square of the mesh;
+// `a,b` alone is the comparison with and without the sheet in the time of
+// two meshings.
 CompareVariants makeCompareVariants(const Prepared& p, const MeshSettings& settings, std::uint64_t seed,
-                                    StageSink& sink);
+                                    StageSink& sink, const std::vector<CompareVariantKind>& wanted);
 
 // One variant optimised by the protocol (pipeline::optimize with the
 // settings' fixBoundary); its seconds grow by the time taken.
