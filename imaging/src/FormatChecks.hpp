@@ -14,6 +14,9 @@ namespace isohex::imaging::detail {
 // NIfTI: 1 or 2 for a NIfTI-1 or NIfTI-2 header (sizeof_hdr 348 or 540, in
 // either byte order, the file gzipped or not), 0 for anything else.
 int niftiVersion(const std::string& file);
+// NIfTI-1: true for a 348-byte header whose magic is "n+1" (one file of
+// header and voxels); false for "ni1" (a .hdr's), Analyze 7.5 and the rest.
+bool niftiOneFileMagic(const std::string& file);
 // NIfTI: throws if pixdim, the quaternion or the affine rows in use are not
 // finite (ITK's reader aborts the process on them). Before ITK reads the header.
 void checkNiftiOrientation(const std::string& file);

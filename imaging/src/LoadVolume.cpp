@@ -445,7 +445,12 @@ Volume loadVolumeUnguarded(const fs::path& path, const LoadOptions& options) {
         throw Error(file + ": the file is empty; it was probably not written completely. Export it again.");
     }
     if (lower(path.extension().string()) == ".vdb") return loadVdb(path, options);
-    if (detail::isNifti2(path)) return fromRaw(detail::readNifti2(path, options), file, options);
+    // .nii and .nii.gz without ITK (its plugin's load was most of a small
+    // scan's load stage); the NIfTI-1 files libnifti2 cannot read as ITK does
+    // go on to ITK.
+    if (detail::readsWithNiftiLib(path))
+        if (std::optional<detail::RawVolume> raw = detail::readWithNiftiLib(path, options))
+            return fromRaw(std::move(*raw), file, options);
     return fromRaw(detail::itkReaders().readImageFile(path, options), file, options);
 }
 }  // namespace

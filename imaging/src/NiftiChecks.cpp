@@ -1,4 +1,4 @@
-// NIfTI checks around ITK's reader (see FormatChecks.hpp). The header is read
+// NIfTI checks around the readers, ITK and libnifti2 (see FormatChecks.hpp). The header is read
 // with gzread, which reads an uncompressed file as it is, so one path serves
 // .nii and .nii.gz.
 #include <algorithm>
@@ -87,6 +87,11 @@ std::uint64_t gunzippedSize(const std::string& file) {
 int niftiVersion(const std::string& file) {
     const NiftiHeader h(file);
     return h.got < 4 || !h.known ? 0 : h.v1 ? 1 : 2;
+}
+
+bool niftiOneFileMagic(const std::string& file) {
+    const NiftiHeader h(file);
+    return h.got >= 348 && h.known && h.v1 && std::memcmp(h.bytes + 344, "n+1", 4) == 0;
 }
 
 // NIfTI's reader zero-fills missing voxel bytes with only a debug message, and

@@ -1,10 +1,12 @@
 #pragma once
 // Internal: a dense 3-D array plus geometry, the hand-over format between the
-// file readers (ITK, OpenEXR) and the grid builder. No ITK or OpenVDB here, so
-// the ITK translation units and the OpenVDB ones compile independently.
+// file readers (ITK, libnifti2, OpenEXR) and the grid builder. No ITK or
+// OpenVDB here, so the ITK translation units and the OpenVDB ones compile
+// independently.
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,10 +46,20 @@ void checkMemoryBudget(const std::string& file, const RawHeader& header, double 
 
 // ITK: one image file (NIfTI, NRRD, MetaImage, TIFF, a single DICOM file).
 RawVolume readImageFileItk(const std::filesystem::path& path, const LoadOptions& options);
-// True for a .nii or .nii.gz file with a NIfTI-2 header (540 bytes).
-bool isNifti2(const std::filesystem::path& path);
-// libnifti2: a NIfTI-2 file (ITK 5.2 reads NIfTI-1 only).
-RawVolume readNifti2(const std::filesystem::path& path, const LoadOptions& options);
+// 1 or 2 for a .nii or .nii.gz file (the name's case aside) with a NIfTI-1
+// (348-byte) or NIfTI-2 (540-byte) header, 0 for any other file.
+int niftiFileVersion(const std::filesystem::path& path);
+// True for the files readWithNiftiLib takes: .nii and .nii.gz files with a
+// NIfTI-1 or NIfTI-2 header.
+bool readsWithNiftiLib(const std::filesystem::path& path);
+// libnifti2, without ITK (NiftiRead.cpp): a NIfTI-2 file (ITK 5.2 reads
+// NIfTI-1 only), or a NIfTI-1 file as readImageFileItk reads it: the same
+// RawVolume, value for value. Empty for the NIfTI-1 files where that is not
+// sure, and for those that are refused (the error is then ITK's path's): the
+// caller reads them with readImageFileItk. Never empty for NIfTI-2.
+std::optional<RawVolume> readWithNiftiLib(const std::filesystem::path& path, const LoadOptions& options);
+// Loads libnifti2 (for `isohex batch`, before its jobs fork); false if it is missing.
+bool loadNiftiLib();
 // ITK: a folder holding one or more DICOM series.
 RawVolume readDicomFolderItk(const std::filesystem::path& dir, const LoadOptions& options);
 // ITK: a folder of 2-D TIFF slices, stacked in natural file-name order.

@@ -49,6 +49,9 @@ bool preloadReader(const std::filesystem::path& input) {
             detail::surfaceReader();
             return true;
         }
+        // NIfTI: libnifti2, and ITK too, which reads the NIfTI-1 files
+        // libnifti2 cannot read as ITK does and finds Otsu's threshold.
+        if (detail::readsWithNiftiLib(input)) detail::loadNiftiLib();
         detail::itkReaders();
         return true;
     } catch (const Error&) {

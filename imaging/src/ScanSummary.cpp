@@ -29,7 +29,7 @@ bool mayStream(const fs::path& path) {
         return name.size() >= e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0;
     };
     std::error_code ec;
-    if (fs::is_directory(path, ec) || detail::isNifti2(path)) return false;
+    if (fs::is_directory(path, ec) || detail::niftiFileVersion(path) == 2) return false;  // ITK reads no NIfTI-2
     return endsWith(".nii") || endsWith(".mha") || endsWith(".mhd");
 }
 

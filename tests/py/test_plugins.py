@@ -1,9 +1,10 @@
 """The launcher and the plugins (cli/launcher/, core/include/isohex/core/Plugin.hpp):
 `isohex --version` from the launcher equals the program's; a mesh format's
-plugin is loaded only when that format is read or written; a missing or
-damaged plugin is one error line naming it and what to do, exit status 1,
-with no output or temporary file left behind; the folder isohex runs from is
-never searched for the libraries it loads."""
+plugin is loaded only when that format is read or written, and ITK's not for
+a NIfTI-1 scan meshed at a given iso value; a missing or damaged plugin is
+one error line naming it and what to do, exit status 1, with no output or
+temporary file left behind; the folder isohex runs from is never searched
+for the libraries it loads."""
 import os
 import shutil
 import subprocess
@@ -128,6 +129,23 @@ class Plugins(unittest.TestCase):
         self.assertEqual(err.count("\n"), 0, err)
         self.assertIn("libisohex_vtu.so", err)
         self.assertIn("could not be loaded", err)
+
+    def test_a_nifti1_scan_is_meshed_without_the_itk_plugin(self):
+        # libnifti2 reads .nii.gz (imaging/src/NiftiRead.cpp); ITK's plugin is
+        # loaded only for what needs it, such as Otsu's threshold.
+        scans = phantoms("plugins_nifti")
+        try:
+            only_vtu = self.folder("only_vtu_nifti", ["libisohex_vtu.so"])
+            out = os.path.join(self.dir, "sphere.vtu")
+            sphere = os.path.join(scans, "sphere.nii.gz")
+            proc = isohex(["mesh", sphere, "--iso", "50", "--size", "2", "-o", out, "--force", "-q"], only_vtu)
+            self.assertEqual(proc.returncode, 0, proc.stderr)
+            self.assertGreater(os.path.getsize(out), 0)
+            proc = isohex(["mesh", sphere, "--size", "2", "-o", out, "--force", "-q"], only_vtu)
+            self.assertEqual(proc.returncode, 1)
+            self.assertIn("libisohex_itk.so", proc.stderr)
+        finally:
+            shutil.rmtree(scans, ignore_errors=True)
 
     def test_libraries_in_the_working_folder_are_not_loaded(self):
         # Files named like isohex's own library and a system dependency, in the

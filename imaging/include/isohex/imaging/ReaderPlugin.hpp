@@ -10,8 +10,11 @@ namespace isohex::imaging {
 
 // Loads the plugin loadVolume will use for `input` (ITK for image files and
 // DICOM or TIFF folders, OpenEXR for folders of .exr slices; nothing for .vdb
-// files and triangle surfaces). Returns false if it cannot be loaded; the
-// reason is left to loadVolume, which throws it for the job it concerns.
+// files and triangle surfaces). For .nii and .nii.gz files libnifti2 as well
+// as ITK: loadVolume reads them with libnifti2 but leaves some NIfTI-1 files
+// to ITK, and Otsu's threshold is ITK's. Returns false if it cannot be
+// loaded; the reason is left to loadVolume, which throws it for the job it
+// concerns.
 bool preloadReader(const std::filesystem::path& input);
 
 }  // namespace isohex::imaging

@@ -102,10 +102,12 @@ struct Volume {
     std::int64_t voxelCount() const { return static_cast<std::int64_t>(box.volume()); }
 };
 
-// Reads a scan. The format follows from the path: .nii/.nii.gz, .nrrd/.nhdr,
-// .mha/.mhd, .tif/.tiff (multi-page) and DICOM through ITK; .vdb through
-// OpenVDB; a folder of DICOM files, of .exr slices (single-channel float) or of
-// .tif slices. Throws isohex::Error naming the file, the problem and the fix.
+// Reads a scan. The format follows from the path: .nii/.nii.gz through
+// libnifti2 (a NIfTI-1 file as ITK reads it; some, and regions, through ITK);
+// .nrrd/.nhdr, .mha/.mhd, .tif/.tiff (multi-page) and DICOM through ITK; .vdb
+// through OpenVDB; a folder of DICOM files, of .exr slices (single-channel
+// float) or of .tif slices. Throws isohex::Error naming the file, the problem
+// and the fix.
 Volume loadVolume(const std::filesystem::path& path, const LoadOptions& options = {});
 
 // The affine transform for origin + D * diag(spacing) * ijk.
