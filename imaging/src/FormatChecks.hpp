@@ -29,6 +29,10 @@ void checkNiftiHeaderFields(const std::string& file, const std::string& dataFile
 // for .nii.gz its uncompressed stream) is shorter or longer than vox_offset
 // plus `dataBytes`, or its compressed data is damaged.
 void checkNiftiDataSize(const std::string& file, const std::string& dataFile, std::uint64_t dataBytes, bool gzipped);
+// NIfTI: the bytes per voxel of the header's datatype when it is a scalar
+// integer type, else 0. ITK reports such a file with scl_slope/scl_inter as
+// float voxels, so the size of its data on disk is counted from this.
+int niftiIntegerBytes(const std::string& file);
 // NIfTI: puts NaN back into `values` where the file's float voxels of volume
 // `frame` of `frames`, component `comp`, are not finite (ITK's reader zeroes them).
 void restoreNiftiNonFinite(const std::string& file, std::vector<float>& values, std::int64_t frame,

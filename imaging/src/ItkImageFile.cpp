@@ -199,7 +199,11 @@ void checkDataSize(const ImageFileRead& r) {
     const auto bytes = static_cast<std::uint64_t>(r.io->GetImageSizeInBytes());
     if (r.format == CheckedFormat::Nifti || r.format == CheckedFormat::NiftiGz || r.format == CheckedFormat::NiftiPair) {
         const auto [header, data] = niftiFiles(r.path, r.format);
-        checkNiftiDataSize(header, data, bytes, r.format == CheckedFormat::NiftiGz);
+        // Integers with a scaling are reported as floats: the file holds the integers.
+        const int integer = niftiIntegerBytes(header);
+        const std::uint64_t fileBytes =
+            integer > 0 ? static_cast<std::uint64_t>(r.io->GetImageSizeInComponents()) * std::uint64_t(integer) : bytes;
+        checkNiftiDataSize(header, data, fileBytes, r.format == CheckedFormat::NiftiGz);
     }
     if (r.format == CheckedFormat::MetaImage) checkMetaImageSize(r.file, bytes);
 }

@@ -89,6 +89,18 @@ int niftiVersion(const std::string& file) {
     return h.got < 4 || !h.known ? 0 : h.v1 ? 1 : 2;
 }
 
+int niftiIntegerBytes(const std::string& file) {
+    const NiftiHeader h(file);
+    if (h.got < 348 || !h.known || (!h.v1 && h.got < 540)) return 0;
+    switch (h.field<std::int16_t>(h.v1 ? 70 : 12)) {
+        case 2: case 256: return 1;       // uint8, int8
+        case 4: case 512: return 2;       // int16, uint16
+        case 8: case 768: return 4;       // int32, uint32
+        case 1024: case 1280: return 8;   // int64, uint64
+        default: return 0;
+    }
+}
+
 bool niftiOneFileMagic(const std::string& file) {
     const NiftiHeader h(file);
     return h.got >= 348 && h.known && h.v1 && std::memcmp(h.bytes + 344, "n+1", 4) == 0;

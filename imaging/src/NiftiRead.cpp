@@ -520,15 +520,14 @@ std::optional<RawVolume> nifti1Volume(const std::string& file, const NiftiLibrar
     const std::int64_t frame = frames > 1 ? index : 0;
     RawVolume raw;
     if (!itkNiftiGeometry(h, raw)) return std::nullopt;
-    // ITK reports integers it rescales as float, and counts the file's voxel
-    // bytes as floats then (checkNiftiDataSize refuses 8- and 16-bit ones).
+    // ITK reports integers it rescales as float (the file holds the integers).
     const ItkRescale rescale(h);
     const bool promoted = rescale.apply && !isFloatType(h.datatype);
     RawHeader facts;
     facts.size = {h.nx, h.ny, h.nz, frames};
     checkMemoryBudget(file, facts, options.maxMemoryMB);
     const std::uint64_t voxels = std::uint64_t(h.nx) * std::uint64_t(h.ny) * std::uint64_t(h.nz) * std::uint64_t(frames);
-    checkNiftiDataSize(file, file, voxels * std::uint64_t(promoted ? 4 : h.nbyper), gzipName(file));
+    checkNiftiDataSize(file, file, voxels * std::uint64_t(h.nbyper), gzipName(file));
 
     if (options.progress) options.progress("read", 0.0);
     const Image nim(lib.read(file.c_str(), 1), lib.free);

@@ -389,12 +389,23 @@ TEST(NiftiLibRead, ValuesTypesAndScalingAreItks) {
         compareWithItk(odd.write(dir / "slope_odd.nii.gz"), Expect::Read);
         compareWithItk(dir / "slope_odd.nii.gz", Expect::LeftToItk, labels());  // refused: not integers
     }
-    {  // int16 with a slope: ITK's reader counts its bytes as floats and refuses it
+    // Integers of every width with a scaling (a CT's int16 with scl_inter
+    // -1024): both readers give raw * slope + inter as float32. Their data on
+    // disk is the integers' (its size was counted as floats, and every such
+    // file but the 32-bit ones was refused as truncated or overlong).
+    for (std::int16_t type : {2, 256, 4, 512, 1024, 1280}) {
         Nifti1 h;
-        h.datatype = 4;
-        h.slope = 2;
-        h.inter = 5;
-        compareWithItk(h.write(dir / "scaled_int16.nii"), Expect::LeftToItk);
+        h.datatype = type;
+        h.slope = type == 4 ? 1.0f : 2.0f;
+        h.inter = type == 4 ? -1024.0f : 5.0f;
+        const fs::path p = h.write(dir / ("scaled_int_" + std::to_string(type) + ".nii"));
+        compareWithItk(p, Expect::Read);
+        const std::optional<RawVolume> v = isohex::imaging::detail::readWithNiftiLib(p, {});
+        ASSERT_TRUE(v);
+        EXPECT_EQ(v->pixelType, "float32");
+        ASSERT_EQ(v->values.size(), std::size_t(h.voxels()));
+        for (std::int64_t i = 0; i < h.voxels(); ++i)
+            ASSERT_EQ(v->values[std::size_t(i)], float(std::trunc(h.value(i))) * h.slope + h.inter) << type << " at " << i;
     }
     {  // NaN and infinities: NaN in the volume (ITK's reader zeroes them, isohex puts NaN back), 0 as labels
         Nifti1 h;
