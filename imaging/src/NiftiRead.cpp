@@ -108,12 +108,17 @@ const char* typeName(int datatype) {
 
 bool isFloatType(int datatype) { return datatype == DT_FLOAT32 || datatype == DT_FLOAT64; }
 
-// A name ending in .gz, in any case (as ItkImageFile.cpp tells .nii.gz).
-bool gzipName(const std::string& file) {
-    std::string end = file.size() >= 3 ? file.substr(file.size() - 3) : file;
-    for (auto& c : end) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return end == ".gz";
+// Whether `name` ends in `suffix` (lower case), its letters in any case.
+bool endsWithAnyCase(const std::string& name, const char* suffix) {
+    const std::size_t n = std::strlen(suffix);
+    if (name.size() < n) return false;
+    for (std::size_t i = 0; i < n; ++i)
+        if (std::tolower(static_cast<unsigned char>(name[name.size() - n + i])) != suffix[i]) return false;
+    return true;
 }
+
+// A name ending in .gz, in any case (as ItkImageFile.cpp tells .nii.gz).
+bool gzipName(const std::string& file) { return endsWithAnyCase(file, ".gz"); }
 
 // ---------------------------------------------------------------------------
 // NIfTI-2
@@ -558,13 +563,8 @@ std::optional<RawVolume> nifti1Volume(const std::string& file, const NiftiLibrar
 }  // namespace
 
 int niftiFileVersion(const std::filesystem::path& path) {
-    std::string name = path.filename().string();
-    for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    auto endsWith = [&](const char* e) {
-        const std::size_t n = std::strlen(e);
-        return name.size() >= n && name.compare(name.size() - n, n, e) == 0;
-    };
-    if (!endsWith(".nii") && !endsWith(".nii.gz")) return 0;
+    const std::string name = path.filename().string();
+    if (!endsWithAnyCase(name, ".nii") && !endsWithAnyCase(name, ".nii.gz")) return 0;
     return niftiVersion(path.string());
 }
 
