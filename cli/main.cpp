@@ -9,6 +9,7 @@
 #include "Commands.hpp"
 #include "ErrorText.hpp"
 #include "Isolate.hpp"
+#include "StartProbe.hpp"
 #include "isohex/core/AtomicFile.hpp"
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
@@ -41,6 +42,7 @@ bool refuseUnknownCommand(const CLI::App& app, int argc, char** argv) {
 
 int main(int argc, char** argv) {
     using namespace isohex::cli;
+    if (argc == 2 && argv[1] == kStartProbeFlag) return kExitOk;  // the launcher's start-up check
     isohex::io::removeTemporariesOnSignal();  // an interrupted write leaves no hidden temporary
     CLI::App app{"isohex: turns volumetric scans into all-hexahedral finite-element meshes\n"
                  "whose every element is convex with positive volume, and reports their quality."};

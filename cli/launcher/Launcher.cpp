@@ -10,6 +10,17 @@
 // transparent huge pages when glibc.malloc.hugetlb is 1, but reads its
 // tunables only at start-up. Not set when the kernel has transparent huge
 // pages off, when the user already set it, or with ISOHEX_HUGEPAGES=0.
+//
+// Under an address-space limit (ulimit -v, or a scheduler's virtual-memory
+// request such as SGE's h_vmem) isohex-run can fail before its main runs:
+// libraries start threads while they are loaded (log4cplus, which OpenVDB
+// links, starts four, each reserving a stack of ulimit -s), and when the
+// limit leaves no room for them the C++ runtime aborts with "terminate
+// called ...", which no code of isohex's can catch. So under a finite limit
+// the launcher first runs isohex-run with --start-probe (StartProbe.hpp), its
+// output discarded, and says why in one line if that does not return 0. The
+// check costs one start of isohex-run (tens of milliseconds), only under a
+// limit; without one the launcher execs at once.
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -18,10 +29,15 @@
 #include <iostream>
 #include <string>
 #include <string_view>
+#include <optional>
 #include <system_error>
 
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include "../StartProbe.hpp"
 #include "../Versions.hpp"
 
 namespace {
@@ -40,6 +56,43 @@ void addHugePageTunable() {
     setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
 }
 
+std::string megabytes(rlim_t bytes) { return std::to_string(bytes >> 20) + " MB"; }
+
+// Runs `program --start-probe` with its output discarded; returns the line to
+// print when it did not start, nothing when it did or when there is no limit.
+std::optional<std::string> startFailure(const std::filesystem::path& program) {
+    rlimit as{};
+    if (::getrlimit(RLIMIT_AS, &as) != 0 || as.rlim_cur == RLIM_INFINITY) return std::nullopt;
+    if (::access(program.c_str(), X_OK) != 0) return std::nullopt;  // the exec below says what is wrong
+    const pid_t child = ::fork();
+    if (child < 0) return std::nullopt;  // no probe: the run itself will tell
+    if (child == 0) {
+        const int null = ::open("/dev/null", O_WRONLY);
+        if (null >= 0) {
+            ::dup2(null, STDOUT_FILENO);
+            ::dup2(null, STDERR_FILENO);
+        }
+        std::string flag(isohex::cli::kStartProbeFlag);
+        char* args[] = {const_cast<char*>(program.c_str()), flag.data(), nullptr};
+        ::execv(program.c_str(), args);
+        ::_exit(127);
+    }
+    int status = 0;
+    while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    // Any other end (an abort, or the loader's exit 127 when a library
+    // cannot be mapped) is the limit's doing: with no limit it starts.
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return std::nullopt;
+    rlimit stack{};
+    std::string stackText = "unlimited";
+    if (::getrlimit(RLIMIT_STACK, &stack) == 0 && stack.rlim_cur != RLIM_INFINITY) stackText = megabytes(stack.rlim_cur);
+    return "cannot start under the address-space limit of " + megabytes(as.rlim_cur) +
+           " (ulimit -v): loading its libraries and their threads (each reserving a stack of ulimit -s, now " +
+           stackText +
+           ") takes more address space than that, before any input is read; raise the limit (ulimit -v, or "
+           "the job's virtual-memory request such as SGE's h_vmem) by a few hundred MB";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -51,7 +104,13 @@ int main(int argc, char** argv) {
     const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
     const std::filesystem::path program = self.parent_path() / "isohex-run";
     addHugePageTunable();
-    if (!ec) execv(program.c_str(), argv);
+    if (!ec) {
+        if (const auto failure = startFailure(program)) {
+            std::cerr << "isohex: error: " << *failure << "\n";
+            return 1;
+        }
+        execv(program.c_str(), argv);
+    }
     std::cerr << "isohex: error: cannot run the isohex program " << program.string() << ": "
               << (ec ? ec.message() : std::strerror(errno))
               << "; it is installed beside the isohex command (bin/isohex-run, build/cli/isohex-run): "

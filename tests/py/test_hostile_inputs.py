@@ -4,6 +4,7 @@ problem and what to do, with nothing written, or (where the input is valid)
 meshed correctly and checked against a control."""
 import os
 import re
+import resource
 import stat
 import subprocess
 import sys
@@ -219,6 +220,29 @@ class HostileInputs(unittest.TestCase):
 
 
     # ------------------------------------------------------------ memory
+
+    def test_a_limit_too_small_to_start_with_is_one_line_saying_so(self):
+        # Under these limits isohex-run aborted before its main with
+        # "terminate called after throwing an instance of 'std::system_error'":
+        # log4cplus, loaded with OpenVDB, starts threads whose stacks (8 MB
+        # each, ulimit -s, set here) no longer fit. Now the launcher finds that
+        # out first and says so.
+        out = os.path.join(self.dir, "too_small_to_start.vtu")
+
+        def stack_8_mb():
+            resource.setrlimit(resource.RLIMIT_STACK, (8 << 20, resource.getrlimit(resource.RLIMIT_STACK)[1]))
+
+        for mb in (48, 80):
+            p = subprocess.run(["prlimit", f"--as={mb << 20}", ISOHEX, "mesh", self.scan, "-o", out, "-q"],
+                               capture_output=True, text=True, timeout=120, preexec_fn=stack_8_mb)
+            with self.subTest(limit_mb=mb):
+                self.assertEqual(p.returncode, 1, p.stderr)
+                self.assertNotIn("terminate called", p.stderr)
+                lines = errors_of(p)
+                self.assertEqual(len(lines), 1, p.stderr)
+                self.assertIn(f"cannot start under the address-space limit of {mb} MB (ulimit -v)", lines[0])
+                self.assertIn("stack of ulimit -s, now 8 MB", lines[0])
+                self.assertFalse(os.path.exists(out))
 
     def test_out_of_memory_under_ulimit_v_is_one_line_naming_the_stage(self):
         # under a 300 MB address-space limit an uncaught std::bad_alloc ended
