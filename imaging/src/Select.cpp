@@ -33,6 +33,96 @@ std::string describeVolume(const Volume& v) {
     return v.source.empty() ? std::string("the volume") : v.source;
 }
 
+// How many values of a dense volume (LayoutXYZ, z fastest) fill regions: at
+// least 64 voxels of the value, a quarter of them with the same value at their
+// +x, +y and +z neighbours. Zero when a value is not a whole number.
+struct ValueRegions {
+    int filling = 0;  // values that fill regions
+    int valuesAboveIso = 0, valuesBelowIso = 0;  // among those filling regions, 0 left out
+    double restInRegions = 0;  // the share of voxels not of the commonest value whose value fills regions
+};
+
+ValueRegions valueRegions(const std::vector<float>& v, const openvdb::Coord& dim, double iso) {
+    ValueRegions out;
+    const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+    if (lo == v.end() || !(*hi - *lo < float(1 << 16))) return out;  // not a label map's range
+    const std::size_t ny = std::size_t(dim.y()), nz = std::size_t(dim.z()), nx = std::size_t(dim.x());
+    const float base = *lo;
+    using Counts = std::vector<std::int64_t>;  // per value: voxels, then voxels like their neighbours
+    const std::size_t span = std::size_t(*hi - base) + 1;
+    auto counts = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, nx), Counts(),
+        [&](const tbb::blocked_range<std::size_t>& r, Counts c) {
+            if (c.empty()) c.assign(2 * span + 1, 0);
+            for (std::size_t x = r.begin(); x != r.end(); ++x)
+                for (std::size_t y = 0; y < ny; ++y)
+                    for (std::size_t z = 0; z < nz; ++z) {
+                        const std::size_t i = (x * ny + y) * nz + z;
+                        const float a = v[i];
+                        if (a != std::floor(a)) c[2 * span] = 1;  // not whole numbers
+                        if (c[2 * span]) continue;
+                        const std::size_t k = std::size_t(a - base);
+                        ++c[2 * k];
+                        c[2 * k + 1] += x + 1 < nx && y + 1 < ny && z + 1 < nz && v[i + ny * nz] == a &&
+                                        v[i + nz] == a && v[i + 1] == a;
+                    }
+            return c;
+        },
+        [](Counts a, const Counts& b) {
+            if (a.empty()) return b;
+            if (b.empty()) return a;
+            for (std::size_t k = 0; k < a.size(); ++k) a[k] += b[k];
+            a.back() = a.back() || b.back();
+            return a;
+        });
+    if (counts.empty() || counts.back()) return out;
+    std::size_t commonest = 0;
+    for (std::size_t k = 0; k < span; ++k)
+        if (counts[2 * k] > counts[2 * commonest]) commonest = k;
+    std::int64_t rest = 0, restInRegions = 0;  // voxels of values other than the commonest
+    for (std::size_t k = 0; k < span; ++k) {
+        const std::int64_t n = counts[2 * k], alike = counts[2 * k + 1];
+        const bool fills = n >= 64 && 4 * alike >= n;
+        if (k != commonest) {
+            rest += n;
+            restInRegions += fills ? n : 0;
+        }
+        if (!fills) continue;
+        ++out.filling;
+        if (double(base) + double(k) == 0.0) continue;  // the background
+        const bool above = double(base) + double(k) > iso;
+        (above ? out.valuesAboveIso : out.valuesBelowIso) += 1;
+    }
+    out.restInRegions = rest > 0 ? double(restInRegions) / double(rest) : 0.0;
+    return out;
+}
+
+// Refuses a label map read as a scan with Otsu's threshold, which splits its
+// labels by their numbers (the JHU white-matter atlas at 13.97: labels 14-48
+// one solid, 1-13 left out). In a segmentation every label fills a region
+// (JHU: 41 of its 49 values); in a scan noise and smooth edges make
+// neighbours differ, so only the background and a saturated value do
+// (ch2bet: 1; the phantoms' clipped ramps: 2). A threshold between two
+// values is a label map's, with one label and the background, and stands.
+// A CT can have three (padding outside the field of view, air clipped at
+// -1024, metal clipped at the top), but its tissue is noise: so nearly all
+// voxels off the background must hold values that fill regions, as every
+// voxel of a segmentation does (JHU: 99%).
+void refuseLabelsAsIntensity(const std::string& src, const std::vector<float>& values, const openvdb::Coord& dim,
+                             double iso) {
+    const ValueRegions r = valueRegions(values, dim, iso);
+    if (r.filling < 3 || r.restInRegions < 0.9) return;
+    std::ostringstream m;
+    m.precision(7);
+    m << src << ": this looks like a label map, not a scan: its values are whole numbers and " << r.filling
+      << " of them fill regions (in a scan, noise and smooth edges make neighbouring voxels differ). Otsu's "
+         "threshold "
+      << iso << " would mesh the " << r.valuesAboveIso << " label(s) above it as one solid and leave out the "
+      << r.valuesBelowIso << " below it. Mesh its labels with ";
+    throw SettingError({m.str(), Setting::Labels, " (or choose some with ", Setting::Label, "), or give ",
+                        Setting::Iso, " to threshold it on purpose."});
+}
+
 Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
     Selection sel;
     const std::string src = describeVolume(vol);
@@ -41,6 +131,7 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
     bool insideBelow = o.insideBelow;
 
     std::optional<double> iso = o.iso;
+    if (iso && o.isoFromOtsu) refuseLabelsAsIntensity(src, values, vol.box.dim(), *iso);
     if (iso) {
         if (!std::isfinite(*iso) || !(*iso > vol.minValue && *iso < vol.maxValue)) {
             std::ostringstream m;
@@ -81,6 +172,7 @@ Selection selectIntensity(const Volume& vol, const SelectOptions& o) {
               << vol.maxValue << "; give the iso value yourself.";
             throw Error(m.str());
         }
+        refuseLabelsAsIntensity(src, values, vol.box.dim(), *iso);
         sel.isoFromOtsu = true;
     }
 

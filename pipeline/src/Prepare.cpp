@@ -243,6 +243,7 @@ bool loadPartWindow(PrepareState& s) {
     Stage sel(s.sink, "select");
     imaging::SelectOptions so = s.settings.select;
     so.iso = sum.iso;
+    so.isoFromOtsu = sum.isoFromOtsu;
     imaging::Selection selection = imaging::select(*s.p.volume, so);
     selection.isoFromOtsu = sum.isoFromOtsu;
     selection.materials.front().voxels = sum.selectedVoxels;

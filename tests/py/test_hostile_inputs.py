@@ -11,6 +11,7 @@ import sys
 import unittest
 
 import numpy as np
+from vtk.util.numpy_support import vtk_to_numpy
 
 sys.path.insert(0, os.path.dirname(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "samples"))
@@ -20,6 +21,10 @@ from vtk_tools import read_vtu, vtk_sj, vtk_volumes  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tools"))
 from hostile_corpus import block_mesh, sphere_off, off_text  # noqa: E402
+
+
+def material_of(vtu):
+    return vtk_to_numpy(read_vtu(vtu).GetCellData().GetArray("material")).tolist()
 
 
 def errors_of(p):
@@ -218,6 +223,68 @@ class HostileInputs(unittest.TestCase):
                 self.assertNotIn("crashed", lines[0])
         self.assertEqual(os.listdir(folder), [])
 
+
+    # ------------------------------------------------------ label maps
+
+    def test_a_label_map_meshed_as_a_scan_is_refused_not_split_at_otsus_threshold(self):
+        # Without --labels a label map was meshed at Otsu's threshold between
+        # label numbers: here labels 2 and 3 as one solid, label 1 left out,
+        # with only an info line about the threshold.
+        labels = np.zeros((24, 24, 24), np.uint8)
+        labels[4:12, 4:20, 4:20] = 1
+        labels[12:20, 4:20, 4:12] = 2
+        labels[12:20, 4:20, 12:20] = 3
+        path = os.path.join(self.dir, "three_labels.nii.gz")
+        write_nifti(path, labels)
+        out = os.path.join(self.dir, "three_labels.vtu")
+        p = run(["mesh", path, "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        lines = errors_of(p)
+        self.assertEqual(len(lines), 1, p.stderr)
+        self.assertIn(f"{path}: this looks like a label map, not a scan", lines[0])
+        self.assertIn("4 of them fill regions", lines[0])
+        self.assertIn("--labels", lines[0])
+        self.assertIn("--iso", lines[0])
+        self.assertFalse(os.path.exists(out))
+        # A part of a split scan (uncompressed NIfTI streams its window) is checked alike.
+        raw = os.path.join(self.dir, "three_labels.nii")
+        write_nifti(raw, labels)
+        p = run(["mesh", raw, "--part", "1/2", "--size", "2", "-o", out, "-q"], check=False)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn(f"{raw}: this looks like a label map, not a scan", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        # What the message offers works: every label as a material, or a threshold chosen on purpose.
+        run(["mesh", path, "--labels", "-o", out, "-q"])
+        self.assertEqual(sorted(set(material_of(out))), [1, 2, 3])
+        run(["mesh", path, "--iso", "1.5", "-o", out, "-q", "--force"])  # labels 2 and 3: 8 x 16 x 16 voxels
+        self.assertAlmostEqual(vtk_volumes(read_vtu(out)).sum() / 2048.0, 1.0, delta=0.1)
+
+    def test_one_label_and_integer_ramps_are_still_meshed_at_otsus_threshold(self):
+        # A mask (one label and the background) and a scan of whole numbers
+        # whose edges are ramps (here the sphere, rounded: values 0-100) have
+        # at most two values filling regions; Otsu's threshold is right for them.
+        # A CT in whole Hounsfield units may have three (padding outside the
+        # field of view, air clipped at -1024, metal clipped at 3071), but its
+        # tissue is noise.
+        mask = np.zeros((24, 24, 24), np.uint8)
+        mask[4:20, 4:20, 4:20] = 7
+        rounded = np.round(ramp(self.r - 5)).astype(np.int16)
+        n = 32
+        grid = np.indices((n, n, n)) - (n - 1) / 2
+        radius = np.sqrt((grid ** 2).sum(axis=0))
+        ct = np.full((n, n, n), -3024, np.int16)
+        ct[radius < 15] = -1024
+        body = radius < 11
+        ct[body] = np.round(np.random.default_rng(7).normal(40, 20, body.sum()))
+        ct[14:19, 14:19, 14:19] = 3071
+        for name, image in (("mask", mask), ("rounded_ramp", rounded), ("ct_with_metal", ct)):
+            path = os.path.join(self.dir, name + ".nii.gz")
+            write_nifti(path, image)
+            out = os.path.join(self.dir, name + ".vtu")
+            with self.subTest(image=name):
+                p = run(["mesh", path, "-o", out, "-q", "--force"], check=False)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertGreater(read_vtu(out).GetNumberOfCells(), 0)
 
     # ------------------------------------------------------------ memory
 

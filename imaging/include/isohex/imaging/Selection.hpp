@@ -22,6 +22,10 @@ struct SelectOptions {
     // Intensity: the surface level. Empty = Otsu's threshold (a level-set VDB
     // grid defaults to 0 with inside below instead).
     std::optional<double> iso;
+    // `iso` is Otsu's threshold of the whole scan (a part's window is
+    // selected with it): the window is then checked for a label map as a
+    // scan whose threshold select() chooses is.
+    bool isoFromOtsu = false;
     // Inside is where intensity < iso (e.g. pores, dark objects). Default:
     // inside is where intensity > iso.
     bool insideBelow = false;
