@@ -168,9 +168,42 @@ struct FaceLink {
     bool owned(std::size_t h, int f) const { return other[f] == kNone || other[f] > static_cast<Index>(h); }
 };
 
-// Links every hex face to the other hexes holding it: those holding both ends
-// of one of its diagonals, checked against the full face. quadBase[h + 1]
-// gets the number of faces hex h owns.
+bool hasRepeatedNode(const Hex& hex) {
+    for (int a = 0; a < 8; ++a)
+        for (int b = a + 1; b < 8; ++b)
+            if (hex[a] == hex[b]) return true;
+    return false;
+}
+
+// Links face f of hex h to the other hexes holding it: those holding both
+// ends of one of its diagonals, checked against the full face. `cand` is
+// scratch space.
+void linkFace(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::size_t h, int f, bool repeats,
+              std::array<Index, kMaxHolders>& cand, FaceLink& L) {
+    const auto& lf = hexcell::kFaces[f];
+    const int n = intersectRows(nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
+    L.other[f] = kNone;
+    L.otherFace[f] = -1;
+    unsigned holders = 1;  // this hex
+    for (int c = 0; c < n; ++c) {
+        if (cand[c] == static_cast<Index>(h)) continue;
+        const int g = matchingFace(hexes[cand[c]], hexes[h], f);
+        if (g < 0) continue;
+        ++holders;
+        if (L.other[f] == kNone) {
+            L.other[f] = cand[c];
+            L.otherFace[f] = static_cast<std::int8_t>(g);
+        }
+    }
+    // a hex listing the same node set on two of its faces holds it twice
+    if (repeats)
+        for (int g = 0; g < 6; ++g)
+            if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++holders;
+    L.holders[f] = static_cast<std::uint8_t>(std::min(holders, 255u));
+}
+
+// Links every hex face to the other hexes holding it. quadBase[h + 1] gets
+// the number of faces hex h owns.
 std::vector<FaceLink> linkFaces(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::vector<Index>& quadBase) {
     const std::size_t H = hexes.size();
     std::vector<FaceLink> link(H);
@@ -178,33 +211,11 @@ std::vector<FaceLink> linkFaces(const Csr& nodeHexes, const std::vector<Hex>& he
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
+            const bool repeats = hasRepeatedNode(hexes[h]);
             Index owned = 0;
-            FaceLink& L = link[h];
-            bool repeats = false;
-            for (int a = 0; a < 8; ++a)
-                for (int b = a + 1; b < 8; ++b) repeats = repeats || hexes[h][a] == hexes[h][b];
             for (int f = 0; f < 6; ++f) {
-                const auto& lf = hexcell::kFaces[f];
-                const int n = intersectRows(nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
-                L.other[f] = kNone;
-                L.otherFace[f] = -1;
-                unsigned holders = 1;  // this hex
-                for (int c = 0; c < n; ++c) {
-                    if (cand[c] == static_cast<Index>(h)) continue;
-                    const int g = matchingFace(hexes[cand[c]], hexes[h], f);
-                    if (g < 0) continue;
-                    ++holders;
-                    if (L.other[f] == kNone) {
-                        L.other[f] = cand[c];
-                        L.otherFace[f] = static_cast<std::int8_t>(g);
-                    }
-                }
-                // a hex listing the same node set on two of its faces holds it twice
-                if (repeats)
-                    for (int g = 0; g < 6; ++g)
-                        if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++holders;
-                L.holders[f] = static_cast<std::uint8_t>(std::min(holders, 255u));
-                if (L.owned(h, f)) ++owned;
+                linkFace(nodeHexes, hexes, h, f, repeats, cand, link[h]);
+                if (link[h].owned(h, f)) ++owned;
             }
             quadBase[h + 1] = owned;
         }
@@ -322,6 +333,51 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
     });
 }
 
+// TopologyParts::SurfaceMoves: only the quads on a boundary (one holder) or an
+// interface (two holders of different material), each from its owner, in
+// owner order: the ids the same quads have among all quads, renumbered
+// without the others. Per-range lists joined in range order, so the order is
+// the same for any thread count; no per-hex array is kept.
+void numberSurfaceQuads(Topology& t, const HexMesh& mesh) {
+    const std::vector<Hex>& hexes = mesh.hexes;
+    const std::size_t H = hexes.size();
+    constexpr std::size_t kRange = 4096;
+    std::vector<std::vector<Quad>> found((H + kRange - 1) / kRange);
+    tbb::parallel_for(std::size_t(0), found.size(), [&](std::size_t k) {
+        std::array<Index, kMaxHolders> cand;
+        FaceLink L;
+        for (std::size_t h = k * kRange; h < std::min(H, (k + 1) * kRange); ++h) {
+            const bool repeats = hasRepeatedNode(hexes[h]);
+            for (int f = 0; f < 6; ++f) {
+                linkFace(t.nodeHexes, hexes, h, f, repeats, cand, L);
+                const bool boundary = L.holders[f] == 1;
+                const bool interface = L.holders[f] == 2 && L.other[f] != kNone && L.owned(h, f) &&
+                                       mesh.material[h] != mesh.material[L.other[f]];
+                if (!boundary && !interface) continue;
+                Quad quad;
+                for (int i = 0; i < 4; ++i) quad.nodes[i] = hexes[h][hexcell::kFaces[f][i]];
+                quad.hex = {static_cast<Index>(h), L.other[f]};
+                quad.localFace = {static_cast<std::int8_t>(f), L.otherFace[f]};
+                found[k].push_back(quad);
+            }
+        }
+    });
+    t.nodeOnBoundary.assign(mesh.nodes.size(), 0);
+    for (const std::vector<Quad>& list : found)
+        for (const Quad& quad : list) {
+            const auto q = static_cast<Index>(t.quads.size());
+            t.quads.push_back(quad);
+            if (quad.boundary()) {
+                t.boundaryQuads.push_back(q);
+                for (Index v : quad.nodes) t.nodeOnBoundary[v] = 1;
+            } else {
+                t.interfaceQuads.push_back(q);
+            }
+        }
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        if (t.nodeOnBoundary[v]) t.boundaryNodes.push_back(static_cast<Index>(v));
+}
+
 // Sorts the quads into boundary (one hex), interface (two of different
 // material) and overfull (more than two) by their holder counts (shifted by
 // one, as numberQuads gives them), and marks the boundary nodes.
@@ -351,6 +407,11 @@ Topology buildTopology(const HexMesh& mesh, TopologyParts parts) {
     const bool all = parts == TopologyParts::All;
     Topology t;
     t.nodeHexes = nodeHexRows(mesh.hexes, mesh.nodes.size());
+    if (parts == TopologyParts::SurfaceMoves) {
+        numberSurfaceQuads(t, mesh);
+        numberEdges(t, mesh.hexes, false);
+        return t;
+    }
     std::vector<Index> holderCount = numberQuads(t, mesh.hexes);
     classifyQuads(t, mesh, holderCount);
     if (parts != TopologyParts::NodeMoves) listQuadHolders(t, mesh.hexes.size(), std::move(holderCount));

@@ -10,11 +10,31 @@
 #include "isohex/core/VecMath.hpp"
 
 namespace isohex::smoothing::detail {
+namespace {
+
+// node -> the quads of a surface (quadSurface >= 0) that hold it, in quad order.
+Csr surfaceQuadsAtNodes(const Topology& topo, const std::vector<std::int32_t>& quadSurface, std::size_t N) {
+    Csr c;
+    c.offsets.assign(N + 1, 0);
+    for (std::size_t q = 0; q < topo.quads.size(); ++q)
+        if (quadSurface[q] >= 0)
+            for (Index v : topo.quads[q].nodes) ++c.offsets[static_cast<std::size_t>(v) + 1];
+    for (std::size_t v = 0; v < N; ++v) c.offsets[v + 1] += c.offsets[v];
+    c.items.resize(static_cast<std::size_t>(c.offsets[N]));
+    std::vector<Index> cursor(c.offsets.begin(), c.offsets.end() - 1);
+    for (std::size_t q = 0; q < topo.quads.size(); ++q)
+        if (quadSurface[q] >= 0)
+            for (Index v : topo.quads[q].nodes)
+                c.items[static_cast<std::size_t>(cursor[static_cast<std::size_t>(v)]++)] = static_cast<Index>(q);
+    return c;
+}
+
+}  // namespace
 
 void Smoother::setUp() {
     mesh_.checkConsistent("mesh to smooth");
     const std::size_t N = mesh_.nodeCount();
-    if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::NodeMoves);
+    if (&topo_ == &ownTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::SurfaceMoves);
     else requireTopologyOf(mesh_, topo_, "smoothing");
     {
         const std::vector<std::int32_t> quadSurface = quadSurfaces();
@@ -26,8 +46,8 @@ void Smoother::setUp() {
     buildCurveNeighbours();
     measureReferenceLengths();
     // The phases read node-to-hex rows only (and surfaceQuadNodes_): a
-    // topology built here keeps nothing else, which on a brain is three
-    // quarters of it (about 130 bytes per hex), and lets it go before the
+    // topology built here (its surface quads and edges, TopologyParts::
+    // SurfaceMoves) keeps nothing else and lets the rest go before the
     // per-node state below is allocated.
     if (&topo_ == &ownTopology_) {
         Topology kept;
@@ -223,6 +243,7 @@ void Smoother::thinCurveBands(const std::vector<std::int32_t>& quadSurface) {
         return std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
     };
     std::vector<double> offCurve(N, -1.0);  // distance to its curve, computed when first needed
+    const Csr quadsAt = surfaceQuadsAtNodes(topo_, quadSurface, N);
     std::vector<std::int32_t> surfaces;
     for (std::size_t q = 0; q < topo_.quads.size(); ++q) {
         if (quadSurface[q] < 0) continue;
@@ -252,14 +273,10 @@ void Smoother::thinCurveBands(const std::vector<std::int32_t>& quadSurface) {
             const Index v = n[pick];
             const Vec3 x = mesh_.nodes[static_cast<std::size_t>(v)];
             surfaces.clear();  // of the quads around it
-            for (const Index* h = topo_.nodeHexes.begin(v); h != topo_.nodeHexes.end(v); ++h)
-                for (Index f : topo_.hexQuads[static_cast<std::size_t>(*h)]) {
-                    const std::int32_t s = quadSurface[static_cast<std::size_t>(f)];
-                    const auto& fn = topo_.quads[static_cast<std::size_t>(f)].nodes;
-                    if (s >= 0 && std::find(fn.begin(), fn.end(), v) != fn.end() &&
-                        std::find(surfaces.begin(), surfaces.end(), s) == surfaces.end())
-                        surfaces.push_back(s);
-                }
+            for (const Index* f = quadsAt.begin(static_cast<std::size_t>(v)); f != quadsAt.end(static_cast<std::size_t>(v)); ++f) {
+                const std::int32_t s = quadSurface[static_cast<std::size_t>(*f)];
+                if (std::find(surfaces.begin(), surfaces.end(), s) == surfaces.end()) surfaces.push_back(s);
+            }
             std::sort(surfaces.begin(), surfaces.end());
             std::int32_t best = -1;
             double bestOff = std::numeric_limits<double>::infinity();

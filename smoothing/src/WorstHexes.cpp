@@ -108,7 +108,7 @@ bool WorstHexPass::measureStart() {
 }
 
 void WorstHexPass::prepare() {
-    if (!givenTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::NodeMoves);
+    if (!givenTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::SurfaceMoves);
     else requireTopologyOf(mesh_, *givenTopology_, "worst-hex pass");
     topo_ = givenTopology_ ? givenTopology_ : &ownTopology_;
     everMoved_.assign(N_, 0);

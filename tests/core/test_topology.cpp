@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 
 #include <tbb/global_control.h>
@@ -160,6 +161,44 @@ TEST(Topology, NodeMovesPartsEqualTheFullTopologysAndLeaveTheRestEmpty) {
     EXPECT_NE(edgeBetween(m, all, m.hexes[0][0], m.hexes[0][1]), kNone);
     EXPECT_THROW(requireTopologyOf(m, lean, "test", TopologyParts::All), Error);
     EXPECT_NO_THROW(requireTopologyOf(m, lean, "test"));
+}
+
+// The surface parts are the full topology's surface quads, in the same order
+// and for any thread count, with its node rows, edges and boundary flags;
+// nothing per hex is kept. The book's quad with three holders is on no surface.
+TEST(Topology, SurfaceMovesPartsAreTheFullTopologysSurfaceQuadsInOrderWithItsEdges) {
+    HexMesh mixed = makeBlock(40, 30, 20);  // several parallel ranges of hexes
+    for (std::size_t h = 0; h < mixed.hexCount(); h += 7) mixed.material[h] = 2;
+    for (const HexMesh& m : {mixed, twoMaterialBlock(), bookOfThree()}) {
+        const Topology all = buildTopology(m);
+        for (int threads : {1, 2}) {
+            tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+            const Topology lean = buildTopology(m, TopologyParts::SurfaceMoves);
+            std::vector<Index> surface(all.boundaryQuads);
+            surface.insert(surface.end(), all.interfaceQuads.begin(), all.interfaceQuads.end());
+            std::sort(surface.begin(), surface.end());
+            ASSERT_EQ(lean.quads.size(), surface.size());
+            EXPECT_LT(lean.quads.size(), all.quads.size());
+            std::vector<Index> boundary, interface;
+            for (std::size_t i = 0; i < surface.size(); ++i) {
+                const Quad& a = all.quads[surface[i]];
+                EXPECT_EQ(lean.quads[i].nodes, a.nodes);
+                EXPECT_EQ(lean.quads[i].hex, a.hex);
+                EXPECT_EQ(lean.quads[i].localFace, a.localFace);
+                (a.boundary() ? boundary : interface).push_back(static_cast<Index>(i));
+            }
+            EXPECT_EQ(lean.boundaryQuads, boundary);
+            EXPECT_EQ(lean.interfaceQuads, interface);
+            EXPECT_EQ(lean.nodeHexes.offsets, all.nodeHexes.offsets);
+            EXPECT_EQ(lean.nodeHexes.items, all.nodeHexes.items);
+            EXPECT_EQ(lean.nodeOnBoundary, all.nodeOnBoundary);
+            EXPECT_EQ(lean.boundaryNodes, all.boundaryNodes);
+            EXPECT_EQ(lean.edges, all.edges);
+            EXPECT_TRUE(lean.hexQuads.empty());
+            EXPECT_TRUE(lean.hexEdges.empty());
+            EXPECT_TRUE(lean.overfullQuads.empty());
+        }
+    }
 }
 
 TEST(Topology, OverfullQuadIsFoundWithoutTheHolderLists) {
