@@ -1,7 +1,7 @@
 // quality_split MESH [REPEATS]: times the parts of a mesh job's "quality"
 // stage on a written mesh, as cli/Jobs.cpp runs them:
 //   topology_all    buildTopology(mesh) (every part: the optimiser's and pillow's kind)
-//   validate        validate(mesh) (its own topology, built in turns)
+//   validate        validate(mesh) (node rows and surface quads only)
 //   measures        computeQuality + summarize (per-hex measures, histogram)
 // Prints one JSON object with the fastest repeat of each part, and the
 // topology's counts and a hash of its arrays (quads, hexQuads, edges,

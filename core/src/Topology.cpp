@@ -1,6 +1,7 @@
 #include "isohex/core/Topology.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <limits>
 #include <map>
 #include <string>
@@ -11,8 +12,11 @@
 #include "isohex/core/Parallel.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
+#include "FaceLinks.hpp"
 
 namespace isohex {
+
+using namespace detail;  // FaceLinks.hpp
 
 namespace {
 
@@ -36,89 +40,6 @@ void checkIndices(const HexMesh& mesh) {
 
 }  // namespace
 
-namespace {
-
-// Hexes in both sorted rows (a hex listed twice in a row counts once).
-template <std::size_t Cap>
-int intersectRows(const Csr& c, Index a, Index b, std::array<Index, Cap>& out) {
-    const Index *p = c.begin(a), *pe = c.end(a), *q = c.begin(b), *qe = c.end(b);
-    int n = 0;
-    while (p != pe && q != qe) {
-        if (*p < *q) ++p;
-        else if (*q < *p) ++q;
-        else {
-            if ((n == 0 || out[n - 1] != *p) && n < static_cast<int>(Cap)) out[n++] = *p;
-            ++p;
-            ++q;
-        }
-    }
-    return n;
-}
-
-std::array<Index, 4> sortedFace(const Hex& h, int f) {
-    std::array<Index, 4> k;
-    for (int i = 0; i < 4; ++i) k[i] = h[hexcell::kFaces[f][i]];
-    std::sort(k.begin(), k.end());
-    return k;
-}
-
-// Local face of hex h made of exactly the nodes of face f of hex g, or -1.
-// Works through corner bit masks, no sorting.
-constexpr std::array<std::uint8_t, 6> faceMasks() {
-    std::array<std::uint8_t, 6> m{};
-    for (int f = 0; f < 6; ++f)
-        for (int c : hexcell::kFaces[f]) m[f] |= static_cast<std::uint8_t>(1u << c);
-    return m;
-}
-constexpr std::array<std::uint8_t, 6> kFaceMask = faceMasks();
-
-int matchingFace(const Hex& h, const Hex& g, int f) {
-    unsigned mask = 0;
-    for (int i = 0; i < 4; ++i) {
-        const Index v = g[hexcell::kFaces[f][i]];
-        unsigned bit = 0;
-        for (int c = 0; c < 8; ++c)
-            if (h[c] == v) {
-                bit = 1u << c;
-                break;
-            }
-        if (!bit) return -1;
-        mask |= bit;
-    }
-    for (int k = 0; k < 6; ++k)
-        if (kFaceMask[k] == mask) return k;
-    return -1;
-}
-
-int localEdgeWith(const Hex& h, Index a, Index b) {
-    for (int e = 0; e < 12; ++e) {
-        const Index x = h[hexcell::kEdges[e][0]], y = h[hexcell::kEdges[e][1]];
-        if ((x == a && y == b) || (x == b && y == a)) return e;
-    }
-    return -1;
-}
-
-constexpr std::size_t kMaxHolders = 64;
-
-// The smallest hex that has an edge from a to b (a hex holding both as a face
-// diagonal does not count), given `holder`, one that has it: the first hex of
-// both sorted rows, in order, that has the edge, so the merge stops there, at
-// `holder` at the latest.
-Index smallestHolder(const Csr& nodeHexes, const std::vector<Hex>& hexes, Index a, Index b, Index holder) {
-    const Index *p = nodeHexes.begin(a), *pe = nodeHexes.end(a), *q = nodeHexes.begin(b), *qe = nodeHexes.end(b);
-    while (p != pe && q != qe) {
-        if (*p < *q) ++p;
-        else if (*q < *p) ++q;
-        else {
-            if (*p == holder || localEdgeWith(hexes[*p], a, b) >= 0) return *p;
-            ++p;
-            ++q;
-        }
-    }
-    return kNone;
-}
-
-}  // namespace
 
 namespace {
 
@@ -159,49 +80,6 @@ Csr nodeHexRows(const std::vector<Hex>& hexes, std::size_t N) {
     return c;
 }
 
-// Per hex face: how many hexes hold it, and the smallest other holder with
-// its local face (the owner when it is smaller than this hex).
-struct FaceLink {
-    std::array<Index, 6> other;
-    std::array<std::int8_t, 6> otherFace;
-    std::array<std::uint8_t, 6> holders;
-    bool owned(std::size_t h, int f) const { return other[f] == kNone || other[f] > static_cast<Index>(h); }
-};
-
-bool hasRepeatedNode(const Hex& hex) {
-    for (int a = 0; a < 8; ++a)
-        for (int b = a + 1; b < 8; ++b)
-            if (hex[a] == hex[b]) return true;
-    return false;
-}
-
-// Links face f of hex h to the other hexes holding it: those holding both
-// ends of one of its diagonals, checked against the full face. `cand` is
-// scratch space.
-void linkFace(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::size_t h, int f, bool repeats,
-              std::array<Index, kMaxHolders>& cand, FaceLink& L) {
-    const auto& lf = hexcell::kFaces[f];
-    const int n = intersectRows(nodeHexes, hexes[h][lf[0]], hexes[h][lf[2]], cand);
-    L.other[f] = kNone;
-    L.otherFace[f] = -1;
-    unsigned holders = 1;  // this hex
-    for (int c = 0; c < n; ++c) {
-        if (cand[c] == static_cast<Index>(h)) continue;
-        const int g = matchingFace(hexes[cand[c]], hexes[h], f);
-        if (g < 0) continue;
-        ++holders;
-        if (L.other[f] == kNone) {
-            L.other[f] = cand[c];
-            L.otherFace[f] = static_cast<std::int8_t>(g);
-        }
-    }
-    // a hex listing the same node set on two of its faces holds it twice
-    if (repeats)
-        for (int g = 0; g < 6; ++g)
-            if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++holders;
-    L.holders[f] = static_cast<std::uint8_t>(std::min(holders, 255u));
-}
-
 // Links every hex face to the other hexes holding it. quadBase[h + 1] gets
 // the number of faces hex h owns.
 std::vector<FaceLink> linkFaces(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::vector<Index>& quadBase) {
@@ -209,12 +87,11 @@ std::vector<FaceLink> linkFaces(const Csr& nodeHexes, const std::vector<Hex>& he
     std::vector<FaceLink> link(H);
     quadBase.assign(H + 1, 0);
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
-        std::array<Index, kMaxHolders> cand;
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
             const bool repeats = hasRepeatedNode(hexes[h]);
             Index owned = 0;
             for (int f = 0; f < 6; ++f) {
-                linkFace(nodeHexes, hexes, h, f, repeats, cand, link[h]);
+                linkFace(nodeHexes, hexes, h, f, repeats, link[h]);
                 if (link[h].owned(h, f)) ++owned;
             }
             quadBase[h + 1] = owned;
@@ -289,20 +166,15 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
     std::vector<Index> edgeBase(H + 1, 0);
     tbb::parallel_for(Range(0, H, 1024), [&](const Range& r) {
         for (std::size_t h = r.begin(); h != r.end(); ++h) {
-            std::uint16_t bits = 0;
-            Index owned = 0;
-            for (int e = 0; e < 12; ++e) {
-                const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
-                const Index first = smallestHolder(t.nodeHexes, hexes, a, b, static_cast<Index>(h));
-                if (first == static_cast<Index>(h) && localEdgeWith(hexes[h], a, b) == e) {
-                    bits |= static_cast<std::uint16_t>(1u << e);
-                    ++owned;
-                } else if (perHex) {
-                    t.hexEdges[h][e] = first;
-                }
-            }
+            const std::uint16_t bits = ownedEdgeBits(t.nodeHexes, hexes, h);
+            if (perHex)
+                for (int e = 0; e < 12; ++e)
+                    if (!(bits >> e & 1)) {
+                        const Index a = hexes[h][hexcell::kEdges[e][0]], b = hexes[h][hexcell::kEdges[e][1]];
+                        t.hexEdges[h][e] = smallestHolder(t.nodeHexes, hexes, a, b, static_cast<Index>(h));
+                    }
             ownedEdges[h] = bits;
-            edgeBase[h + 1] = owned;
+            edgeBase[h + 1] = static_cast<Index>(std::popcount(bits));
         }
     });
     for (std::size_t h = 0; h < H; ++h) edgeBase[h + 1] += edgeBase[h];
@@ -333,7 +205,7 @@ void numberEdges(Topology& t, const std::vector<Hex>& hexes, bool perHex) {
     });
 }
 
-// TopologyParts::SurfaceMoves: only the quads on a boundary (one holder) or an
+// TopologyParts::Surfaces: only the quads on a boundary (one holder) or an
 // interface (two holders of different material), each from its owner, in
 // owner order: the ids the same quads have among all quads, renumbered
 // without the others. Per-range lists joined in range order, so the order is
@@ -344,12 +216,11 @@ void numberSurfaceQuads(Topology& t, const HexMesh& mesh) {
     constexpr std::size_t kRange = 4096;
     std::vector<std::vector<Quad>> found((H + kRange - 1) / kRange);
     tbb::parallel_for(std::size_t(0), found.size(), [&](std::size_t k) {
-        std::array<Index, kMaxHolders> cand;
         FaceLink L;
         for (std::size_t h = k * kRange; h < std::min(H, (k + 1) * kRange); ++h) {
             const bool repeats = hasRepeatedNode(hexes[h]);
             for (int f = 0; f < 6; ++f) {
-                linkFace(t.nodeHexes, hexes, h, f, repeats, cand, L);
+                linkFace(t.nodeHexes, hexes, h, f, repeats, L);
                 const bool boundary = L.holders[f] == 1;
                 const bool interface = L.holders[f] == 2 && L.other[f] != kNone && L.owned(h, f) &&
                                        mesh.material[h] != mesh.material[L.other[f]];
@@ -407,9 +278,9 @@ Topology buildTopology(const HexMesh& mesh, TopologyParts parts) {
     const bool all = parts == TopologyParts::All;
     Topology t;
     t.nodeHexes = nodeHexRows(mesh.hexes, mesh.nodes.size());
-    if (parts == TopologyParts::SurfaceMoves) {
+    if (parts == TopologyParts::Surfaces || parts == TopologyParts::SurfaceMoves) {
         numberSurfaceQuads(t, mesh);
-        numberEdges(t, mesh.hexes, false);
+        if (parts == TopologyParts::SurfaceMoves) numberEdges(t, mesh.hexes, false);
         return t;
     }
     std::vector<Index> holderCount = numberQuads(t, mesh.hexes);

@@ -48,14 +48,16 @@ struct Topology {
 // empty instead (addHexEdges adds them): validate() checks the volume with
 // the quads' holders, drops them, then checks the surfaces with the edges, so
 // the two largest parts are never held together and each is built once.
-// `SurfaceMoves` fills nodeHexes, edges, nodeOnBoundary, boundaryNodes and,
-// in `quads`, only the boundary and interface quads (boundaryQuads and
-// interfaceQuads index them; in the order they have among all quads);
-// hexQuads, hexEdges, quadHexesAll and overfullQuads stay empty. What moving
-// nodes reads (the smoother, the worst-hex pass), without the interior quads
-// and the per-hex quad ids: on a brain about 65 bytes per hex instead of
-// NodeMoves' 170, and no per-hex face links while it is built.
-enum class TopologyParts : std::uint8_t { All, NodeMoves, QuadHolders, SurfaceMoves };
+// `Surfaces` fills nodeHexes, nodeOnBoundary, boundaryNodes and, in `quads`,
+// only the boundary and interface quads (boundaryQuads and interfaceQuads
+// index them; in the order they have among all quads); hexQuads, edges,
+// hexEdges, quadHexesAll and overfullQuads stay empty: validate() finds the
+// other faces' holders from the node rows as it goes. `SurfaceMoves` adds
+// the edges: what moving nodes reads (the smoother, the worst-hex pass),
+// without the interior quads and the per-hex quad ids; on a brain about 65
+// bytes per hex instead of NodeMoves' 170, and no per-hex face links while
+// it is built.
+enum class TopologyParts : std::uint8_t { All, NodeMoves, QuadHolders, Surfaces, SurfaceMoves };
 
 // Builds the fields of Topology that `parts` names. Hexes with repeated nodes
 // still get their faces and edges (validate() reports them); indices out of
