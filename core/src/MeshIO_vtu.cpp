@@ -15,6 +15,7 @@
 #include <fstream>
 #include <sstream>
 #include <mutex>
+#include <new>
 #include <string>
 
 #include <vtkCellArray.h>
@@ -120,17 +121,24 @@ private:
     vtkLogger::Verbosity stderrVerbosity_ = vtkLogger::VERBOSITY_INFO;
 };
 
+// Sizes `a` to n tuples; VTK reports a failed allocation and leaves the
+// array empty, so that becomes std::bad_alloc (the run's out-of-memory error).
+void requireTuples(vtkDataArray* a, vtkIdType n) {
+    a->SetNumberOfTuples(n);
+    if (a->GetNumberOfTuples() != n) throw std::bad_alloc();
+}
+
 vtkSmartPointer<vtkIntArray> intArray(const char* name, vtkIdType n) {
     auto a = vtkSmartPointer<vtkIntArray>::New();
     a->SetName(name);
-    a->SetNumberOfTuples(n);
+    requireTuples(a, n);
     return a;
 }
 
 vtkSmartPointer<vtkDoubleArray> doubleArray(const std::string& name, const std::vector<double>& values) {
     auto a = vtkSmartPointer<vtkDoubleArray>::New();
     a->SetName(name.c_str());
-    a->SetNumberOfTuples(static_cast<vtkIdType>(values.size()));
+    requireTuples(a, static_cast<vtkIdType>(values.size()));
     for (std::size_t i = 0; i < values.size(); ++i) a->SetValue(static_cast<vtkIdType>(i), values[i]);
     return a;
 }
@@ -248,12 +256,15 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
               const std::vector<double>& scaledJacobian, const WriteOptions& opt) {
     const auto nNodes = static_cast<vtkIdType>(mesh.nodeCount());
     const auto nHexes = static_cast<vtkIdType>(mesh.hexCount());
+    // From the first array on: an allocation VTK cannot make is reported by
+    // VTK on stderr and leaves the array empty.
+    VtkMessageCapture capture;
 
     vtkNew<vtkUnstructuredGrid> grid;
 
     vtkNew<vtkDoubleArray> coords;
     coords->SetNumberOfComponents(3);
-    coords->SetNumberOfTuples(nNodes);
+    requireTuples(coords, nNodes);
     double* c = coords->GetPointer(0);
     for (vtkIdType i = 0; i < nNodes; ++i)
         for (int k = 0; k < 3; ++k) c[3 * i + k] = mesh.nodes[i][k];
@@ -262,8 +273,8 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
     grid->SetPoints(points);
 
     vtkNew<vtkIdTypeArray> offsets, connectivity;
-    offsets->SetNumberOfTuples(nHexes + 1);
-    connectivity->SetNumberOfTuples(8 * nHexes);
+    requireTuples(offsets, nHexes + 1);
+    requireTuples(connectivity, 8 * nHexes);
     vtkIdType* off = offsets->GetPointer(0);
     vtkIdType* conn = connectivity->GetPointer(0);
     for (vtkIdType h = 0; h <= nHexes; ++h) off[h] = 8 * h;
@@ -278,7 +289,7 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
     grid->GetCellData()->AddArray(material);
     vtkNew<vtkDoubleArray> sj;
     sj->SetName("scaled_jacobian");
-    sj->SetNumberOfTuples(nHexes);
+    requireTuples(sj, nHexes);
     for (vtkIdType h = 0; h < nHexes; ++h) sj->SetValue(h, scaledJacobian[h]);
     grid->GetCellData()->AddArray(sj);
     for (const auto& [name, values] : opt.cellFields) grid->GetCellData()->AddArray(doubleArray(name, values));
@@ -313,7 +324,6 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
         grid->GetFieldData()->AddArray(names);
     }
 
-    VtkMessageCapture capture;
     vtkNew<vtkXMLUnstructuredGridWriter> writer;
     writer->SetFileName(tmpPath.c_str());
     writer->SetInputData(grid);
