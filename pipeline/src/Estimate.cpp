@@ -135,7 +135,7 @@ nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts) {
                      {"window_layers", {e.part->first, e.part->first + e.part->grid.dims[std::size_t(e.part->axis)]}},
                      {"own_hexes", std::llround(e.ownHexes)}};
     j["model"] = {{"hexes", "labels sampled on the grid: a hex per labelled point, + one per boundary face per sheet layer"},
-                  {"memory", "peak after loading + 16 MB + 330 bytes per hex + 8 bytes per grid point"},
+                  {"memory", "peak after loading + 16 MB + 220 bytes per hex + 8 bytes per grid point"},
                   {"time", "fitted to bench/RESULTS.md: CPU s = 0.00146 hexes^0.773, within a factor 2.4 with the sheet "
                            "(up to 6 times more without it)"}};
     return j;

@@ -14,7 +14,7 @@
 namespace isohex::pipeline {
 
 double meshPeakBytes(double already, double hexes, double gridPoints) {
-    constexpr double bytesPerHex = 330.0;  // the fitted 297 (bench/RESULTS.md) plus 10%
+    constexpr double bytesPerHex = 220.0;  // the fitted 199 (bench/RESULTS.md) plus 10%
     constexpr double fixedBytes = 16.0 * 1024 * 1024;  // the stages' own working set on inputs of a few thousand hexes
     return already + fixedBytes + hexes * bytesPerHex + gridPoints * 8.0;
 }

@@ -21,8 +21,8 @@ struct MeshMemoryEstimate {
 
 // The hex count is the selected volume over the element volume (the whole
 // grid when meshing the exterior), plus a sixth for the sheet; each hex costs
-// about 297 bytes at peak on top of what is already in memory (the slope of
-// bench/memory_sweep.py's fit over six element sizes); the estimate takes 330
+// about 199 bytes at peak on top of what is already in memory (the slope of
+// bench/memory_sweep.py's fit over six element sizes); the estimate takes 220
 // and adds the process's peak so far and 16 MB that small meshes take
 // whatever their size (test_estimate's phantoms peak 14-17 MB above it). The budget is settings.load.maxMemoryMB, or 80% of the
 // machine's memory.
