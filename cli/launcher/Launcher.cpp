@@ -19,8 +19,8 @@
 // called ...", which no code of isohex's can catch. So under a finite limit
 // the launcher first runs isohex-run with --start-probe (StartProbe.hpp), its
 // output discarded, and says why in one line if that does not return 0. The
-// check costs one start of isohex-run (tens of milliseconds), only under a
-// limit; without one the launcher execs at once.
+// check costs one start of isohex-run (about 90 ms), paid only under a limit
+// below 512 MB plus eight thread stacks; above that the launcher execs at once.
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -61,8 +61,14 @@ std::string megabytes(rlim_t bytes) { return std::to_string(bytes >> 20) + " MB"
 // Runs `program --start-probe` with its output discarded; returns the line to
 // print when it did not start, nothing when it did or when there is no limit.
 std::optional<std::string> startFailure(const std::filesystem::path& program) {
-    rlimit as{};
+    rlimit as{}, stack{};
     if (::getrlimit(RLIMIT_AS, &as) != 0 || as.rlim_cur == RLIM_INFINITY) return std::nullopt;
+    const bool stackLimited = ::getrlimit(RLIMIT_STACK, &stack) == 0 && stack.rlim_cur != RLIM_INFINITY;
+    // glibc gives threads 32 MB stacks when ulimit -s is unlimited.
+    const double stackBytes = stackLimited ? double(stack.rlim_cur) : 32.0 * (1 << 20);
+    // Loading takes about 70 MB and four stacks (bench/RESULTS.md): far above
+    // that, starting cannot fail and the probe's start-up is not paid.
+    if (double(as.rlim_cur) > 512.0 * (1 << 20) + 8 * stackBytes) return std::nullopt;
     if (::access(program.c_str(), X_OK) != 0) return std::nullopt;  // the exec below says what is wrong
     const pid_t child = ::fork();
     if (child < 0) return std::nullopt;  // no probe: the run itself will tell
@@ -83,9 +89,7 @@ std::optional<std::string> startFailure(const std::filesystem::path& program) {
     // Any other end (an abort, or the loader's exit 127 when a library
     // cannot be mapped) is the limit's doing: with no limit it starts.
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return std::nullopt;
-    rlimit stack{};
-    std::string stackText = "unlimited";
-    if (::getrlimit(RLIMIT_STACK, &stack) == 0 && stack.rlim_cur != RLIM_INFINITY) stackText = megabytes(stack.rlim_cur);
+    const std::string stackText = stackLimited ? megabytes(stack.rlim_cur) : "unlimited";
     return "cannot start under the address-space limit of " + megabytes(as.rlim_cur) +
            " (ulimit -v): loading its libraries and their threads (each reserving a stack of ulimit -s, now " +
            stackText +
