@@ -1,8 +1,15 @@
 #include "FaceLinks.hpp"
 
 #include <algorithm>
+#include <limits>
+#include <string>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
+#include "isohex/core/Parallel.hpp"
 
 namespace isohex::detail {
 
@@ -112,11 +119,66 @@ void linkFace(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::size_t h
     L.other[f] = n > 0 ? holders[0] : kNone;
     L.otherFace[f] = n > 0 ? faces[0] : std::int8_t(-1);
     unsigned count = 1 + static_cast<unsigned>(n);  // this hex and the others
-    // a hex listing the same node set on two of its faces holds it twice
-    if (repeats)
-        for (int g = 0; g < 6; ++g)
-            if (g != f && sortedFace(hexes[h], g) == sortedFace(hexes[h], f)) ++count;
+    if (repeats) count += static_cast<unsigned>(selfHolds(hexes[h], f));
     L.holders[f] = static_cast<std::uint8_t>(std::min(count, 255u));
+}
+
+int selfHolds(const Hex& hex, int f) {
+    int n = 0;
+    for (int g = 0; g < 6; ++g) n += g != f && sortedFace(hex, g) == sortedFace(hex, f);
+    return n;
+}
+
+void checkIndices(const HexMesh& mesh) {
+    const auto n = static_cast<Index>(mesh.nodes.size());
+    if (mesh.material.size() != mesh.hexes.size())
+        throw Error("mesh has " + std::to_string(mesh.hexes.size()) + " hexes but " +
+                    std::to_string(mesh.material.size()) + " material ids");
+    if (mesh.hexes.size() * 12 > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
+        throw Error("mesh has " + std::to_string(mesh.hexes.size()) +
+                    " hexes; topology is limited to 178 million hexes");
+    for (std::size_t h = 0; h < mesh.hexes.size(); ++h)
+        for (Index v : mesh.hexes[h])
+            if (v < 0 || v >= n)
+                throw Error("hex " + std::to_string(h) + " refers to node " + std::to_string(v) +
+                            ", which does not exist (the mesh has " + std::to_string(n) + " nodes)");
+}
+
+Csr nodeHexRows(const std::vector<Hex>& hexes, std::size_t N) {
+    using Range = tbb::blocked_range<std::size_t>;
+    Csr c = parallel::bucketItems(N, hexes.size() * 8, [&](std::size_t i) { return hexes[i / 8][i % 8]; });
+    tbb::parallel_for(Range(0, c.items.size(), 8192), [&](const Range& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) c.items[i] /= 8;
+    });
+    return c;
+}
+
+std::optional<Quad> surfaceQuad(const HexMesh& mesh, std::size_t h, int f, int holders, Index other,
+                                std::int8_t otherFace) {
+    const bool boundary = holders == 1;
+    const bool interface = holders == 2 && other != kNone && other > static_cast<Index>(h) &&
+                           mesh.material[h] != mesh.material[other];
+    if (!boundary && !interface) return std::nullopt;
+    Quad quad;
+    for (int i = 0; i < 4; ++i) quad.nodes[i] = mesh.hexes[h][hexcell::kFaces[f][i]];
+    quad.hex = {static_cast<Index>(h), other};
+    quad.localFace = {static_cast<std::int8_t>(f), otherFace};
+    return quad;
+}
+
+void setSurfaceQuads(Topology& t, const HexMesh& mesh, std::vector<Quad> quads) {
+    t.quads = std::move(quads);
+    t.nodeOnBoundary.assign(mesh.nodes.size(), 0);
+    for (std::size_t q = 0; q < t.quads.size(); ++q) {
+        if (t.quads[q].boundary()) {
+            t.boundaryQuads.push_back(static_cast<Index>(q));
+            for (Index v : t.quads[q].nodes) t.nodeOnBoundary[v] = 1;
+        } else {
+            t.interfaceQuads.push_back(static_cast<Index>(q));
+        }
+    }
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        if (t.nodeOnBoundary[v]) t.boundaryNodes.push_back(static_cast<Index>(v));
 }
 
 }  // namespace isohex::detail

@@ -5,10 +5,12 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "isohex/core/Csr.hpp"
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Topology.hpp"
 
 namespace isohex::detail {
 
@@ -66,7 +68,28 @@ struct FaceLink {
     bool owned(std::size_t h, int f) const { return other[f] == kNone || other[f] > static_cast<Index>(h); }
 };
 
+// Throws an Error if the materials do not match the hexes, the mesh is too
+// large for 32-bit ids, or a hex names a node that does not exist.
+void checkIndices(const HexMesh& mesh);
+
+// node -> hexes holding it, rows sorted (a hex holding a node twice is listed twice).
+Csr nodeHexRows(const std::vector<Hex>& hexes, std::size_t N);
+
+// How many other faces of `hex` have the node set of its face f (a collapsed
+// hex holds such a face more than once).
+int selfHolds(const Hex& hex, int f);
+
 // Links face f of hex h (whose nodes repeat if `repeats`) into L.
 void linkFace(const Csr& nodeHexes, const std::vector<Hex>& hexes, std::size_t h, int f, bool repeats, FaceLink& L);
+
+// Face f of hex h as a quad of a surface, if it is one: on the boundary (h its
+// only holder) or on an interface (two holders of different material, h the
+// smaller). `other` is the smallest other holder (kNone if none) with its face.
+std::optional<Quad> surfaceQuad(const HexMesh& mesh, std::size_t h, int f, int holders, Index other,
+                                std::int8_t otherFace);
+
+// Sets t.quads to `quads` (surface quads in owner order) with boundaryQuads,
+// interfaceQuads, nodeOnBoundary and boundaryNodes.
+void setSurfaceQuads(Topology& t, const HexMesh& mesh, std::vector<Quad> quads);
 
 }  // namespace isohex::detail

@@ -20,29 +20,6 @@ using namespace detail;  // FaceLinks.hpp
 
 namespace {
 
-using parallel::bucketItems;
-
-
-void checkIndices(const HexMesh& mesh) {
-    const auto n = static_cast<Index>(mesh.nodes.size());
-    if (mesh.material.size() != mesh.hexes.size())
-        throw Error("mesh has " + std::to_string(mesh.hexes.size()) + " hexes but " +
-                    std::to_string(mesh.material.size()) + " material ids");
-    if (mesh.hexes.size() * 12 > static_cast<std::size_t>(std::numeric_limits<Index>::max()))
-        throw Error("mesh has " + std::to_string(mesh.hexes.size()) +
-                    " hexes; topology is limited to 178 million hexes");
-    for (std::size_t h = 0; h < mesh.hexes.size(); ++h)
-        for (Index v : mesh.hexes[h])
-            if (v < 0 || v >= n)
-                throw Error("hex " + std::to_string(h) + " refers to node " + std::to_string(v) +
-                            ", which does not exist (the mesh has " + std::to_string(n) + " nodes)");
-}
-
-}  // namespace
-
-
-namespace {
-
 // The part of requireTopologyOf every topology meets: built for this mesh.
 void requireBuiltFor(const HexMesh& mesh, const Topology& topo, const std::string& who) {
     if (topo.hexQuads.size() != mesh.hexes.size() || topo.nodeHexes.rows() != mesh.nodes.size() ||
@@ -70,15 +47,6 @@ void requireTopologyOf(const HexMesh& mesh, const Topology& topo, const std::str
 namespace {
 
 using Range = tbb::blocked_range<std::size_t>;
-
-// node -> hexes holding it, rows sorted (a hex holding a node twice is listed twice).
-Csr nodeHexRows(const std::vector<Hex>& hexes, std::size_t N) {
-    Csr c = bucketItems(N, hexes.size() * 8, [&](std::size_t i) { return hexes[i / 8][i % 8]; });
-    tbb::parallel_for(Range(0, c.items.size(), 8192), [&](const Range& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) c.items[i] /= 8;
-    });
-    return c;
-}
 
 // Links every hex face to the other hexes holding it. quadBase[h + 1] gets
 // the number of faces hex h owns.
@@ -221,32 +189,14 @@ void numberSurfaceQuads(Topology& t, const HexMesh& mesh) {
             const bool repeats = hasRepeatedNode(hexes[h]);
             for (int f = 0; f < 6; ++f) {
                 linkFace(t.nodeHexes, hexes, h, f, repeats, L);
-                const bool boundary = L.holders[f] == 1;
-                const bool interface = L.holders[f] == 2 && L.other[f] != kNone && L.owned(h, f) &&
-                                       mesh.material[h] != mesh.material[L.other[f]];
-                if (!boundary && !interface) continue;
-                Quad quad;
-                for (int i = 0; i < 4; ++i) quad.nodes[i] = hexes[h][hexcell::kFaces[f][i]];
-                quad.hex = {static_cast<Index>(h), L.other[f]};
-                quad.localFace = {static_cast<std::int8_t>(f), L.otherFace[f]};
-                found[k].push_back(quad);
+                if (auto quad = surfaceQuad(mesh, h, f, L.holders[f], L.other[f], L.otherFace[f]))
+                    found[k].push_back(*quad);
             }
         }
     });
-    t.nodeOnBoundary.assign(mesh.nodes.size(), 0);
-    for (const std::vector<Quad>& list : found)
-        for (const Quad& quad : list) {
-            const auto q = static_cast<Index>(t.quads.size());
-            t.quads.push_back(quad);
-            if (quad.boundary()) {
-                t.boundaryQuads.push_back(q);
-                for (Index v : quad.nodes) t.nodeOnBoundary[v] = 1;
-            } else {
-                t.interfaceQuads.push_back(q);
-            }
-        }
-    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
-        if (t.nodeOnBoundary[v]) t.boundaryNodes.push_back(static_cast<Index>(v));
+    std::vector<Quad> quads;
+    for (const std::vector<Quad>& list : found) quads.insert(quads.end(), list.begin(), list.end());
+    setSurfaceQuads(t, mesh, std::move(quads));
 }
 
 // Sorts the quads into boundary (one hex), interface (two of different

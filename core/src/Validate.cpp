@@ -56,11 +56,6 @@ std::array<Index, 8> sortedNodes(const Hex& h) {
     return s;
 }
 
-bool hasRepeatedNode(const Hex& h) {
-    const auto s = sortedNodes(h);
-    return std::adjacent_find(s.begin(), s.end()) != s.end();
-}
-
 bool sameNodeSet(const HexMesh& mesh, Index a, Index b) {
     return sortedNodes(mesh.hexes[a]) == sortedNodes(mesh.hexes[b]);
 }
@@ -178,7 +173,7 @@ bool inDoublet(const HexMesh& mesh, Index h, const HexFaceHolders& fh) {
 // Two hexes on opposite sides of a quad traverse it in opposite directions. If
 // both traverse it the same way, one of them lies folded onto the other.
 bool misoriented(const HexMesh& mesh, Index h0, int f0, Index h1, int f1) {
-    if (hasRepeatedNode(mesh.hexes[h0]) || hasRepeatedNode(mesh.hexes[h1])) return false;
+    if (detail::hasRepeatedNode(mesh.hexes[h0]) || detail::hasRepeatedNode(mesh.hexes[h1])) return false;
     const auto a = faceNodes(mesh, h0, f0);
     const auto b = faceNodes(mesh, h1, f1);
     const auto k = std::find(b.begin(), b.end(), a[0]) - b.begin();
@@ -188,19 +183,22 @@ bool misoriented(const HexMesh& mesh, Index h0, int f0, Index h1, int f1) {
 }
 
 // What the pass over the hexes finds: per hex, and for the quads each hex
-// owns (as owner hex and face; ids once every hex's owned faces are known).
+// owns (as owner hex and face; ids once every hex's owned faces are known),
+// with the surface quads the surface checks read.
 struct VolumeAcc {
     HexAcc hexes;
     std::vector<std::array<Index, 2>> misoriented, overfull;
+    std::vector<Quad> surface;
     void merge(const VolumeAcc& o) {
         hexes.merge(o.hexes);
         misoriented.insert(misoriented.end(), o.misoriented.begin(), o.misoriented.end());
         overfull.insert(overfull.end(), o.overfull.begin(), o.overfull.end());
+        surface.insert(surface.end(), o.surface.begin(), o.surface.end());
     }
 };
 
 // One pass over the hexes: a hex's own checks, and each quad's (overfull,
-// orientation) at its owner. Fills ids.owned.
+// orientation, on a surface) at its owner. Fills ids.owned.
 VolumeAcc scanHexes(const HexMesh& mesh, const Csr& nodeHexes, QuadIds& ids) {
     ids.owned.assign(mesh.hexes.size(), 0);
     return parallel::reduceOver<VolumeAcc>(mesh.hexes.size(), 1024, [&](const auto& r, VolumeAcc& acc) {
@@ -215,13 +213,14 @@ VolumeAcc scanHexes(const HexMesh& mesh, const Csr& nodeHexes, QuadIds& ids) {
             if (inDoublet(mesh, h, fh)) acc.hexes.doublet.add(h);
             for (int f = 0; f < 6; ++f) {
                 if (!(fh.owned >> f & 1)) continue;
-                int holders = 1 + fh.n[f];  // a hex listing one node set on two faces holds it twice
-                if (repeated)
-                    for (int g = 0; g < 6; ++g)
-                        holders += g != f && detail::sortedFace(mesh.hexes[hi], g) == detail::sortedFace(mesh.hexes[hi], f);
+                const int holders = 1 + fh.n[f] + (repeated ? detail::selfHolds(mesh.hexes[hi], f) : 0);
+                const Index other = fh.n[f] > 0 ? fh.hex[f][0] : kNone;
+                const std::int8_t otherFace = fh.n[f] > 0 ? fh.face[f][0] : std::int8_t(-1);
                 if (holders > 2) acc.overfull.push_back({h, f});
-                else if (holders == 2 && fh.n[f] == 1 && misoriented(mesh, h, f, fh.hex[f][0], fh.face[f][0]))
+                else if (holders == 2 && fh.n[f] == 1 && misoriented(mesh, h, f, other, otherFace))
                     acc.misoriented.push_back({h, f});
+                if (auto quad = detail::surfaceQuad(mesh, hi, f, holders, other, otherFace))
+                    acc.surface.push_back(*quad);
             }
             // A hex with a repeated node has zero determinants by construction;
             // it is reported once, as repeated_node. NaN counts as inverted.
@@ -464,7 +463,7 @@ struct EdgeFindings {
     std::vector<Vec3> where;
 };
 
-EdgeFindings numberEdges(const HexMesh& mesh, const Csr& nodeHexes, std::vector<HeldEdge> edges) {
+EdgeFindings idsOfFlaggedEdges(const HexMesh& mesh, const Csr& nodeHexes, std::vector<HeldEdge> edges) {
     EdgeFindings out;
     if (edges.empty()) return out;
     const std::size_t H = mesh.hexes.size();
@@ -499,8 +498,15 @@ struct SurfaceChecks {
     EdgeFindings nonmanifoldEdges;
 };
 
-VolumeChecks checkVolume(const HexMesh& mesh, const Csr& nodeHexes, QuadIds& ids) {
-    const VolumeAcc acc = scanHexes(mesh, nodeHexes, ids);
+// The volume's checks; `surfaces` gets the node rows it is given and the
+// surface quads, in owner order, as buildTopology(mesh, Surfaces) has them.
+VolumeChecks checkVolume(const HexMesh& mesh, Topology& surfaces, QuadIds& ids) {
+    const Csr& nodeHexes = surfaces.nodeHexes;
+    VolumeAcc acc = scanHexes(mesh, nodeHexes, ids);
+    std::sort(acc.surface.begin(), acc.surface.end(), [](const Quad& a, const Quad& b) {
+        return std::pair(a.hex[0], a.localFace[0]) < std::pair(b.hex[0], b.localFace[0]);
+    });
+    detail::setSurfaceQuads(surfaces, mesh, std::move(acc.surface));
     ids.number();
     VolumeChecks c{acc.hexes, {}, {}, {}};
     for (const auto& [h, f] : acc.misoriented) c.orientation.add(ids.id(h, f));
@@ -516,7 +522,7 @@ SurfaceChecks checkSurfaces(const HexMesh& mesh, const Topology& topo, const Qua
     const SurfaceIndex surfaces = indexSurfaces(mesh, topo);
     SurfaceAcc fans = checkSurfaceFans(mesh, topo, surfaces);
     return {fans.nodes, checkQuadDoublets(topo, surfaces, ids), checkCoincidentNodes(mesh, topo),
-            numberEdges(mesh, topo.nodeHexes, std::move(fans.edges))};
+            idsOfFlaggedEdges(mesh, topo.nodeHexes, std::move(fans.edges))};
 }
 
 void requireMaterials(const HexMesh& mesh) {
@@ -565,16 +571,19 @@ ValidityReport assemble(const HexMesh& mesh, const QuadIds& ids, const VolumeChe
 
 }  // namespace
 
-// Only the node-to-hex rows and the surface quads are built (TopologyParts::
-// Surfaces); every face's holders are found from the rows as the pass over
-// the hexes reaches it, and quad and edge ids are those buildTopology gives,
+// Only the node-to-hex rows and the surface quads are kept (what
+// buildTopology(mesh, TopologyParts::Surfaces) gives, collected by the one
+// pass over the hexes); every face's holders are found from the rows as the
+// pass reaches it, and quad and edge ids are those buildTopology gives,
 // counted from the faces and edges each hex owns. On 2 M hexes this holds
 // about 45 bytes per hex where the full topology held 220.
 ValidityReport validate(const HexMesh& mesh) {
     requireMaterials(mesh);
-    const Topology topo = buildTopology(mesh, TopologyParts::Surfaces);
+    detail::checkIndices(mesh);
+    Topology topo;
+    topo.nodeHexes = detail::nodeHexRows(mesh.hexes, mesh.nodes.size());
     QuadIds ids;
-    const VolumeChecks volume = checkVolume(mesh, topo.nodeHexes, ids);
+    const VolumeChecks volume = checkVolume(mesh, topo, ids);
     return assemble(mesh, ids, volume, checkSurfaces(mesh, topo, ids));
 }
 

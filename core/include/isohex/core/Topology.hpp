@@ -51,8 +51,8 @@ struct Topology {
 // `Surfaces` fills nodeHexes, nodeOnBoundary, boundaryNodes and, in `quads`,
 // only the boundary and interface quads (boundaryQuads and interfaceQuads
 // index them; in the order they have among all quads); hexQuads, edges,
-// hexEdges, quadHexesAll and overfullQuads stay empty: validate() finds the
-// other faces' holders from the node rows as it goes. `SurfaceMoves` adds
+// hexEdges, quadHexesAll and overfullQuads stay empty (validate() keeps the
+// same, collected in its own pass over the hexes). `SurfaceMoves` adds
 // the edges: what moving nodes reads (the smoother, the worst-hex pass),
 // without the interior quads and the per-hex quad ids; on a brain about 65
 // bytes per hex instead of NodeMoves' 170, and no per-hex face links while
