@@ -5,12 +5,14 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <numeric>
 #include <span>
 #include <string>
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/parallel_for.h>
 
 #include "isohex/core/Dice.hpp"
@@ -18,6 +20,7 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/HexCell.hpp"
 #include "isohex/core/HugePages.hpp"
+#include "isohex/core/NodeTargets.hpp"
 #include "isohex/core/Parallel.hpp"
 #include "isohex/core/QuadSurface.hpp"
 #include "isohex/core/SheetSelection.hpp"
@@ -677,6 +680,28 @@ public:
             std::count_if(watch_.begin(), watch_.end(), [](const Watch& w) { return w.bad == 1; }));
     }
 
+    // The copies the rounds shortened, in increasing order.
+    BigVec<Index> shortened() const {
+        return keepWhere(copies_.count(), [&](std::size_t c) { return halvings_[c] > 0; });
+    }
+
+    // The watched hexes inverted now (after other moves of the copies).
+    std::size_t invertedNow() const {
+        return tbb::parallel_reduce(
+            tbb::blocked_range<std::size_t>(0, watch_.size(), 4096), std::size_t{0},
+            [&](const auto& r, std::size_t n) {
+                for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                    const Hex& hx = watchHex(i);
+                    if (std::none_of(hx.begin(), hx.end(), [&](Index v) { return v >= NI_; })) continue;
+                    const Vec3* x[8];
+                    for (int c = 0; c < 8; ++c) x[c] = &mesh_.nodes[static_cast<std::size_t>(hx[c])];
+                    n += !jacobianPositive(x);
+                }
+                return n;
+            },
+            std::plus<>());
+    }
+
 private:
     struct Watch {
         std::uint8_t bad = 0, hopeless = 0, ask = 0;
@@ -829,6 +854,32 @@ private:
     BigVec<Index> active_;  // the positions checked this round (after round 0)
 };
 
+// The rounds shorten every copy of an inverted hex together, and a copy
+// shortened stays short where the hexes beside it were inverted by its
+// neighbours rather than by itself: most copies of a sheet on a sphere end
+// within 1% of an edge of their node, and the optimiser then spends a dozen
+// sweeps moving them in. Here each shortened copy (in index order, so the
+// same for any thread count) goes on alone towards its full step, as far as
+// every hex around it that is valid stays valid. One pass: more passes
+// (a copy moved gives its neighbours room) took the sheet hardly farther in
+// and left a curve node of the two_materials phantom stuck beside a hex the
+// untangler could not clear. Returns whether any moved.
+constexpr int kAlonePasses = 1;
+
+bool stepShortenedCopiesAlone(HexMesh& mesh, const BigVec<Index>& shortened, std::size_t firstCopy,
+                              const std::vector<Index>& copyOf, const BigVec<Vec3>& push, int maxHalvings) {
+    if (shortened.empty()) return false;
+    std::vector<Index> nodes(shortened.size());
+    std::vector<Vec3> targets(shortened.size());
+    for (std::size_t i = 0; i < shortened.size(); ++i) {
+        const auto c = static_cast<std::size_t>(shortened[i]);
+        nodes[i] = static_cast<Index>(firstCopy + c);
+        targets[i] = mesh.nodes[static_cast<std::size_t>(copyOf[c])] + push[c];
+    }
+    const TargetsResult r = moveTowardsTargets(mesh, nodes, targets, maxHalvings, kAlonePasses);
+    return r.reached + r.partway > 0;
+}
+
 }  // namespace
 
 PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const PillowOptions& opt) {
@@ -849,7 +900,10 @@ PillowResult pillow(HexMesh& mesh, const std::vector<Index>& shrinkSet, const Pi
     release(b.quads.faces);
     release(b.quads.nodes);
     release(b.quads.slots);
-    res.invertedAtStart = StepSettler(mesh, H, b, copies, res.copyOf, push, opt.maxHalvings).run();
+    StepSettler settler(mesh, H, b, copies, res.copyOf, push, opt.maxHalvings);
+    res.invertedAtStart = settler.run();
+    if (opt.stepOnAlone && stepShortenedCopiesAlone(mesh, settler.shortened(), N, res.copyOf, push, opt.maxHalvings))
+        res.invertedAtStart = settler.invertedNow();
     return res;
 }
 

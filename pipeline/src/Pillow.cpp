@@ -55,6 +55,7 @@ PillowResult pillowBoundary(HexMesh& mesh, const MeshSettings& settings, StageSi
     const std::size_t before = mesh.hexCount();
     PillowOptions opt;
     opt.turnIntoCorners = !settings.tangledStart;
+    opt.stepOnAlone = !settings.tangledStart;
     const auto results = pillowAllMaterials(mesh, settings.boundaryLayers, opt);
     r.layers = settings.boundaryLayers;
     r.sheets = results.size();

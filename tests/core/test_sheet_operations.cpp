@@ -3,6 +3,7 @@
 #include <string>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include <tbb/global_control.h>
@@ -14,6 +15,7 @@
 #include "isohex/core/Pillow.hpp"
 #include "isohex/core/SheetSelection.hpp"
 #include "isohex/core/Validate.hpp"
+#include "isohex/core/VecMath.hpp"
 #include "support/Blocks.hpp"
 
 using namespace isohex;
@@ -140,6 +142,55 @@ TEST(Pillow, ASubsetGetsASheetAgainstTheRestOfTheMesh) {
     EXPECT_EQ(m.hexCount() - before, 24u);  // the 2x2x2 cube has 24 boundary quads
     EXPECT_TRUE(validate(m).ok());
     EXPECT_EQ(invertedCount(m), 0u);
+}
+
+TEST(Pillow, CopiesStartTheirStepInsideWhereTheHexesUnderThemAreThin) {
+    // A 6 x 6 x 6 block whose boundary nodes inside its faces are pulled in
+    // towards the layer below, each to its own height of 0.1 to 1 edge above
+    // it, as dual contouring leaves the hexes under a curved surface: many
+    // are thinner than the copies' step of 0.3 of an edge. Shortening every copy of an
+    // inverted hex together spread to their neighbours, and most copies of
+    // the sheet ended within a few hundredths of an edge of their nodes; each
+    // should go in as far as its own hexes allow.
+    HexMesh m = makeBlock(6, 6, 6, 1.0, {-3, -3, -3});
+    std::uint64_t x = 0x9E3779B97F4A7C15ull;
+    for (Vec3& p : m.nodes) {
+        const double outer = std::max({std::abs(p[0]), std::abs(p[1]), std::abs(p[2])});
+        if (outer < 3) continue;
+        x ^= x >> 12, x ^= x << 25, x ^= x >> 27;  // xorshift, reproducible
+        const int onFaces = (std::abs(p[0]) == 3) + (std::abs(p[1]) == 3) + (std::abs(p[2]) == 3);
+        const double height =  // the block's edges and corners stay: their hexes would fold
+            onFaces > 1 ? 1.0 : 0.1 + 0.9 * static_cast<double>((x * 0x2545F4914F6CDD1Dull) >> 11) * 0x1p-53;
+        for (double& c : p) c = std::clamp(c, -2.0, 2.0) + height * (c - std::clamp(c, -2.0, 2.0));
+    }
+    classifyBoundaryNodes(m);
+    ASSERT_EQ(invertedCount(m), 0u);
+    std::vector<Index> all(m.hexCount());
+    for (std::size_t h = 0; h < all.size(); ++h) all[h] = static_cast<Index>(h);
+    auto medianStep = [&](bool stepOnAlone, std::size_t& inverted) {
+        using namespace vec;
+        HexMesh p = m;
+        PillowOptions o;
+        o.stepOnAlone = stepOnAlone;
+        const PillowResult r = pillow(p, all, o);
+        inverted = invertedCount(p);
+        EXPECT_EQ(r.invertedAtStart, inverted);
+        std::vector<double> steps;
+        for (std::size_t c = 0; c < r.copyOf.size(); ++c) {
+            const Vec3& a = p.nodes[static_cast<std::size_t>(r.firstNewNode) + c];
+            const Vec3& b = p.nodes[static_cast<std::size_t>(r.copyOf[c])];
+            steps.push_back(vec::norm(a - b));
+        }
+        std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+        return steps[steps.size() / 2];
+    };
+    std::size_t invertedTogether = 0, invertedAlone = 0;
+    const double together = medianStep(false, invertedTogether);
+    const double alone = medianStep(true, invertedAlone);
+    EXPECT_EQ(invertedAlone, 0u);
+    EXPECT_LE(invertedAlone, invertedTogether);
+    EXPECT_GT(alone, 0.15);
+    EXPECT_GT(alone, 2 * together);
 }
 
 TEST(Pillow, SameMeshForAnyThreadCountAndAnyOrderOfTheShrinkSet) {

@@ -81,11 +81,11 @@ struct MeshSettings {
     // on their surface wherever their QEF points leave the hexes valid, the
     // sheet's copies along the plain averaged normal, hexes left inverted for
     // the untangler (octree::ExtractOptions::validStart, PillowOptions::
-    // turnIntoCorners, SmoothingOptions::offSurfaceNodesOntoSurface off, no
-    // return of held-back vertices). For comparisons and tests of untangling;
-    // off by default (the valid start, --valid-start: at most 0.36% of hexes
-    // inverted when the optimiser starts on the bench inputs but two_spheres,
-    // instead of 2-8%; bench/RESULTS.md).
+    // turnIntoCorners and stepOnAlone, SmoothingOptions::
+    // offSurfaceNodesOntoSurface off, no return of held-back vertices). For
+    // comparisons and tests of untangling; off by default (the valid start,
+    // --valid-start; the inverted hexes at the optimiser's start with each
+    // are in bench/RESULTS.md).
     bool tangledStart = false;
     bool fixBoundary = false;
     // compare fixes the boundary unless --move-boundary (its warnings say so)
