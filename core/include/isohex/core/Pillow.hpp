@@ -21,9 +21,9 @@ struct PillowOptions {
     bool turnIntoCorners = true;
     int maxHalvings = 6;
     // Then each copy the halvings shortened goes on alone, sequentially,
-    // towards its full step as far as the valid hexes around it stay valid
-    // (the halvings shorten every copy of an inverted hex together). Off:
-    // the halvings alone, for comparisons.
+    // towards 70% of its full step as far as the valid hexes around it stay
+    // valid (the halvings shorten every copy of an inverted hex together).
+    // Off: the halvings alone, for comparisons.
     bool stepOnAlone = true;
     // Find the shrink set's boundary faces through the node -> hex adjacency
     // of the whole shrink set instead of first narrowing it to the nodes the
