@@ -21,6 +21,7 @@ const char* causeText(BelowCause cause) {
         case BelowCause::ThinFeature: return "feature thinner than an element";
         case BelowCause::BoundaryPinned: return "boundary node pinned to the isosurface";
         case BelowCause::Interior: return "interior hex no node placement lifts";
+        case BelowCause::NotOptimised: return "not optimised (--no-optimize leaves the hexes as extracted)";
     }
     return "interior hex no node placement lifts";
 }

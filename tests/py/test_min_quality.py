@@ -37,6 +37,27 @@ class MinQuality(unittest.TestCase):
         self.assertFalse(os.path.exists(report))
         self.assertEqual([f for f in os.listdir(self.dir) if f.startswith(".") or "unreachable" in f], [])
 
+    def test_without_the_optimiser_the_places_say_it_did_not_run(self):
+        # the nodes' classes would blame a pinned boundary node or an
+        # interior hex no placement lifts, but no node was moved at all
+        out, report = self.paths("not_optimised")
+        p = run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.95", "--no-optimize",
+                 "--allow-below", "-o", out, "--report", report, "-q", "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        places = [line for line in p.stderr.splitlines() if line.strip().startswith("at (")]
+        self.assertGreater(len(places), 0, p.stderr)
+        for line in places:
+            self.assertTrue(line.endswith(": not optimised (--no-optimize leaves the hexes as extracted)"), line)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertEqual({pl["cause"] for pl in q["places"]},
+                         {"not optimised (--no-optimize leaves the hexes as extracted)"})
+        # with the optimiser the causes are the nodes' classes again
+        p = run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.95", "-o", out,
+                 "--report", report, "-q", "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertNotIn("not optimised", p.stderr)
+
     def test_allow_below_writes_the_mesh_and_certifies_false(self):
         out, report = self.paths("allowed")
         p = run(["mesh", self.sphere, "--iso", "50", "--size", "3", "--min-quality", "0.95", "--allow-below",

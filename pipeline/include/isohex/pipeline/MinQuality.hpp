@@ -22,12 +22,14 @@
 
 namespace isohex::pipeline {
 
-// Why a hex stays below the target, read from its nodes' classes.
+// Why a hex stays below the target, read from its nodes' classes (or, when
+// the optimiser did not run, that).
 enum class BelowCause {
     LabelJunction,   // a node on a curve where three materials (or two and the outside) meet
     ThinFeature,     // every node on a surface: the hex spans a feature thinner than an element
     BoundaryPinned,  // surface nodes held on the isosurface (within --max-deviation)
     Interior,        // interior nodes only: no placement the node moves found lifts it
+    NotOptimised,    // --no-optimize: the hexes as extracted and pillowed, no node moved
 };
 // "label junction", "feature thinner than an element", ...: the report's and
 // the messages' wording.
