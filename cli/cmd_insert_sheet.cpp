@@ -54,7 +54,7 @@ double minQualityOf(const InsertSheetArgs& a) {
 pipeline::QualityCertificate meetMinQuality(HexMesh& mesh, const insertion::SheetGeometry& geometry,
                                             const InsertSheetArgs& a) {
     const double target = minQualityOf(a);
-    pipeline::QualityCertificate c = pipeline::certifyQuality(mesh, target);
+    pipeline::QualityCertificate c = pipeline::certifyQuality(mesh, target, nullptr, a.optimize);
     if (!c.certified && a.optimize) {
         pipeline::worstHexPass(mesh, &geometry, std::max(target, smoothing::WorstHexOptions{}.target));
         c = pipeline::certifyQuality(mesh, target);

@@ -17,11 +17,7 @@ namespace {
 MeshOutcome certified(MeshOutcome out, const std::string& input, const MeshSettings& settings,
                       const std::optional<RelaxationResult>& relaxation, const LocalFeatures* local = nullptr,
                       const std::optional<FeatureRemovalResult>& features = std::nullopt) {
-    out.quality = certifyQuality(out.mesh, minQualityFor(input, settings), local);
-    // No node was moved: what the nodes' classes would say (a node the
-    // optimiser could not place) is not what happened.
-    if (!settings.optimize)
-        for (BelowPlace& p : out.quality.places) p.cause = BelowCause::NotOptimised;
+    out.quality = certifyQuality(out.mesh, minQualityFor(input, settings), local, settings.optimize);
     out.quality.defaultTarget = !settings.minQuality.has_value();
     if (worstHexTargetFor(input, settings) > settings.worstHexTarget.value_or(kDefaultWorstHexTarget) &&
         settings.optimize && settings.worstHexPass)

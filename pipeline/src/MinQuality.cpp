@@ -156,7 +156,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     return r;
 }
 
-QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local) {
+QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local, bool optimised) {
     QualityCertificate c;
     c.target = target;
     const std::vector<double> sj = scaledJacobians(mesh);
@@ -188,7 +188,8 @@ QualityCertificate certifyQuality(const HexMesh& mesh, double target, const Loca
     if (below.size() > kMaxPlacesListed) below.resize(kMaxPlacesListed);
     for (const auto& [v, h] : below) {
         const Vec3 at = hexCentre(mesh, h);
-        c.places.push_back({at, mesh.material[static_cast<std::size_t>(h)], v, causeOf(mesh, h), std::nullopt});
+        c.places.push_back({at, mesh.material[static_cast<std::size_t>(h)], v,
+                            optimised ? causeOf(mesh, h) : BelowCause::NotOptimised, std::nullopt});
         if (local) c.places.back().shape = local->shapeAt(at);
     }
     return c;

@@ -148,10 +148,10 @@ TEST(Pillow, CopiesStartTheirStepInsideWhereTheHexesUnderThemAreThin) {
     // A 6 x 6 x 6 block whose boundary nodes inside its faces are pulled in
     // towards the layer below, each to its own height of 0.1 to 1 edge above
     // it, as dual contouring leaves the hexes under a curved surface: many
-    // are thinner than the copies' step of 0.3 of an edge. Shortening every copy of an
-    // inverted hex together spread to their neighbours, and most copies of
-    // the sheet ended within a few hundredths of an edge of their nodes; each
-    // should go in as far as its own hexes allow.
+    // are thinner than the copies' step of 0.3 of an edge. Shortening every
+    // copy of an inverted hex together spread to their neighbours, and most
+    // copies of the sheet ended within a few hundredths of an edge of their
+    // nodes; each should go in as far as its own hexes allow.
     HexMesh m = makeBlock(6, 6, 6, 1.0, {-3, -3, -3});
     std::uint64_t x = 0x9E3779B97F4A7C15ull;
     for (Vec3& p : m.nodes) {
@@ -188,7 +188,6 @@ TEST(Pillow, CopiesStartTheirStepInsideWhereTheHexesUnderThemAreThin) {
     const double together = medianStep(false, invertedTogether);
     const double alone = medianStep(true, invertedAlone);
     EXPECT_EQ(invertedAlone, 0u);
-    EXPECT_LE(invertedAlone, invertedTogether);
     EXPECT_GT(alone, 0.15);
     EXPECT_GT(alone, 2 * together);
 }

@@ -148,8 +148,11 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
                                                   StageSink& sink);
 
 // The certificate of `mesh` against `target`; with `local`, each hex below
-// it also by the shape of the labels next to it.
-QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local = nullptr);
+// it also by the shape of the labels next to it. `optimised` false (no node
+// was moved: --no-optimize): every place's cause is NotOptimised instead of
+// one read from its nodes' classes.
+QualityCertificate certifyQuality(const HexMesh& mesh, double target, const LocalFeatures* local = nullptr,
+                                  bool optimised = true);
 
 // Whether certifyQuality counts a scaled Jacobian as below `target`: below
 // it, not positive, or Verdict's degenerate value.
