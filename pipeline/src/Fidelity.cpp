@@ -13,6 +13,7 @@
 #include "isohex/octree/Labels.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/FieldProjector.hpp"
+#include "isohex/smoothing/NodePlace.hpp"
 
 namespace isohex::pipeline {
 
@@ -25,21 +26,12 @@ struct MeasuredNodes {
     std::vector<double> distance;  // of each (NaN: not projected)
 };
 
-// Distance of every node of `kind` (with an id) to project(id, x), in parallel,
-// summed in node order.
-template <class Project>
-MeasuredNodes measure(const HexMesh& mesh, NodeKind kind, double voxel, const Project& project) {
-    std::vector<Index> nodes;
-    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
-        if (mesh.nodeClass[v].kind == kind && mesh.nodeClass[v].id >= 0) nodes.push_back(static_cast<Index>(v));
+// distanceOf(v) of every node v of `nodes`, in parallel, summed in node order.
+template <class Distance>
+MeasuredNodes measureNodes(std::vector<Index> nodes, double voxel, const Distance& distanceOf) {
     std::vector<double> dist(nodes.size(), 0.0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 256), [&](const auto& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const Vec3& x = mesh.nodes[nodes[i]];
-            const Vec3 y = project(mesh.nodeClass[nodes[i]].id, x);
-            dist[i] = std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) +
-                                (x[2] - y[2]) * (x[2] - y[2]));
-        }
+        for (std::size_t i = r.begin(); i != r.end(); ++i) dist[i] = distanceOf(nodes[i]);
     });
     MeasuredNodes out;
     NodeDistances& s = out.summary;
@@ -69,6 +61,30 @@ MeasuredNodes measure(const HexMesh& mesh, NodeKind kind, double voxel, const Pr
     out.nodes = std::move(nodes);
     out.distance = std::move(dist);
     return out;
+}
+
+// Distance of every node of `kind` (with an id) to project(id, x).
+template <class Project>
+MeasuredNodes measure(const HexMesh& mesh, NodeKind kind, double voxel, const Project& project) {
+    std::vector<Index> nodes;
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+        if (mesh.nodeClass[v].kind == kind && mesh.nodeClass[v].id >= 0) nodes.push_back(static_cast<Index>(v));
+    return measureNodes(std::move(nodes), voxel, [&](Index v) {
+        const Vec3& x = mesh.nodes[static_cast<std::size_t>(v)];
+        const Vec3 y = project(mesh.nodeClass[static_cast<std::size_t>(v)].id, x);
+        return std::sqrt((x[0] - y[0]) * (x[0] - y[0]) + (x[1] - y[1]) * (x[1] - y[1]) + (x[2] - y[2]) * (x[2] - y[2]));
+    });
+}
+
+// Junction nodes (curve nodes with no named curve, where four or more
+// materials meet): the distance to the farthest surface around each.
+std::optional<NodeDistances> measureJunctions(const HexMesh& mesh, const FieldProjector& proj, double voxel) {
+    const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
+    if (junctions.nodes.empty()) return std::nullopt;
+    return measureNodes(junctions.nodes, voxel, [&](Index v) {
+               return smoothing::distanceFromPlace(mesh, proj, junctions, v, mesh.nodes[static_cast<std::size_t>(v)]);
+           })
+        .summary;
 }
 
 // Each material's hex volume, computed in parallel and summed in hex order:
@@ -163,6 +179,7 @@ FidelityResult fidelity(const HexMesh& mesh, const Prepared& p) {
         f.curves = measure(mesh, NodeKind::Curve, f.voxel,
                            [&](std::int32_t id, const Vec3& x) { return proj.projectToCurve(id, x); })
                        .summary;
+    f.junctions = measureJunctions(mesh, proj, f.voxel);
     return f;
 }
 

@@ -11,6 +11,7 @@
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/FieldProjector.hpp"
 #include "isohex/pipeline/StuckHexes.hpp"
+#include "isohex/smoothing/NodePlace.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
 namespace isohex::pipeline {
@@ -54,15 +55,16 @@ double stretchTargetFor(const std::string& input, const MeshSettings& settings) 
 
 namespace {
 
-// The distance of each surface node of `mesh` from its surface (0 for the
-// other nodes and for surfaces the projector leaves alone).
-double offSurface(const HexMesh& mesh, const smoothing::SurfaceProjector& projector, Index v) {
+// How far node v of `mesh` is from its surface or curve, or a junction node
+// from the farthest surface around it (0 for interior and fixed nodes, for
+// surfaces the projector leaves alone, and where a projection fails).
+double offPlace(const HexMesh& mesh, const smoothing::SurfaceProjector& projector,
+                const smoothing::JunctionSurfaces& junctions, Index v) {
     const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
-    if (c.kind != NodeKind::Surface || !projector.projectsOnto(c.id)) return 0;
-    const Vec3& x = mesh.nodes[static_cast<std::size_t>(v)];
-    const Vec3 p = projector.project(c.id, x);
-    if (!std::isfinite(p[0])) return 0;
-    return std::sqrt((p[0] - x[0]) * (p[0] - x[0]) + (p[1] - x[1]) * (p[1] - x[1]) + (p[2] - x[2]) * (p[2] - x[2]));
+    if (c.kind == NodeKind::Surface && !projector.projectsOnto(c.id)) return 0;
+    if (c.kind == NodeKind::Curve && !projector.hasCurves()) return 0;
+    const double d = smoothing::distanceFromPlace(mesh, projector, junctions, v, mesh.nodes[static_cast<std::size_t>(v)]);
+    return std::isfinite(d) ? d : 0.0;
 }
 
 BelowCause causeOf(const HexMesh& mesh, Index h) {
@@ -112,10 +114,11 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     // the relaxation took it farther. Sparse, like the nodes the pass
     // moves (a few dozen of two million on a brain at 1 mm): no copy of
     // every node is kept across the pass.
+    const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
     std::vector<std::pair<Index, double>> offBefore;
     for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
-        if (mesh.nodeClass[v].kind == NodeKind::Surface) {
-            const double d = offSurface(mesh, projector, static_cast<Index>(v));
+        if (mesh.nodeClass[v].kind == NodeKind::Surface || mesh.nodeClass[v].kind == NodeKind::Curve) {
+            const double d = offPlace(mesh, projector, junctions, static_cast<Index>(v));
             if (d > 0) offBefore.emplace_back(static_cast<Index>(v), d);
         }
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, &projector, o);
@@ -127,10 +130,10 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     for (Index v : w.movedNodes) {
         const auto it = std::lower_bound(offBefore.begin(), offBefore.end(), std::make_pair(v, 0.0));
         const double was = it != offBefore.end() && it->first == v ? it->second : 0.0;
-        const double d = offSurface(mesh, projector, v);
+        const double d = offPlace(mesh, projector, junctions, v);
         if (!(d > was)) continue;
         r.largestDeviationVoxels = std::max(r.largestDeviationVoxels, d / voxel);
-        if (d > tolerance) ++r.nodesOff;
+        if (d > tolerance) ++(mesh.nodeClass[static_cast<std::size_t>(v)].kind == NodeKind::Curve ? r.curveNodesOff : r.nodesOff);
     }
     r.seconds = clock.seconds();
     return r;

@@ -152,6 +152,13 @@ void distancesJson(const FidelityResult& f, nlohmann::json& j) {
         j["curve_nodes_beyond_0_1_voxel"] = f.curves->beyond;
         j["curve_distance_max_voxels"] = f.curves->max / voxel;
     }
+    if (f.junctions) {
+        j["junction_nodes"] = f.junctions->nodes;
+        j["junction_nodes_not_projected"] = f.junctions->notProjected;
+        j["junction_nodes_beyond_0_1_voxel"] = f.junctions->beyond;
+        j["junction_distance_mean_voxels"] = f.junctions->mean / voxel;
+        j["junction_distance_max_voxels"] = f.junctions->max / voxel;
+    }
 }
 
 const char* gridChoiceName(GridChoice c) {
@@ -276,6 +283,7 @@ nlohmann::json toJson(const RelaxationResult& r) {
             {"target", r.target},
             {"max_deviation_voxels", r.maxDeviationVoxels},
             {"surface_nodes_off", r.nodesOff},
+            {"curve_nodes_off", r.curveNodesOff},
             {"largest_deviation_voxels", r.largestDeviationVoxels},
             {"nodes_moved", r.nodesMoved},
             {"min_scaled_jacobian_before", r.minBefore},

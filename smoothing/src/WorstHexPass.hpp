@@ -10,6 +10,7 @@
 
 #include "isohex/core/HexMesh.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/smoothing/NodePlace.hpp"
 #include "isohex/smoothing/SurfaceProjector.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 #include "NodeHexes.hpp"
@@ -87,8 +88,15 @@ private:
 
     // --- shared by the phases
     bool movable(Index v) const;
-    // How far p is from surface node v's surface (NaN where the projection fails).
+    // Whether node v may move in 3-D in the slack rounds: a surface node of a
+    // surface the projector finds, a curve node, or a junction node.
+    bool freeInSlack(std::size_t v) const;
+    // How far p is from where node v belongs: its surface, its curve, or for a
+    // junction node the farthest of the surfaces around it (NaN where a
+    // projection fails).
     double offBy(std::size_t v, const Vec3& p) const;
+    // junctions_, from the mesh's surface quads.
+    void findJunctions();
     // The least each hex around a node may end with in the mean rounds and the return.
     std::vector<double> floorsOf(const NodeHexes& nh) const;
     // After node v moved: its hexes' entries of sj_.
@@ -143,6 +151,9 @@ private:
     // Tangent planes from the surfaces as they are at the start (the nodes
     // move by fractions of an element).
     std::vector<Vec3> normal_;
+    // The junction nodes and their surfaces (none of a surface the
+    // projector does not find), with a surface slack.
+    JunctionSurfaces junctions_;
 };
 
 }  // namespace isohex::smoothing::detail

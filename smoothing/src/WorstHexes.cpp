@@ -125,6 +125,15 @@ void WorstHexPass::prepare() {
             for (int c = -1; c <= 1; c += 2)
                 dirs3_.push_back((1.0 / std::sqrt(3.0)) * Vec3{double(a), double(b), double(c)});
     normal_ = surfaceNormals(mesh_, *topo_);
+    if (projector_ != nullptr && opt_.surfaceSlack > 0) findJunctions();
+}
+
+// Junction nodes next to a surface the projector does not find stay fixed,
+// as before (no distance to it can be measured).
+void WorstHexPass::findJunctions() {
+    junctions_ = junctionSurfaces(mesh_, *topo_);
+    for (std::vector<std::int32_t>& ids : junctions_.surfaces)
+        if (std::any_of(ids.begin(), ids.end(), [&](std::int32_t id) { return !projector_->projectsOnto(id); })) ids.clear();
 }
 
 void WorstHexPass::roundsUntilStill(RoundKind kind) {
@@ -172,9 +181,18 @@ bool WorstHexPass::movable(Index v) const {
     return c.kind == NodeKind::Surface && projector_ != nullptr;
 }
 
+bool WorstHexPass::freeInSlack(std::size_t v) const {
+    const NodeClass& c = mesh_.nodeClass[v];
+    if (c.kind == NodeKind::Surface) return projector_->projectsOnto(c.id);
+    if (c.kind != NodeKind::Curve) return false;
+    if (c.id >= 0) return projector_->hasCurves();
+    const std::vector<std::int32_t>* ids = junctions_.of(static_cast<Index>(v));
+    return ids != nullptr && !ids->empty();
+}
+
 // (NaN where the projection fails, so that a bound `!(offBy(..) <= b)` refuses it.)
 double WorstHexPass::offBy(std::size_t v, const Vec3& p) const {
-    return norm(projector_->project(mesh_.nodeClass[v].id, p) - p);
+    return distanceFromPlace(mesh_, *projector_, junctions_, static_cast<Index>(v), p);
 }
 
 // Its value now, or the target (once the mean rounds start, the worst hex then if higher) if it is above that; a valid hex stays valid
@@ -220,7 +238,7 @@ std::vector<std::uint8_t> WorstHexPass::pickNodes(RoundKind kind) const {
                 in = kind.release ? !(s > 0) : s < below;
             }
             const bool near = !kind.mean || nearMoved_.empty() || nearMoved_[v];
-            pick[v] = in && near && movable(static_cast<Index>(v));
+            pick[v] = in && near && (movable(static_cast<Index>(v)) || (kind.slack && freeInSlack(v)));
         }
     });
     return pick;
@@ -256,9 +274,11 @@ bool WorstHexPass::visit(Index v, RoundKind kind) {
     const bool surface = mesh_.nodeClass[sv].kind == NodeKind::Surface;
     const bool curve = mesh_.nodeClass[sv].kind == NodeKind::Curve;
     if (curve && kind.release) return false;  // curve nodes stay on their curve
-    // In the slack rounds a surface node moves in 3-D, off its surface by at
-    // most surfaceSlack (not off a surface the projector leaves alone).
-    const bool offSurface = surface && kind.slack && projector_->projectsOnto(mesh_.nodeClass[sv].id);
+    // In the slack rounds a surface or curve node moves in 3-D, off its
+    // surface or curve by at most surfaceSlack (not off a surface the
+    // projector leaves alone); a junction node stays within surfaceSlack of
+    // every surface around it.
+    const bool offSurface = kind.slack && freeInSlack(sv);
     const bool onSurface = surface && !kind.release && !offSurface;
     // The mean rounds step along the gradient of the summed scaled Jacobian
     // of the node's hexes (in its tangent plane on a surface), halving the
@@ -271,7 +291,7 @@ bool WorstHexPass::visit(Index v, RoundKind kind) {
     if (!(L > 0)) return false;
     NodeSearch s(mesh_, *topo_, opt_, v, L);
     s.surface = surface;
-    s.curve = curve;
+    s.curve = curve && !offSurface;
     s.release = kind.release;
     s.mean = kind.mean;
     s.offSurface = offSurface;
@@ -359,7 +379,7 @@ void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
     // A surface node that starts the visit farther off its surface than the
     // round allows (a vertex contouring held back) may still move, as long as
     // it gets no farther off than it was: else it could never move at all.
-    const double offAtStart = s.surface && (s.release || s.offSurface) ? offBy(sv, mesh_.nodes[sv]) : 0.0;
+    const double offAtStart = (s.surface && s.release) || s.offSurface ? offBy(sv, mesh_.nodes[sv]) : 0.0;
     const double releaseBound = std::max(opt_.releaseDistance * s.L, offAtStart);
     const double slackBound = std::max(opt_.surfaceSlack, offAtStart);
     while (s.step >= opt_.lastStep * s.L && s.moves < s.maxMoves) {

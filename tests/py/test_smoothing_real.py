@@ -472,10 +472,12 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # flat (scaled Jacobian below 0.05, the default --retry-below), at the
         # same kind of places: the retries lift them, with every label's
         # topology kept; --retry-below 0 leaves them. (--tangled-start: the
-        # start as when this was seen.)
+        # start as when this was seen; no surface tolerance and no boundary
+        # relaxation, which now lift them by moving label-junction nodes.)
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
-        c, rc = self.mesh("jhu_3mm_retry", src, "--labels", "--size", "3", "--tangled-start")
-        d, rd = self.mesh("jhu_3mm_inverted_only", src, "--labels", "--size", "3", "--retry-below", "0", "--tangled-start")
+        on = ("--labels", "--size", "3", "--tangled-start", "--surface-tolerance", "0", "--max-deviation", "0")
+        c, rc = self.mesh("jhu_3mm_retry", src, *on)
+        d, rd = self.mesh("jhu_3mm_inverted_only", src, *on, "--retry-below", "0")
         sc, sd = vtk_sj(c), vtk_sj(d)
         print(f"JHU 3 mm: VTK SJ min {sd.min():.3f} -> {sc.min():.3f}, below 0.05 {(sd < 0.05).sum()} -> "
               f"{(sc < 0.05).sum()}, below 0.2 {(sd < 0.2).sum()} -> {(sc < 0.2).sum()}")
@@ -492,7 +494,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # the retries, and the joint release they run (its steps are parallel
         # within a region), are deterministic: one thread gives the same file
         self.assertGreater(rc["optimization"]["worst_hexes"]["joint_regions_tried"], 0)
-        e, re_ = self.mesh("jhu_3mm_retry_t1", src, "--labels", "--size", "3", "--tangled-start", threads=1)
+        e, re_ = self.mesh("jhu_3mm_retry_t1", src, *on, threads=1)
         with open(c, "rb") as fc, open(e, "rb") as fe:
             self.assertEqual(fc.read(), fe.read())
         # where there is no grid to edit, the options are refused before anything is written
@@ -512,12 +514,13 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # JHU at 3.5 mm with one retry: the retry clears the inverted hex and
         # five hexes stay below 0.05. Both used to pass without a word (the
         # stages' progress just started over for the retry). The boundary
-        # relaxation, which lifts them, is off here (--max-deviation 0); the
-        # end of the test runs it and the warning must then be gone.
+        # relaxation and the surface tolerance, which lift them, are off here
+        # (--max-deviation 0, --surface-tolerance 0); the end of the test runs
+        # the relaxation and the warning must then be gone.
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
         out = os.path.join(self.dir, "jhu_35_flat.vtu")
         p = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--tangled-start", "--max-deviation", "0",
-                 "-o", out, "--report", out + ".json", "--force"])
+                 "--surface-tolerance", "0", "-o", out, "--report", out + ".json", "--force"])
         with open(out + ".json") as f:
             rep = json.load(f)
         sj = vtk_sj(out)
@@ -539,7 +542,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
         self.assertLess(np.linalg.norm(pts[conn[worst]].mean(axis=0) - at), 1e-3)
         # --retry-below 0: only inverted hexes count as stuck, and no flat warning
         q = run(["mesh", src, "--labels", "--size", "3.5", "--retries", "1", "--retry-below", "0", "--tangled-start",
-                 "--max-deviation", "0", "-o", out, "--force", "-q"])
+                 "--max-deviation", "0", "--surface-tolerance", "0", "-o", out, "--force", "-q"])
         self.assertNotIn("nearly flat", q.stderr)
         # With the relaxation (the default) the hexes the retries left flat
         # are lifted after them: the warnings describe the file written, so

@@ -32,6 +32,21 @@ std::size_t invertedHexes(const HexMesh& m) {
     return n;
 }
 
+// A 4 x 4 x 2 block with every node fixed but the top's centre node, which
+// gets class `c` and is raised from z = 2 to 2.6: a bump over four hexes.
+// Returns that node (kNone if the block has none at (2, 2, 2)).
+Index bumpTopCentre(HexMesh& block, NodeClass c) {
+    Index v = kNone;
+    for (std::size_t i = 0; i < block.nodeCount(); ++i) {
+        block.nodeClass[i] = {NodeKind::Fixed, -1};
+        if (block.nodes[i] == Vec3{2, 2, 2}) v = static_cast<Index>(i);
+    }
+    if (v == kNone) return v;
+    block.nodeClass[static_cast<std::size_t>(v)] = c;
+    block.nodes[static_cast<std::size_t>(v)] = {2, 2, 2.6};
+    return v;
+}
+
 // A ball of radius 3 from a 6^3 block, pillowed and optimised onto its
 // sphere: its sheet hexes are well short of 1.
 HexMesh optimisedPillowedBall(const test::SphereProjector& sphere) {
@@ -342,15 +357,9 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
     // released.
     HexMesh start = test::makeBlock(4, 4, 2);
     start.surfaces = {SurfaceTag{1, -1, "top"}};
-    Index v = kNone;
-    for (std::size_t i = 0; i < start.nodeCount(); ++i) {
-        start.nodeClass[i] = {NodeKind::Fixed, -1};
-        if (start.nodes[i] == Vec3{2, 2, 2}) v = static_cast<Index>(i);
-    }
+    const Index v = bumpTopCentre(start, {NodeKind::Surface, 0});
     ASSERT_NE(v, kNone);
     const auto sv = static_cast<std::size_t>(v);
-    start.nodeClass[sv] = {NodeKind::Surface, 0};
-    start.nodes[sv] = {2, 2, 2.6};
     const test::PlaneProjector surface({0, 0, 1}, 2.6);
     WorstHexOptions opt;
     opt.target = 0.95;
@@ -390,6 +399,62 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
     const auto rb = raiseWorstHexes(box, &construction, opt);
     EXPECT_NEAR(box.nodes[sv][2], 2.6, 1e-12);
     EXPECT_EQ(rb.surfaceNodesWithinSlack, 0u);
+}
+
+// A junction node (a curve node with no named curve: four materials and the
+// outside meet there) used to stay where extraction put it in every round.
+// Here the 4 x 4 x 2 block is split into four materials by the planes x = 2
+// and y = 2, and its top (z = 2) is the outer boundary; every node is fixed
+// but the top's centre node, the junction, bumped up to z = 2.6 on a top
+// surface there. Its surfaces: the four materials' tops (z = 2.6) and the
+// four interfaces (x = 2, y = 2). With slack it goes down by at most the
+// slack, stays on the interfaces, and the hexes rise; without, it stays.
+TEST(WorstHexes, AJunctionNodeLeavesItsSurfacesByAtMostTheSlack) {
+    HexMesh start = test::makeBlock(4, 4, 2);
+    for (std::size_t h = 0; h < start.hexCount(); ++h) {
+        const Vec3& c = start.nodes[static_cast<std::size_t>(start.hexes[h][6])];  // the corner at its largest x, y, z
+        start.material[h] = 1 + (c[0] > 2) + 2 * (c[1] > 2);
+    }
+    for (const SurfacePatch& p : surfacePatches(start, buildTopology(start))) start.surfaces.push_back(p.tag);
+    ASSERT_EQ(start.surfaces.size(), 8u);  // each material against the outside, and 4 interfaces
+    const Index v = bumpTopCentre(start, {NodeKind::Curve, -1});
+    ASSERT_NE(v, kNone);
+    const auto sv = static_cast<std::size_t>(v);
+    // the outer boundary's surfaces: the plane z = 2.6 (where the node is);
+    // the interfaces between materials 1|2 and 3|4: x = 2, else y = 2
+    struct Planes final : smoothing::SurfaceProjector {
+        const HexMesh& mesh;
+        explicit Planes(const HexMesh& m) : mesh(m) {}
+        Vec3 project(std::int32_t id, const Vec3& x) const override {
+            const SurfaceTag& t = mesh.surfaces[static_cast<std::size_t>(id)];
+            if (t.outside < 0) return {x[0], x[1], 2.6};
+            const bool acrossX = (t.inside == 1 && t.outside == 2) || (t.inside == 3 && t.outside == 4);
+            return acrossX ? Vec3{2, x[1], x[2]} : Vec3{x[0], 2, x[2]};
+        }
+    };
+    const Planes planes(start);
+    WorstHexOptions opt;
+    opt.target = 0.95;
+    const double before = test::minScaledJacobian(start);
+    ASSERT_LT(before, opt.target);
+
+    HexMesh kept = start;
+    raiseWorstHexes(kept, &planes, opt);
+    EXPECT_EQ(kept.nodes[sv], start.nodes[sv]);
+
+    HexMesh slack = start;
+    opt.surfaceSlack = 0.2;
+    const auto rs = raiseWorstHexes(slack, &planes, opt);
+    const double off = 2.6 - slack.nodes[sv][2];
+    std::cout << "[figures] junction, slack 0.2: node " << off << " below the top, min scaled Jacobian " << before
+              << " -> " << rs.minAfter << "\n";
+    EXPECT_GT(off, 0.1);
+    EXPECT_LE(off, 0.2 + 1e-12);
+    // near both interfaces (the bump is symmetric; the compass steps diagonally too)
+    EXPECT_NEAR(slack.nodes[sv][0], 2.0, 0.01);
+    EXPECT_NEAR(slack.nodes[sv][1], 2.0, 0.01);
+    EXPECT_GT(rs.minAfter, before + 0.05);
+    EXPECT_EQ(slack.nodeClass[sv].kind, NodeKind::Curve);
 }
 
 TEST(WorstHexes, MeanRoundsNearMovedNodesMoveOnlyTheirNeighboursAndGiveBackTheMean) {

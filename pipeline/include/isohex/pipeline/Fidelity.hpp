@@ -50,6 +50,9 @@ struct FidelityResult {
     NodeDistances boundary;
     std::optional<RepairedFidelity> repaired;
     std::optional<NodeDistances> curves;            // when the mesh has curves
+    // when it has junction nodes (curve nodes with no named curve): each to
+    // the farthest surface around it
+    std::optional<NodeDistances> junctions;
 };
 
 FidelityResult fidelity(const HexMesh& mesh, const Prepared& p);

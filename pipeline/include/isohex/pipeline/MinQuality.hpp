@@ -48,12 +48,15 @@ struct BelowPlace {
 inline constexpr std::size_t kMaxPlacesListed = 200;
 
 // Bounded boundary relaxation: the max-min pass once more on the hexes below
-// the target, surface nodes free within --max-deviation of their isosurface.
+// the target, surface nodes free within --max-deviation of their isosurface,
+// curve nodes of their curve, junction nodes of every surface around them.
 struct RelaxationResult {
     double target = 0;  // the hexes below it were lifted (aimed kRelaxationMargin above it)
     double maxDeviationVoxels = 0;
     // surface nodes the relaxation took farther off their surface, beyond the surface tolerance
     std::size_t nodesOff = 0;
+    // curve and junction nodes it took farther off their curve or surfaces, beyond the surface tolerance
+    std::size_t curveNodesOff = 0;
     double largestDeviationVoxels = 0;  // the farthest of the nodes it took farther off
     std::size_t nodesMoved = 0;
     double minBefore = 0, minAfter = 0;

@@ -16,9 +16,12 @@
 // below the worst value that node's hexes had.
 //
 // With a surface slack (WorstHexOptions::surfaceSlack), the max-min rounds
-// then run once more with surface nodes free in 3-D within that distance of
-// their surface: hexes on surface detail finer than an element can open only
-// across the surface.
+// then run once more with surface and curve nodes free in 3-D within that
+// distance of their surface or curve, and junction nodes (curve nodes with no
+// named curve, where four or more materials meet, fixed otherwise) within it
+// of every surface around them: hexes on surface detail finer than an element
+// can open only across the surface, and a quad with three or four nodes on
+// curves only off them.
 //
 // It ends with mean rounds: the nodes of the hexes below 0.9 move, along the
 // gradient of the summed scaled Jacobian of their hexes, to raise that sum
@@ -28,7 +31,8 @@
 //
 // Last of all, surface nodes that are still off their surface (released to
 // untangle, or extraction corners held back to keep a hex valid) move back
-// towards it as far as the same floors allow.
+// towards it as far as the same floors allow. Curve and junction nodes the
+// slack rounds moved stay where they are, within the slack.
 //
 // Each round colours the nodes involved so that nodes of one colour share no
 // hex, and moves each colour's nodes in parallel, colours in order: the
@@ -58,8 +62,8 @@ struct WorstHexOptions {
     // After the release rounds and the joint moves (below), the max-min
     // rounds run again over the nodes of the hexes below the target with
     // surface nodes free in 3-D, off their surface by at most this distance
-    // (world units; 0: no such rounds). Curve nodes stay on their curve. The
-    // return step (below) runs before them too, so nodes released to
+    // (world units; 0: no such rounds); curve nodes off their curve and
+    // junction nodes off each surface around them by as much. The return step (below) runs before them too, so nodes released to
     // untangle get back first. A caller with a fidelity bound (isohex: 0.1
     // voxel) sets it under that bound.
     double surfaceSlack = 0;

@@ -1,0 +1,73 @@
+#include "isohex/smoothing/NodePlace.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "isohex/core/VecMath.hpp"
+
+namespace isohex::smoothing {
+
+using namespace isohex::vec;
+
+const std::vector<std::int32_t>* JunctionSurfaces::of(Index v) const {
+    const auto it = std::lower_bound(nodes.begin(), nodes.end(), v);
+    if (it == nodes.end() || *it != v) return nullptr;
+    return &surfaces[static_cast<std::size_t>(it - nodes.begin())];
+}
+
+namespace {
+
+std::vector<Index> junctionNodes(const HexMesh& mesh) {
+    std::vector<Index> nodes;
+    for (std::size_t v = 0; v < mesh.nodeCount(); ++v)
+        if (mesh.nodeClass[v].kind == NodeKind::Curve && mesh.nodeClass[v].id < 0) nodes.push_back(static_cast<Index>(v));
+    return nodes;
+}
+
+}  // namespace
+
+JunctionSurfaces junctionSurfaces(const HexMesh& mesh) {
+    if (junctionNodes(mesh).empty()) return {};
+    return junctionSurfaces(mesh, buildTopology(mesh, TopologyParts::Surfaces));
+}
+
+JunctionSurfaces junctionSurfaces(const HexMesh& mesh, const Topology& topo) {
+    JunctionSurfaces j;
+    j.nodes = junctionNodes(mesh);
+    if (j.nodes.empty()) return j;
+    j.surfaces.assign(j.nodes.size(), {});
+    for (const SurfacePatch& p : surfacePatches(mesh, topo)) {
+        const auto tag = std::find(mesh.surfaces.begin(), mesh.surfaces.end(), p.tag);
+        if (tag == mesh.surfaces.end()) continue;  // a surface the classes do not name
+        const auto id = static_cast<std::int32_t>(tag - mesh.surfaces.begin());
+        for (Index q : p.quads)
+            for (Index u : topo.quads[static_cast<std::size_t>(q)].nodes) {
+                const auto it = std::lower_bound(j.nodes.begin(), j.nodes.end(), u);
+                if (it == j.nodes.end() || *it != u) continue;
+                std::vector<std::int32_t>& ids = j.surfaces[static_cast<std::size_t>(it - j.nodes.begin())];
+                if (std::find(ids.begin(), ids.end(), id) == ids.end()) ids.push_back(id);
+            }
+    }
+    for (std::vector<std::int32_t>& ids : j.surfaces) std::sort(ids.begin(), ids.end());
+    return j;
+}
+
+double distanceFromPlace(const HexMesh& mesh, const SurfaceProjector& projector, const JunctionSurfaces& junctions,
+                         Index v, const Vec3& p) {
+    const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
+    if (c.kind == NodeKind::Surface) return norm(projector.project(c.id, p) - p);
+    if (c.kind != NodeKind::Curve) return 0.0;
+    if (c.id >= 0) return norm(projector.projectToCurve(c.id, p) - p);
+    const std::vector<std::int32_t>* ids = junctions.of(v);
+    if (ids == nullptr || ids->empty()) return std::numeric_limits<double>::quiet_NaN();
+    double off = 0;
+    for (const std::int32_t id : *ids) {
+        const double d = norm(projector.project(id, p) - p);
+        if (std::isnan(d)) return d;
+        off = std::max(off, d);
+    }
+    return off;
+}
+
+}  // namespace isohex::smoothing
