@@ -63,9 +63,10 @@ struct WorstHexOptions {
     // rounds run again over the nodes of the hexes below the target with
     // surface nodes free in 3-D, off their surface by at most this distance
     // (world units; 0: no such rounds); curve nodes off their curve and
-    // junction nodes off each surface around them by as much. The return step (below) runs before them too, so nodes released to
-    // untangle get back first. A caller with a fidelity bound (isohex: 0.1
-    // voxel) sets it under that bound.
+    // junction nodes off each surface around them by as much. The return
+    // step (below) runs before them too, so nodes released to untangle get
+    // back first. A caller with a fidelity bound (isohex: 0.1 voxel) sets it
+    // under that bound.
     double surfaceSlack = 0;
     // Then, for each hex still inverted, the movable nodes within this many
     // rings of it move jointly (surface nodes within releaseDistance of their
