@@ -55,16 +55,29 @@ double stretchTargetFor(const std::string& input, const MeshSettings& settings) 
 
 namespace {
 
-// How far node v of `mesh` is from its surface or curve, or a junction node
-// from the farthest surface around it (0 for interior and fixed nodes, for
-// surfaces the projector leaves alone, and where a projection fails).
-double offPlace(const HexMesh& mesh, const smoothing::SurfaceProjector& projector,
-                const smoothing::JunctionSurfaces& junctions, Index v) {
+// How far node v of `mesh` is from each place it belongs to (its surface or
+// curve, or a junction node's surfaces: distancesFromPlace), 0 where a
+// projection fails; none for a surface the projector leaves alone or a curve
+// it does not know.
+std::vector<double> offPlaces(const HexMesh& mesh, const smoothing::SurfaceProjector& projector,
+                              const smoothing::JunctionSurfaces& junctions, Index v) {
     const NodeClass& c = mesh.nodeClass[static_cast<std::size_t>(v)];
-    if (c.kind == NodeKind::Surface && !projector.projectsOnto(c.id)) return 0;
-    if (c.kind == NodeKind::Curve && !projector.hasCurves()) return 0;
-    const double d = smoothing::distanceFromPlace(mesh, projector, junctions, v, mesh.nodes[static_cast<std::size_t>(v)]);
-    return std::isfinite(d) ? d : 0.0;
+    if (c.kind == NodeKind::Surface && !projector.projectsOnto(c.id)) return {};
+    if (c.kind == NodeKind::Curve && c.id >= 0 && !projector.hasCurves()) return {};
+    std::vector<double> d =
+        smoothing::distancesFromPlace(mesh, projector, junctions, v, mesh.nodes[static_cast<std::size_t>(v)]);
+    for (double& e : d)
+        if (!std::isfinite(e)) e = 0;
+    return d;
+}
+
+// The farthest a node now is from one of its places, over the places it got
+// farther from than it was (`was`, 0 where not given); 0 if none.
+double fartherOff(const std::vector<double>& now, const std::vector<double>& was) {
+    double grew = 0;
+    for (std::size_t i = 0; i < now.size(); ++i)
+        if (now[i] > (i < was.size() ? was[i] : 0.0)) grew = std::max(grew, now[i]);
+    return grew;
 }
 
 BelowCause causeOf(const HexMesh& mesh, Index h) {
@@ -109,17 +122,19 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     o.releaseDistance = 0;
     o.jointRings = 0;
     o.listMovedNodes = true;
-    // The surface nodes already off their surface (released to untangle,
-    // held back at extraction), with that distance: a moved one counts where
-    // the relaxation took it farther. Sparse, like the nodes the pass
-    // moves (a few dozen of two million on a brain at 1 mm): no copy of
-    // every node is kept across the pass.
+    // The surface, curve and junction nodes already off one of their places
+    // (released to untangle, held back at extraction; a junction node off
+    // all but one of its surfaces), with those distances: a moved one counts
+    // where the relaxation took it farther from one. Sparse: a few dozen
+    // surface nodes of two million on a brain at 1 mm, and a label map's
+    // curve and junction nodes; no copy of every node is kept across the pass.
     const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
-    std::vector<std::pair<Index, double>> offBefore;
+    std::vector<std::pair<Index, std::vector<double>>> offBefore;
     for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
         if (mesh.nodeClass[v].kind == NodeKind::Surface || mesh.nodeClass[v].kind == NodeKind::Curve) {
-            const double d = offPlace(mesh, projector, junctions, static_cast<Index>(v));
-            if (d > 0) offBefore.emplace_back(static_cast<Index>(v), d);
+            std::vector<double> d = offPlaces(mesh, projector, junctions, static_cast<Index>(v));
+            if (std::any_of(d.begin(), d.end(), [](double e) { return e > 0; }))
+                offBefore.emplace_back(static_cast<Index>(v), std::move(d));
         }
     const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, &projector, o);
     r.nodesMoved = w.nodesMoved;
@@ -127,11 +142,13 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     r.minAfter = w.minAfter;
     r.belowBefore = w.belowBefore;
     r.belowAfter = w.belowAfter;
+    const std::vector<double> none;
     for (Index v : w.movedNodes) {
-        const auto it = std::lower_bound(offBefore.begin(), offBefore.end(), std::make_pair(v, 0.0));
-        const double was = it != offBefore.end() && it->first == v ? it->second : 0.0;
-        const double d = offPlace(mesh, projector, junctions, v);
-        if (!(d > was)) continue;
+        const auto it = std::lower_bound(offBefore.begin(), offBefore.end(), v,
+                                         [](const auto& entry, Index u) { return entry.first < u; });
+        const std::vector<double>& was = it != offBefore.end() && it->first == v ? it->second : none;
+        const double d = fartherOff(offPlaces(mesh, projector, junctions, v), was);
+        if (!(d > 0)) continue;
         r.largestDeviationVoxels = std::max(r.largestDeviationVoxels, d / voxel);
         if (d > tolerance) ++(mesh.nodeClass[static_cast<std::size_t>(v)].kind == NodeKind::Curve ? r.curveNodesOff : r.nodesOff);
     }

@@ -95,6 +95,8 @@ private:
     // junction node the farthest of the surfaces around it (NaN where a
     // projection fails).
     double offBy(std::size_t v, const Vec3& p) const;
+    // Whether p is within bounds[i] of each place i of node v (distancesFromPlace).
+    bool withinBounds(Index v, const Vec3& p, const std::vector<double>& bounds) const;
     // junctions_, from the mesh's surface quads.
     void findJunctions();
     // The least each hex around a node may end with in the mean rounds and the return.

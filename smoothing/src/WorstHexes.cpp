@@ -33,7 +33,7 @@ public:
     Index v;
     std::size_t sv;
     bool surface = false, curve = false, release = false, mean = false;
-    bool offSurface = false;  // a surface node free in 3-D within surfaceSlack of its surface
+    bool offSurface = false;  // a surface, curve or junction node free in 3-D within surfaceSlack of its places
     bool onSurface = false;   // a surface node that stays on its surface
     bool ascend = false;      // steps along the gradient instead of the compass
     double L;                 // mean edge length at the node
@@ -128,8 +128,8 @@ void WorstHexPass::prepare() {
     if (projector_ != nullptr && opt_.surfaceSlack > 0) findJunctions();
 }
 
-// Junction nodes next to a surface the projector does not find stay fixed,
-// as before (no distance to it can be measured).
+// Junction nodes next to a surface the projector does not find stay fixed
+// (no distance to it can be measured).
 void WorstHexPass::findJunctions() {
     junctions_ = junctionSurfaces(mesh_, *topo_);
     for (std::vector<std::int32_t>& ids : junctions_.surfaces)
@@ -188,6 +188,14 @@ bool WorstHexPass::freeInSlack(std::size_t v) const {
     if (c.id >= 0) return projector_->hasCurves();
     const std::vector<std::int32_t>* ids = junctions_.of(static_cast<Index>(v));
     return ids != nullptr && !ids->empty();
+}
+
+bool WorstHexPass::withinBounds(Index v, const Vec3& p, const std::vector<double>& bounds) const {
+    const std::vector<double> d = distancesFromPlace(mesh_, *projector_, junctions_, v, p);
+    if (d.size() != bounds.size()) return false;
+    for (std::size_t i = 0; i < d.size(); ++i)
+        if (!(d[i] <= bounds[i])) return false;  // (a NaN distance is refused)
+    return true;
 }
 
 // (NaN where the projection fails, so that a bound `!(offBy(..) <= b)` refuses it.)
@@ -376,12 +384,18 @@ void WorstHexPass::ascendSteps(NodeSearch& s) {
 
 void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
     const std::size_t sv = s.sv;
-    // A surface node that starts the visit farther off its surface than the
-    // round allows (a vertex contouring held back) may still move, as long as
-    // it gets no farther off than it was: else it could never move at all.
-    const double offAtStart = (s.surface && s.release) || s.offSurface ? offBy(sv, mesh_.nodes[sv]) : 0.0;
+    // A node that starts the visit farther off its surface, curve or one of
+    // its junction surfaces than the round allows (a vertex contouring held
+    // back; a junction node, which no point puts on all its surfaces) may
+    // still move, as long as it gets no farther off each than it was: else
+    // it could never move at all.
+    const double offAtStart = s.surface && s.release ? offBy(sv, mesh_.nodes[sv]) : 0.0;
     const double releaseBound = std::max(opt_.releaseDistance * s.L, offAtStart);
-    const double slackBound = std::max(opt_.surfaceSlack, offAtStart);
+    std::vector<double> slackBounds;
+    if (s.offSurface) {
+        slackBounds = distancesFromPlace(mesh_, *projector_, junctions_, s.v, mesh_.nodes[sv]);
+        for (double& b : slackBounds) b = std::max(opt_.surfaceSlack, b);  // (a NaN start: the slack)
+    }
     while (s.step >= opt_.lastStep * s.L && s.moves < s.maxMoves) {
         Vec3 bestPos = mesh_.nodes[sv];
         Around bestValue = s.best;
@@ -401,7 +415,7 @@ void WorstHexPass::compassSteps(NodeSearch& s, const std::vector<Vec3>& dirs) {
             const Around f = s.evaluateTrial(p, bestValue);
             if (!s.improves(f, bestValue)) continue;
             if (s.surface && s.release && !(offBy(sv, p) <= releaseBound)) continue;
-            if (s.offSurface && !(offBy(sv, p) <= slackBound)) continue;
+            if (s.offSurface && !withinBounds(s.v, p, slackBounds)) continue;
             if (!s.edgesOk(p)) continue;
             bestValue = f;
             bestPos = p;

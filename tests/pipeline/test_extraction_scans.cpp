@@ -262,8 +262,8 @@ TEST(LabelCurves, CurveNodesMoveAlongTheCurveWhereThreeMaterialsMeet) {
     EXPECT_GT(moved, curveNodes / 4);
     // Released to untangle (validity before fidelity) may stay off; few. The
     // worst-hex pass's slack rounds may leave a curve node off its curve by
-    // the surface tolerance (0.09 voxel), as they do surface nodes, and its
-    // return brings most of them back.
+    // the surface tolerance (0.09 voxel), as they do surface nodes; the mean
+    // rounds after them put most of those they visit back on it.
     EXPECT_GE(nearCurve, moved * 95 / 100);
     EXPECT_GE(onCurve, moved * 90 / 100);
 }

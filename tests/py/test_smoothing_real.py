@@ -473,7 +473,7 @@ class SmoothingOnRealInputs(unittest.TestCase):
         # same kind of places: the retries lift them, with every label's
         # topology kept; --retry-below 0 leaves them. (--tangled-start: the
         # start as when this was seen; no surface tolerance and no boundary
-        # relaxation, which now lift them by moving label-junction nodes.)
+        # relaxation, which lift them by moving label-junction nodes.)
         src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
         on = ("--labels", "--size", "3", "--tangled-start", "--surface-tolerance", "0", "--max-deviation", "0")
         c, rc = self.mesh("jhu_3mm_retry", src, *on)
@@ -567,6 +567,32 @@ class SmoothingOnRealInputs(unittest.TestCase):
         pb = ns.vtk_to_numpy(read_vtu(b).GetPoints().GetData())
         np.testing.assert_array_equal(pa, pb)
         self.assertEqual(ra["optimization"]["sweeps"], rb["optimization"]["sweeps"])
+
+    def test_label_junctions_move_the_same_for_one_and_two_threads_and_are_reported(self):
+        # The JHU labels at 4 mm: the slack rounds move curve and junction
+        # nodes (several materials meeting in one cell) in parallel colour
+        # classes; the file is the same for any thread count, and the report
+        # measures the junction nodes against their surfaces and counts the
+        # curve and junction nodes the relaxation took off.
+        src = os.path.join(SHARED_DATA, "JHU-WhiteMatter-labels-2mm.nii.gz")
+        a, ra = self.mesh("jhu_4mm_t1", src, "--labels", "--size", "4", threads=1)
+        b, rb = self.mesh("jhu_4mm_t2", src, "--labels", "--size", "4", threads=2)
+        with open(a, "rb") as fa, open(b, "rb") as fb:
+            self.assertEqual(fa.read(), fb.read())
+        f = rb["fidelity"]
+        print(f"JHU 4 mm: {f['junction_nodes']} junction nodes, {f['junction_nodes_beyond_0_1_voxel']} beyond 0.1 voxel "
+              f"of their farthest surface (mean {f['junction_distance_mean_voxels']:.3f}, max "
+              f"{f['junction_distance_max_voxels']:.3f} voxel)")
+        self.assertGreater(f["junction_nodes"], 50)
+        # (a junction whose farthest surface is more than 3 voxels away, or
+        # whose projection fails, is counted apart, as for surface nodes)
+        self.assertLessEqual(f["junction_nodes_beyond_0_1_voxel"] + f["junction_nodes_not_projected"],
+                             f["junction_nodes"])
+        self.assertLessEqual(f["junction_distance_mean_voxels"], f["junction_distance_max_voxels"])
+        relax = [m for m in rb["quality"]["means"] if m["mean"] == "boundary_relaxation"]
+        self.assertEqual(len(relax), 1, rb["quality"]["means"])
+        self.assertGreater(relax[0]["curve_nodes_off"], 0)
+        self.assertLessEqual(relax[0]["largest_deviation_voxels"], relax[0]["max_deviation_voxels"] + 1e-6)
 
 
 if __name__ == "__main__":

@@ -402,13 +402,14 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
 }
 
 // A junction node (a curve node with no named curve: four materials and the
-// outside meet there) used to stay where extraction put it in every round.
-// Here the 4 x 4 x 2 block is split into four materials by the planes x = 2
+// outside meet there) moves in the slack rounds only. Here the 4 x 4 x 2 block is split into four materials by the planes x = 2
 // and y = 2, and its top (z = 2) is the outer boundary; every node is fixed
 // but the top's centre node, the junction, bumped up to z = 2.6 on a top
 // surface there. Its surfaces: the four materials' tops (z = 2.6) and the
 // four interfaces (x = 2, y = 2). With slack it goes down by at most the
 // slack, stays on the interfaces, and the hexes rise; without, it stays.
+// Started 0.15 off the interfaces x = 2 (more than the slack 0.1), it may
+// stay that far off them but goes no more than the slack off the others.
 TEST(WorstHexes, AJunctionNodeLeavesItsSurfacesByAtMostTheSlack) {
     HexMesh start = test::makeBlock(4, 4, 2);
     for (std::size_t h = 0; h < start.hexCount(); ++h) {
@@ -455,6 +456,53 @@ TEST(WorstHexes, AJunctionNodeLeavesItsSurfacesByAtMostTheSlack) {
     EXPECT_NEAR(slack.nodes[sv][1], 2.0, 0.01);
     EXPECT_GT(rs.minAfter, before + 0.05);
     EXPECT_EQ(slack.nodeClass[sv].kind, NodeKind::Curve);
+
+    HexMesh aside = start;
+    aside.nodes[sv] = {2.15, 2, 2.6};
+    opt.surfaceSlack = 0.1;
+    const auto ra = raiseWorstHexes(aside, &planes, opt);
+    const Vec3& x = aside.nodes[sv];
+    std::cout << "[figures] junction 0.15 off x = 2, slack 0.1: node at " << x[0] << ", " << x[1] << ", " << x[2]
+              << "; min scaled Jacobian " << ra.minBefore << " -> " << ra.minAfter << "\n";
+    EXPECT_GT(2.6 - x[2], 0.05);  // it moved down
+    EXPECT_LE(2.6 - x[2], 0.1 + 1e-12);
+    EXPECT_LE(std::abs(x[1] - 2), 0.1 + 1e-12);
+    EXPECT_LE(std::abs(x[0] - 2), 0.15 + 1e-12);
+}
+
+// A curve node (its curve the line y = 2, z = 2.6 along x) on the same bump:
+// in the slack rounds it leaves the line by at most the slack; without, it
+// stays on it.
+TEST(WorstHexes, ACurveNodeLeavesItsCurveByAtMostTheSlack) {
+    HexMesh start = test::makeBlock(4, 4, 2);
+    start.surfaces = {SurfaceTag{1, -1, "top"}};
+    const Index v = bumpTopCentre(start, {NodeKind::Curve, 0});
+    ASSERT_NE(v, kNone);
+    const auto sv = static_cast<std::size_t>(v);
+    struct Line final : smoothing::SurfaceProjector {
+        Vec3 project(std::int32_t, const Vec3& x) const override { return {x[0], x[1], 2.6}; }
+        bool hasCurves() const override { return true; }
+        Vec3 projectToCurve(std::int32_t, const Vec3& x) const override { return {x[0], 2, 2.6}; }
+    };
+    const Line line;
+    WorstHexOptions opt;
+    opt.target = 0.95;
+    auto offLine = [](const Vec3& x) { return std::hypot(x[1] - 2, x[2] - 2.6); };
+    const double before = test::minScaledJacobian(start);
+
+    HexMesh kept = start;
+    raiseWorstHexes(kept, &line, opt);
+    EXPECT_NEAR(offLine(kept.nodes[sv]), 0.0, 1e-12);
+
+    HexMesh slack = start;
+    opt.surfaceSlack = 0.2;
+    const auto rs = raiseWorstHexes(slack, &line, opt);
+    const double off = offLine(slack.nodes[sv]);
+    std::cout << "[figures] curve node, slack 0.2: " << off << " off its curve, min scaled Jacobian " << before
+              << " -> " << rs.minAfter << "\n";
+    EXPECT_GT(off, 0.1);
+    EXPECT_LE(off, 0.2 + 1e-12);
+    EXPECT_GT(rs.minAfter, before + 0.05);
 }
 
 TEST(WorstHexes, MeanRoundsNearMovedNodesMoveOnlyTheirNeighboursAndGiveBackTheMean) {

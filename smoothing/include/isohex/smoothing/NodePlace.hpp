@@ -22,19 +22,24 @@ struct JunctionSurfaces {
     const std::vector<std::int32_t>* of(Index v) const;
 };
 
-// Input: a mesh and its topology with the boundary and interface quads (any
-// TopologyParts but NodeMoves and QuadHolders). Output: its junction nodes
-// and their surfaces; empty, without a pass over the quads, if it has none.
+// Input: a mesh and its topology (any TopologyParts: each has the boundary
+// and interface quads). Output: its junction nodes and their surfaces (a
+// node next to a surface HexMesh::surfaces does not name gets none); empty,
+// without a pass over the quads, if it has none.
 JunctionSurfaces junctionSurfaces(const HexMesh& mesh, const Topology& topo);
 // The same for a mesh without a topology at hand: one with its boundary and
 // interface quads (TopologyParts::Surfaces) is built only if it has junction
 // nodes, and freed before the answer.
 JunctionSurfaces junctionSurfaces(const HexMesh& mesh);
 
-// How far p is from where node v belongs: its surface, its curve, or (a
-// junction node) the farthest of the surfaces around it; 0 for an interior
-// or fixed node. NaN where a projection fails, or for a junction node
-// `junctions` does not list.
+// How far p is from each place node v belongs to: one distance for a surface
+// or curve node (from its surface or curve), one per surface for a junction
+// node (in the order of junctions.of(v)), none for an interior or fixed node
+// or a junction node with no surfaces listed. NaN where a projection fails.
+std::vector<double> distancesFromPlace(const HexMesh& mesh, const SurfaceProjector& projector,
+                                       const JunctionSurfaces& junctions, Index v, const Vec3& p);
+// The largest of them: 0 for an interior or fixed node, NaN where a
+// projection fails or for a junction node with no surfaces listed.
 double distanceFromPlace(const HexMesh& mesh, const SurfaceProjector& projector, const JunctionSurfaces& junctions,
                          Index v, const Vec3& p);
 
