@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "isohex/core/VecMath.hpp"
 
@@ -25,17 +26,10 @@ std::vector<Index> junctionNodes(const HexMesh& mesh) {
     return nodes;
 }
 
-}  // namespace
-
-JunctionSurfaces junctionSurfaces(const HexMesh& mesh) {
-    if (junctionNodes(mesh).empty()) return {};
-    return junctionSurfaces(mesh, buildTopology(mesh, TopologyParts::Surfaces));
-}
-
-JunctionSurfaces junctionSurfaces(const HexMesh& mesh, const Topology& topo) {
+// The surfaces of `nodes` (junction nodes, ascending) from the surface quads of `topo`.
+JunctionSurfaces surfacesOf(const HexMesh& mesh, const Topology& topo, std::vector<Index> nodes) {
     JunctionSurfaces j;
-    j.nodes = junctionNodes(mesh);
-    if (j.nodes.empty()) return j;
+    j.nodes = std::move(nodes);
     j.surfaces.assign(j.nodes.size(), {});
     std::vector<std::uint8_t> unnamed(j.nodes.size(), 0);  // next to a surface the mesh does not name
     for (const SurfacePatch& p : surfacePatches(mesh, topo)) {
@@ -58,6 +52,20 @@ JunctionSurfaces junctionSurfaces(const HexMesh& mesh, const Topology& topo) {
         std::sort(j.surfaces[k].begin(), j.surfaces[k].end());
     }
     return j;
+}
+
+}  // namespace
+
+JunctionSurfaces junctionSurfaces(const HexMesh& mesh) {
+    std::vector<Index> nodes = junctionNodes(mesh);
+    if (nodes.empty()) return {};
+    return surfacesOf(mesh, buildTopology(mesh, TopologyParts::Surfaces), std::move(nodes));
+}
+
+JunctionSurfaces junctionSurfaces(const HexMesh& mesh, const Topology& topo) {
+    std::vector<Index> nodes = junctionNodes(mesh);
+    if (nodes.empty()) return {};
+    return surfacesOf(mesh, topo, std::move(nodes));
 }
 
 std::vector<double> distancesFromPlace(const HexMesh& mesh, const SurfaceProjector& projector,

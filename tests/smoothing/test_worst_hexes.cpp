@@ -47,6 +47,14 @@ Index bumpTopCentre(HexMesh& block, NodeClass c) {
     return v;
 }
 
+// The same block of one material whose top is its only named surface.
+HexMesh bumpedBlock(NodeClass c, Index& v) {
+    HexMesh block = test::makeBlock(4, 4, 2);
+    block.surfaces = {SurfaceTag{1, -1, "top"}};
+    v = bumpTopCentre(block, c);
+    return block;
+}
+
 // A ball of radius 3 from a 6^3 block, pillowed and optimised onto its
 // sphere: its sheet hexes are well short of 1.
 HexMesh optimisedPillowedBall(const test::SphereProjector& sphere) {
@@ -355,9 +363,8 @@ TEST(WorstHexes, SurfaceSlackLetsASurfaceNodeLeaveItsSurfaceByAtMostTheSlack) {
     // no slack the node stays on it; with slack 0.2 it goes down by at most
     // 0.2, the hexes rise, and the node is counted within the slack, not as
     // released.
-    HexMesh start = test::makeBlock(4, 4, 2);
-    start.surfaces = {SurfaceTag{1, -1, "top"}};
-    const Index v = bumpTopCentre(start, {NodeKind::Surface, 0});
+    Index v = kNone;
+    const HexMesh start = bumpedBlock({NodeKind::Surface, 0}, v);
     ASSERT_NE(v, kNone);
     const auto sv = static_cast<std::size_t>(v);
     const test::PlaneProjector surface({0, 0, 1}, 2.6);
@@ -474,9 +481,8 @@ TEST(WorstHexes, AJunctionNodeLeavesItsSurfacesByAtMostTheSlack) {
 // in the slack rounds it leaves the line by at most the slack; without, it
 // stays on it.
 TEST(WorstHexes, ACurveNodeLeavesItsCurveByAtMostTheSlack) {
-    HexMesh start = test::makeBlock(4, 4, 2);
-    start.surfaces = {SurfaceTag{1, -1, "top"}};
-    const Index v = bumpTopCentre(start, {NodeKind::Curve, 0});
+    Index v = kNone;
+    const HexMesh start = bumpedBlock({NodeKind::Curve, 0}, v);
     ASSERT_NE(v, kNone);
     const auto sv = static_cast<std::size_t>(v);
     struct Line final : smoothing::SurfaceProjector {
