@@ -105,7 +105,7 @@ void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwr
         if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
         f << j.dump(2) << "\n";
         f.close();
-        if (!f) throw Error(path + ": write failed (disk full?)");
+        if (!f) throw Error(path + ": write failed");
     });
 }
 

@@ -106,7 +106,7 @@ void writeHistogramSvg(const std::string& path, bool overwrite, const std::strin
         if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
         f << svg;
         f.close();
-        if (!f) throw Error(path + ": write failed (disk full?)");
+        if (!f) throw Error(path + ": write failed");
     });
 }
 

@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <random>
@@ -50,6 +51,19 @@ extern "C" void removeTemporariesAndExit(int sig) {
     std::raise(sig);
 }
 
+// A writer that fails on a full disk rarely says so: VTK's XML writer reports
+// "returned failure for request", Exodus "ex_put_conn failed". So a failed
+// write checks the disk itself, while its partial file still fills it.
+constexpr std::uintmax_t kNearlyFull = std::uintmax_t{4} << 20;
+
+std::string diskFullHint(const fs::path& dir) {
+    std::error_code ec;
+    const fs::space_info space = fs::space(dir, ec);
+    if (ec || space.available > kNearlyFull) return {};
+    return " (the disk holding '" + dir.string() + "' is full: " + std::to_string(space.available >> 10) +
+           " kB free; free some space there or write to another disk)";
+}
+
 }  // namespace
 
 int removeOnSignal(const std::string& path) {
@@ -96,6 +110,12 @@ void writeAtomically(const std::string& path, bool overwrite,
     const int slot = claimSlot(fs::absolute(tmp, ec).string());
     try {
         produce(tmp.string());
+    } catch (const std::exception& e) {
+        const std::string hint = diskFullHint(dir);
+        fs::remove(tmp, ec);
+        releaseSlot(slot);
+        if (hint.empty()) throw;
+        throw Error(e.what() + hint);
     } catch (...) {
         fs::remove(tmp, ec);
         releaseSlot(slot);

@@ -102,6 +102,22 @@ bool parseMaterialName(const std::string& name, std::int32_t& out) {
 }
 
 
+// Gmsh's writer does not check its writes: on a full disk it leaves a
+// truncated file and reports success. Its file ends with the $Elements
+// section, so a file that does not end with its closing tag is incomplete.
+void requireCompleteMsh(const std::string& tmpPath, const std::string& path) {
+    const std::string tag = "$EndElements\n";
+    std::ifstream in(tmpPath, std::ios::binary | std::ios::ate);
+    const std::streamoff size = in ? static_cast<std::streamoff>(in.tellg()) : 0;
+    std::string tail(tag.size(), '\0');
+    if (size >= static_cast<std::streamoff>(tag.size())) {
+        in.seekg(size - static_cast<std::streamoff>(tag.size()));
+        in.read(tail.data(), static_cast<std::streamsize>(tag.size()));
+    }
+    if (!in || tail != tag)
+        throw Error(path + ": could not write the Gmsh file: Gmsh stopped before its end ($EndElements)");
+}
+
 }  // namespace
 
 void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string& path) {
@@ -157,6 +173,7 @@ void writeMsh(const HexMesh& mesh, const std::string& tmpPath, const std::string
             gmsh::model::setPhysicalName(2, entity, surfaces[s].name);
         }
         gmsh::write(tmpPath);
+        requireCompleteMsh(tmpPath, path);
     } catch (...) {
         gmshSession.fail("could not write the Gmsh file");
     }

@@ -333,9 +333,12 @@ void writeVtu(const HexMesh& mesh, const std::string& tmpPath, const std::string
     writer->SetHeaderTypeToUInt64();
     const int ok = writer->Write();
     if (!ok || writer->GetErrorCode() != vtkErrorCode::NoError || !capture.error().empty()) {
-        std::string why = capture.error();
-        if (why.empty() && writer->GetErrorCode() != vtkErrorCode::NoError)
+        // The error code names the cause (out of disk space, cannot open);
+        // the captured text only says that the pipeline request failed.
+        std::string why;
+        if (writer->GetErrorCode() != vtkErrorCode::NoError)
             why = vtkErrorCode::GetStringFromErrorCode(writer->GetErrorCode());
+        if (why.empty()) why = capture.error();
         if (why.empty()) why = "unknown VTK error";
         throw Error(path + ": could not write the VTU file: " + why);
     }

@@ -1,5 +1,7 @@
 """Shared helpers for the Python end-to-end tests (run by ctest with Debian's /usr/bin/python3)."""
+import atexit
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -20,7 +22,12 @@ def run(args, check=True, timeout=600, **kw):
 
 
 def workdir(name):
+    """A new temporary folder, removed when the test process exits (unless
+    ISOHEX_KEEP_TEST_FILES is set, to look at a failure's meshes): the suite writes
+    gigabytes of meshes in all, more than a CI machine's disk may have free."""
     d = tempfile.mkdtemp(prefix=f"isohex_{name}_")
+    if not os.environ.get("ISOHEX_KEEP_TEST_FILES"):
+        atexit.register(shutil.rmtree, d, True)
     return d
 
 
