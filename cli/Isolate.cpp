@@ -147,6 +147,8 @@ void flushAll() {
     nlohmann::json msg;
     try {
         msg = {{"result", work()}};
+    } catch (const io::DiskFullError& e) {
+        msg = {{"error", "disk_full"}, {"message", bytesOf(e.what())}, {"folder", bytesOf(e.folder())}};
     } catch (const SettingError& e) {
         // the settings by kind: the parent names them as its front end does
         nlohmann::json parts = nlohmann::json::array();
@@ -203,6 +205,7 @@ void flushAll() {
         throw SettingError(std::move(parts));
     }
     if (kind == "user") throw Error(textOf(msg["message"]));
+    if (kind == "disk_full") throw io::DiskFullError(textOf(msg["message"]), textOf(msg["folder"]));
     if (kind == "memory") {
         const std::string stage(slot.stage), file(slot.file);
         throw Error(outOfMemoryText(file.empty() ? input : file,

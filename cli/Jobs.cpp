@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Commands.hpp"
+#include "FullDisks.hpp"
 #include "Isolate.hpp"
 #include "Report.hpp"
 #include "Svg.hpp"
@@ -281,6 +282,7 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
     std::vector<JobResult> results;
     JobsOutcome outcome;
     std::size_t& failed = outcome.failed;
+    FullDisks fullDisks;
     // The plugins of the jobs' formats are loaded here, once: each job's child
     // process inherits them instead of loading them again.
     for (const Job& job : jobs) {
@@ -296,6 +298,16 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             sink.event("job_skipped", {{"input", job.input}});
             continue;
         }
+        auto fail = [&](const std::string& message) {
+            ++failed;
+            results.push_back({job.input, "failed", message});
+            sink.note("error", message);
+            sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});
+        };
+        if (const std::string why = fullDisks.holdsBack(job); !why.empty()) {
+            fail(why);
+            continue;
+        }
         sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
         try {
             results.push_back(runJobIsolated(job, sink));
@@ -305,12 +317,11 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
                 sink.note("error", job.input + ": " + r.message);
             }
             sink.event("job_end", {{"input", job.input}, {"status", r.status}});
+        } catch (const io::DiskFullError& e) {
+            fullDisks.add(e.folder(), job.input);
+            fail(boundedMessage(e.what(), 65536));
         } catch (const std::exception& e) {
-            ++failed;
-            const std::string message = boundedMessage(userMessage(e, names), 65536);
-            results.push_back({job.input, "failed", message});
-            sink.note("error", message);
-            sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});
+            fail(boundedMessage(userMessage(e, names), 65536));
         }
     }
     std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", "input", "status", "hexes", "min SJ", "mean SJ", "<0.2",

@@ -60,7 +60,8 @@ struct JobsOutcome {
 };
 
 // Runs every job (skipping up-to-date ones unless force), printing a summary
-// table to stdout.
+// table to stdout. After a job finds its disk full, the later jobs that
+// write to that disk fail at once (cli/FullDisks.hpp).
 // A failed job's message names the settings the user can change the `names`
 // way (the flags of `mesh`, the manifest columns of `batch`).
 JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode mode, SettingNames names);

@@ -51,20 +51,19 @@ extern "C" void removeTemporariesAndExit(int sig) {
     std::raise(sig);
 }
 
+}  // namespace
+
 // A writer that fails on a full disk rarely says so: VTK's XML writer reports
 // "returned failure for request", Exodus "ex_put_conn failed". So a failed
 // write checks the disk itself, while its partial file still fills it.
-constexpr std::uintmax_t kNearlyFull = std::uintmax_t{4} << 20;
-
-std::string diskFullHint(const fs::path& dir) {
+std::string diskFullText(const std::string& folder) {
+    constexpr std::uintmax_t kNearlyFull = std::uintmax_t{4} << 20;
     std::error_code ec;
-    const fs::space_info space = fs::space(dir, ec);
+    const fs::space_info space = fs::space(folder, ec);
     if (ec || space.available > kNearlyFull) return {};
-    return " (the disk holding '" + dir.string() + "' is full: " + std::to_string(space.available >> 10) +
+    return " (the disk holding '" + folder + "' is full: " + std::to_string(space.available >> 10) +
            " kB free; free some space there or write to another disk)";
 }
-
-}  // namespace
 
 int removeOnSignal(const std::string& path) {
     std::error_code ec;
@@ -111,11 +110,11 @@ void writeAtomically(const std::string& path, bool overwrite,
     try {
         produce(tmp.string());
     } catch (const std::exception& e) {
-        const std::string hint = diskFullHint(dir);
+        const std::string full = diskFullText(dir.string());
         fs::remove(tmp, ec);
         releaseSlot(slot);
-        if (hint.empty()) throw;
-        throw Error(e.what() + hint);
+        if (full.empty()) throw;
+        throw DiskFullError(e.what() + full, dir.string());
     } catch (...) {
         fs::remove(tmp, ec);
         releaseSlot(slot);

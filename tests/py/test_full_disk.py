@@ -1,7 +1,9 @@
 """A disk that fills up while isohex writes. Every mesh format and the report
 fail with one error line that names the file and says the disk is full; the
 command exits non-zero and leaves neither the file nor its temporary, and an
-output it was told to replace (--force) survives unchanged.
+output it was told to replace (--force) survives unchanged. A batch does not
+run the later jobs that write to a disk it found full (each would mesh and
+then fail), and runs those that write elsewhere.
 
 The full disk is a 1 MB tmpfs mounted in a private mount namespace (util-linux
 `unshare`), so nothing outside the test sees it; the 20 k-hex sphere's mesh
@@ -83,6 +85,35 @@ class FullDisk(unittest.TestCase):
                 print(f"{option}: {stderr.strip()}")
                 self.assert_refused(status, stderr, left, os.path.join(self.dir, name))
                 self.assertFalse(os.path.exists(mesh), "the mesh was kept without its report")
+
+
+class FullDiskBatch(unittest.TestCase):
+    def test_a_batch_holds_back_the_jobs_for_a_full_disk_and_runs_the_others(self):
+        ph = phantoms("full_disk_batch")
+        full, roomy = workdir("full_disk_batch_mount"), workdir("full_disk_batch_roomy")
+        jobs = [("sphere", full), ("torus", full), ("thin_plate", roomy), ("two_spheres", full)]
+        manifest = os.path.join(roomy, "jobs.csv")
+        with open(manifest, "w") as f:
+            f.write("input,output\n")
+            for name, folder in jobs:
+                f.write(f"{os.path.join(ph, name + '.nii.gz')},{os.path.join(folder, name + '.vtu')}\n")
+        cmd = " ".join(shlex.quote(a) for a in [ISOHEX, "batch", manifest, "--size", "1.25", "-q"])
+        proc = in_small_disk(full, cmd, "1m")
+        status = [line for line in proc.stdout.splitlines() if line.startswith("status ")]
+        self.assertTrue(status, "could not mount a tmpfs: " + proc.stderr)
+        print(proc.stderr)
+        self.assertNotEqual(int(status[0].split()[1]), 0)
+        errors = {line.split("] ")[1].split(":")[0]: line for line in proc.stderr.splitlines() if "error" in line}
+        self.assertEqual(sorted(errors), ["sphere", "torus", "two_spheres"], proc.stderr)
+        self.assertIn("is full", errors["sphere"])
+        for held in ("torus", "two_spheres"):
+            self.assertIn("not run", errors[held])
+            self.assertIn("filled up in the job of " + os.path.join(ph, "sphere.nii.gz"), errors[held])
+            self.assertNotIn("could not write", errors[held])
+        self.assertTrue(os.path.exists(os.path.join(roomy, "thin_plate.vtu")))
+        self.assertRegex(proc.stdout, r"4 job\(s\): 1 ok, 0 skipped, 3 failed")
+        left = proc.stdout.split(MARK, 1)[1].split()
+        self.assertEqual(dict(zip(left[::2], left[1::2])), {"kept.vtu": "old"})
 
 
 if __name__ == "__main__":
