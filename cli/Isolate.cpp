@@ -26,6 +26,7 @@
 #include "JobStage.hpp"
 #include "Progress.hpp"
 #include "isohex/core/AtomicFile.hpp"
+#include "isohex/core/DiskFullError.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/SettingError.hpp"
 

@@ -19,6 +19,7 @@
 #include "Svg.hpp"
 #include "Versions.hpp"
 #include "isohex/core/AtomicFile.hpp"
+#include "isohex/core/DiskFullError.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
 #include "isohex/core/Quality.hpp"
@@ -304,11 +305,11 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             sink.note("error", message);
             sink.event("job_end", {{"input", job.input}, {"status", "failed"}, {"message", message}});
         };
+        sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
         if (const std::string why = fullDisks.holdsBack(job); !why.empty()) {
             fail(why);
             continue;
         }
-        sink.event("job_begin", {{"input", job.input}, {"outputs", job.outputs}});
         try {
             results.push_back(runJobIsolated(job, sink));
             const JobResult& r = results.back();

@@ -1,7 +1,9 @@
 #include "Report.hpp"
 
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -104,8 +106,9 @@ void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwr
         std::ofstream f(tmp);
         if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
         f << j.dump(2) << "\n";
+        errno = 0;
         f.close();
-        if (!f) throw Error(path + ": write failed");
+        if (!f) throw Error(path + ": write failed" + (errno ? std::string(": ") + std::strerror(errno) : std::string()));
     });
 }
 

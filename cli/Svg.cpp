@@ -1,8 +1,10 @@
 #include "Svg.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -105,8 +107,9 @@ void writeHistogramSvg(const std::string& path, bool overwrite, const std::strin
         std::ofstream f(tmp);
         if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
         f << svg;
+        errno = 0;
         f.close();
-        if (!f) throw Error(path + ": write failed");
+        if (!f) throw Error(path + ": write failed" + (errno ? std::string(": ") + std::strerror(errno) : std::string()));
     });
 }
 

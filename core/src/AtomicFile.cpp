@@ -51,19 +51,17 @@ extern "C" void removeTemporariesAndExit(int sig) {
     std::raise(sig);
 }
 
-}  // namespace
-
 // A writer that fails on a full disk rarely says so: VTK's XML writer reports
 // "returned failure for request", Exodus "ex_put_conn failed". So a failed
-// write checks the disk itself, while its partial file still fills it.
-std::string diskFullText(const std::string& folder) {
+// write asks the disk itself, while the partial file still fills it.
+bool diskFull(const fs::path& folder) {
     constexpr std::uintmax_t kNearlyFull = std::uintmax_t{4} << 20;
     std::error_code ec;
     const fs::space_info space = fs::space(folder, ec);
-    if (ec || space.available > kNearlyFull) return {};
-    return " (the disk holding '" + folder + "' is full: " + std::to_string(space.available >> 10) +
-           " kB free; free some space there or write to another disk)";
+    return !ec && space.available <= kNearlyFull;
 }
+
+}  // namespace
 
 int removeOnSignal(const std::string& path) {
     std::error_code ec;
@@ -107,17 +105,24 @@ void writeAtomically(const std::string& path, bool overwrite,
         temporaryPrefix(path, ::getpid()) + std::to_string(rd() % 1000000) + target.extension().string();
     const fs::path tmp = dir / tmpName;
     const int slot = claimSlot(fs::absolute(tmp, ec).string());
+    auto discard = [&] {
+        fs::remove(tmp, ec);
+        releaseSlot(slot);
+    };
     try {
         produce(tmp.string());
-    } catch (const std::exception& e) {
-        const std::string full = diskFullText(dir.string());
-        fs::remove(tmp, ec);
-        releaseSlot(slot);
-        if (full.empty()) throw;
-        throw DiskFullError(e.what() + full, dir.string());
+    } catch (const SettingError&) {
+        discard();
+        throw;
+    } catch (const Error& e) {
+        const bool full = diskFull(dir);  // before the partial file goes
+        discard();
+        if (!full) throw;
+        throw DiskFullError(std::string(e.what()) + " (the disk holding '" + dir.string() +
+                                "' ran out of space while writing it: free some space there or write to another disk)",
+                            dir.string());
     } catch (...) {
-        fs::remove(tmp, ec);
-        releaseSlot(slot);
+        discard();
         throw;
     }
     if (!fs::exists(tmp, ec)) {

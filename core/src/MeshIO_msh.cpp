@@ -115,7 +115,8 @@ void requireCompleteMsh(const std::string& tmpPath, const std::string& path) {
         in.read(tail.data(), static_cast<std::streamsize>(tag.size()));
     }
     if (!in || tail != tag)
-        throw Error(path + ": could not write the Gmsh file: Gmsh stopped before its end ($EndElements)");
+        throw Error(path + ": could not write the Gmsh file: Gmsh stopped before its end ($EndElements); check that the folder "
+                    "has room and can be written, and try again");
 }
 
 }  // namespace

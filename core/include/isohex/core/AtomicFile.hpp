@@ -2,33 +2,17 @@
 // Write-to-temporary-then-rename, so readers never see a half-written file and
 // an existing file survives a failed write.
 #include <functional>
-#include <utility>
 #include <string>
 
-#include "isohex/core/Error.hpp"
+#include "isohex/core/DiskFullError.hpp"
 
 namespace isohex::io {
 
-// A write that failed while the disk it went to was (all but) full: the
-// message says so; folder() is where the file was going, so that a batch can
-// hold back the later jobs that write there.
-class DiskFullError : public Error {
-public:
-    DiskFullError(const std::string& message, std::string folder) : Error(message), folder_(std::move(folder)) {}
-    const std::string& folder() const { return folder_; }
-
-private:
-    std::string folder_;
-};
-
-// " (the disk holding '<folder>' is full: ...)" when at most 4 MB are free
-// there, else "" (also when the space cannot be read).
-std::string diskFullText(const std::string& folder);
-
 // Calls `produce(tmpPath)` with a fresh temporary path in the folder of
 // `path`, then renames it to `path`. If produce throws, the temporary is
-// removed and the exception propagates (as a DiskFullError if the disk is
-// full then); `path` is untouched. Without
+// removed and the exception propagates; an isohex::Error thrown while the
+// disk is full (4 MB or less free) becomes a DiskFullError. `path` is
+// untouched. Without
 // `overwrite`, an existing `path` is refused before anything is written.
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string& tmpPath)>& produce);
