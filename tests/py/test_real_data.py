@@ -233,6 +233,7 @@ class IsosurfaceTopology(unittest.TestCase):
             with open(out + ".json") as f:
                 rep = json.load(f)
             _, hexes, mat = read(out)
+            os.remove(out)  # 190 MB each: one at a time on the disk
             got[name] = (boundary_topology(hexes, mat), rep, p.stderr)
         (c, e), rep, stderr = got["matched"]
         block = rep["grid"]["repair"]["isosurface_topology"]
