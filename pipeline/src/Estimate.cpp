@@ -62,10 +62,12 @@ SampledHexes sampledHexes(const Prepared& p, const MeshSettings& settings) {
 
 }  // namespace
 
-double expectedCpuSeconds(double hexes, const MeshSettings& settings, const TimeModel& model) {
-    if (hexes <= 0) return model.startSeconds;
-    if (!settings.optimize) return model.noOptimizeSeconds + model.noOptimizePerHex * hexes;
-    return std::max(model.startSeconds, model.cpuCoefficient * std::pow(hexes, model.cpuExponent));
+double expectedCpuSeconds(double hexes, double voxels, const MeshSettings& settings, const TimeModel& model) {
+    hexes = std::max(hexes, 0.0);
+    if (!settings.optimize)
+        return model.noOptimizeSeconds + model.noOptimizePerHex * hexes + model.noOptimizePerVoxel * voxels;
+    return std::max(model.startSeconds,
+                    model.cpuCoefficient * std::pow(hexes, model.cpuExponent) + model.cpuPerVoxel * voxels);
 }
 
 double expectedWallSeconds(double cpuSeconds, int threads, const TimeModel& model) {
@@ -99,7 +101,8 @@ MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings
     e.gridPoints = p.facts.grid.grid.size();
     e.loadedBytes = mem.already;
     e.peakBytes = meshPeakBytes(mem.already, e.hexes, double(e.gridPoints));
-    e.cpuSeconds = expectedCpuSeconds(e.hexes, settings);
+    const auto& d = p.facts.input.dimensions;
+    e.cpuSeconds = expectedCpuSeconds(e.hexes, double(d[0]) * double(d[1]) * double(d[2]), settings);
     e.threadsChosen = options.threads <= 0;
     e.threads = e.threadsChosen ? chooseThreads(e.cpuSeconds, options.maxThreads, options.targetSeconds)
                                 : options.threads;
@@ -136,8 +139,8 @@ nlohmann::json toJson(const MeshEstimate& e, const PreparedFacts& facts) {
                      {"own_hexes", std::llround(e.ownHexes)}};
     j["model"] = {{"hexes", "labels sampled on the grid: a hex per labelled point, + one per boundary face per sheet layer"},
                   {"memory", "peak after loading + 16 MB + 220 bytes per hex + 8 bytes per grid point"},
-                  {"time", "fitted to bench/RESULTS.md: CPU s = 0.00146 hexes^0.773, within a factor 2.4 with the sheet "
-                           "(up to 6 times more without it)"}};
+                  {"time", "fitted to bench/RESULTS.md by bench/fit_time_model.py: CPU s = 0.000304 hexes^0.840 + "
+                           "4.01e-7 voxels, within a factor 1.93 with the sheet (up to 10 times more without it)"}};
     return j;
 }
 

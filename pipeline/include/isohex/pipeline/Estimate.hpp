@@ -32,28 +32,31 @@ struct MeshEstimate {
     double ownHexes = 0;             // with settings.part: the hexes of its own slab (what it writes)
 };
 
-// The time model, fitted to bench/RESULTS.md (2026-12-02, 2-core Xeon,
-// --threads 2): CPU seconds (user + system, start-up included) against the
-// finished mesh's hexes h, least squares of log(CPU) on log(h) over the 14
-// default-pipeline runs (8 inputs, and ch2bet at 6 element sizes from 37 k
-// to 1.9 M hexes): 0.00146 h^0.773; every run within a factor 2.4 of it (most
-// within 1.3). Without optimisation (the voxel baseline's rows): 0.6 s plus
-// 5.2 microseconds per hex. Wall time: 0.5 s start-up plus the rest spread
-// over the threads at the measured efficiency (CPU / wall = 1.85 at 2 threads,
-// i.e. each thread past the first adds 0.85); beyond 2 threads that is an
-// extrapolation, not a measurement. The runs were all with the sheet: without
-// it (--no-pillow) the optimiser works harder on some inputs (bench: 0.6 to 6
-// times the CPU time of the same input with the sheet), which the model does
-// not know.
+// The time model, fitted by bench/fit_time_model.py to bench/RESULTS.md's
+// runs (section "The time model of `isohex estimate`": 8 inputs and ch2bet at
+// 8 element sizes from 12 k to 5 M hexes, --threads 2): CPU seconds (user +
+// system) against the finished mesh's hexes h and the loaded scan's voxels V,
+// least squares of log(CPU): 0.000304 h^0.840 + 4.01e-7 V, every run within
+// a factor 1.93 of it (13 of 16 within 1.3; the voxel term is loading,
+// selection and the octree, which on ch2bet at 6 mm are most of the time).
+// Without optimisation (the voxel baseline's rows): 0.137 s + 1.92 us per hex
+// + 0.293 us per voxel, within a factor 1.52. Wall time: 0.37 s that does not
+// spread over threads plus the rest spread at the measured efficiency (CPU /
+// wall = 1.85 at 2 threads, i.e. each thread past the first adds 0.85);
+// beyond 2 threads that is an extrapolation, not a measurement. The runs were
+// all with the sheet: without it (--no-pillow) the optimiser works harder on
+// some inputs (bench: 0.8 to 10 times the CPU time of the same input with the
+// sheet), which the model does not know.
 struct TimeModel {
-    double cpuCoefficient = 0.00146, cpuExponent = 0.773;
-    double noOptimizeSeconds = 0.6, noOptimizePerHex = 5.2e-6;
-    double startSeconds = 0.5;
+    double cpuCoefficient = 0.000304, cpuExponent = 0.840, cpuPerVoxel = 4.01e-7;
+    double noOptimizeSeconds = 0.137, noOptimizePerHex = 1.92e-6, noOptimizePerVoxel = 2.93e-7;
+    double startSeconds = 0.37;
     double extraThreadEfficiency = 0.85;
 };
 
-// CPU seconds of a default run (or one without optimisation) making `hexes` hexes.
-double expectedCpuSeconds(double hexes, const MeshSettings& settings, const TimeModel& model = {});
+// CPU seconds of a default run (or one without optimisation) making `hexes`
+// hexes from a scan of `voxels` voxels.
+double expectedCpuSeconds(double hexes, double voxels, const MeshSettings& settings, const TimeModel& model = {});
 // Wall seconds of that CPU time on `threads` threads.
 double expectedWallSeconds(double cpuSeconds, int threads, const TimeModel& model = {});
 // The fewest threads, up to maxThreads, whose expected wall time is at most
