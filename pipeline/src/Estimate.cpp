@@ -101,8 +101,8 @@ MeshEstimate estimateMesh(const std::string& input, const MeshSettings& settings
     e.gridPoints = p.facts.grid.grid.size();
     e.loadedBytes = mem.already;
     e.peakBytes = meshPeakBytes(mem.already, e.hexes, double(e.gridPoints));
-    const auto& d = p.facts.input.dimensions;
-    e.cpuSeconds = expectedCpuSeconds(e.hexes, double(d[0]) * double(d[1]) * double(d[2]), settings);
+    // the voxels loaded: with --part, only the part's window
+    e.cpuSeconds = expectedCpuSeconds(e.hexes, double(p.volume->box.volume()), settings);
     e.threadsChosen = options.threads <= 0;
     e.threads = e.threadsChosen ? chooseThreads(e.cpuSeconds, options.maxThreads, options.targetSeconds)
                                 : options.threads;
