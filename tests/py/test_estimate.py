@@ -1,6 +1,6 @@
 """isohex estimate against real runs: the hexes it expects within 5% of the mesh isohex
 then writes (counted by VTK on the file), its peak memory within a factor 1.5 of the
-run's own peak, threads chosen or as asked, a part's estimate (--part K/N) against the
+run's own peak, the size of the file in every format within 20%, threads chosen or as asked, a part's estimate (--part K/N) against the
 part's file, and a damaged scan refused in one line."""
 import gzip
 import json
@@ -14,7 +14,7 @@ from vtk_tools import read_vtu  # noqa: E402
 from common import ISOHEX, SOURCE, run, workdir  # noqa: E402
 
 KEYS = {"input", "hexes", "grid_points", "element_size", "grid_dimensions", "loaded_memory_mb", "peak_memory_mb",
-        "cpu_seconds", "wall_seconds", "threads", "threads_chosen", "model"}
+        "cpu_seconds", "wall_seconds", "threads", "threads_chosen", "model", "output_mb"}
 
 
 def cells(path):
@@ -56,6 +56,18 @@ class Estimate(unittest.TestCase):
         self.against_mesh("two_materials", os.path.join(self.phantoms, "two_materials.nii.gz"), "--labels",
                           "--size", "3")
         self.against_mesh("skull", os.path.join(SOURCE, "samples", "skull_ct.nii.gz"), "--iso", "2.9")
+
+    def test_output_sizes_of_every_format(self):
+        for name, scan, opts in (("sphere", os.path.join(self.phantoms, "sphere.nii.gz"), ["--size", "1.5"]),
+                                 ("two_materials", os.path.join(self.phantoms, "two_materials.nii.gz"),
+                                  ["--labels", "--size", "2"])):
+            e = self.estimate(scan, *opts)["output_mb"]
+            for ext in ("vtu", "msh", "exo", "inp", "mesh"):
+                out = os.path.join(self.dir, f"{name}_size.{ext}")
+                run(["mesh", scan, "--quiet", "-o", out, "--force", *opts])
+                mb = os.path.getsize(out) / 2 ** 20
+                print(f"{name}.{ext}: estimate {e[ext]} MB, file {mb:.2f} MB", file=sys.stderr)
+                self.assertLess(abs(e[ext] - mb) / mb, 0.2, f"{name}.{ext}: estimate {e[ext]} MB, file {mb:.2f} MB")
 
     def test_parts(self):
         """--part K/N: the part's own hexes within 5% of the part file's, its window's

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "isohex/core/MeshIO.hpp"
 #include "isohex/pipeline/MeshSettings.hpp"
 #include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/Prepare.hpp"
@@ -57,6 +58,11 @@ struct TimeModel {
 // CPU seconds of a default run (or one without optimisation) making `hexes`
 // hexes from a scan of `voxels` voxels.
 double expectedCpuSeconds(double hexes, double voxels, const MeshSettings& settings, const TimeModel& model = {});
+// Bytes of a mesh file of `hexes` hexes in `format`: bytes per hex measured by
+// bench/output_sizes.py on six inputs with default options (the middle of
+// each format's range; every input within 2% for .vtu, 6% .exo, 10% .inp,
+// 13% .msh, 14% .mesh).
+double expectedOutputBytes(double hexes, io::Format format);
 // Wall seconds of that CPU time on `threads` threads.
 double expectedWallSeconds(double cpuSeconds, int threads, const TimeModel& model = {});
 // The fewest threads, up to maxThreads, whose expected wall time is at most
