@@ -32,17 +32,14 @@ def inputs(data, phantoms):
 
 
 def bytes_per_hex(isohex, args, work):
-    out = {}
-    hexes = None
-    for f in FORMATS:
-        path = os.path.join(work, "mesh." + f)
-        report = os.path.join(work, "report.json")
-        subprocess.run([isohex, "mesh", *args, "-q", "--allow-below", "--force", "-o", path, "--report", report],
-                       check=False, capture_output=True)
-        with open(report) as r:
-            hexes = json.load(r)["hexes"]
-        out[f] = os.path.getsize(path) / hexes
-    return hexes, out
+    """The report's hexes and each format's bytes per hex, from one run writing every format."""
+    paths = {f: os.path.join(work, "mesh." + f) for f in FORMATS}
+    report = os.path.join(work, "report.json")
+    subprocess.run([isohex, "mesh", *args, "-q", "--allow-below", "--force", "-o", *paths.values(),
+                    "--report", report], check=False, capture_output=True)
+    with open(report) as r:
+        hexes = json.load(r)["hexes"]
+    return hexes, {f: os.path.getsize(p) / hexes for f, p in paths.items()}
 
 
 def main():

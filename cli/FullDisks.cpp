@@ -2,7 +2,6 @@
 
 #include <filesystem>
 #include <system_error>
-#include <vector>
 
 #include <sys/stat.h>
 
@@ -40,10 +39,7 @@ void FullDisks::add(const std::string& folder, const std::string& input) {
 }
 
 std::string FullDisks::holdsBack(const Job& job) const {
-    std::vector<std::string> files = job.outputs;
-    if (!job.report.empty()) files.push_back(job.report);
-    if (!job.plot.empty()) files.push_back(job.plot);
-    for (const std::string& file : files) {
+    for (const std::string& file : filesOf(job)) {
         std::uintmax_t device = 0, bytes = 0;
         if (!deviceOf(folderOf(file), device)) continue;
         const auto it = full_.find(device);

@@ -85,13 +85,18 @@ std::vector<bool> checkOutputPaths(const std::vector<std::string>& outputs, cons
     return existed;
 }
 
+std::vector<std::string> filesOf(const Job& job) {
+    std::vector<std::string> files = job.outputs;
+    if (!job.plot.empty()) files.push_back(job.plot);
+    if (!job.report.empty()) files.push_back(job.report);
+    return files;
+}
+
 bool upToDate(const Job& job) {
     std::error_code ec;
     const auto inTime = fs::last_write_time(job.input, ec);
     if (ec) return false;
-    std::vector<std::string> all = job.outputs;
-    if (!job.report.empty()) all.push_back(job.report);
-    if (!job.plot.empty()) all.push_back(job.plot);
+    const std::vector<std::string> all = filesOf(job);
     for (const auto& o : all) {
         const auto t = fs::last_write_time(o, ec);
         if (ec || t < inTime) return false;
@@ -134,9 +139,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     // Every file the job writes (meshes, report, plot) is checked before
     // minutes of meshing: not an existing file without --force, not a
     // folder, in a folder that exists, and not named twice.
-    std::vector<std::string> files = job.outputs;  // in the order they are written
-    if (!job.plot.empty()) files.push_back(job.plot);
-    if (!job.report.empty()) files.push_back(job.report);
+    const std::vector<std::string> files = filesOf(job);
     const std::vector<bool> existed = checkOutputPaths(files, {job.input}, args.run.force);
     for (const auto& o : job.outputs) io::formatFromPath(o);  // unknown extension: fail now, not after meshing
     if (args.settings.part)
@@ -266,9 +269,7 @@ JobResult resultFrom(const nlohmann::json& j) {
 }  // namespace
 
 JobResult runJobIsolated(const Job& job, ProgressSink& sink) {
-    std::vector<std::string> files = job.outputs;
-    if (!job.plot.empty()) files.push_back(job.plot);
-    if (!job.report.empty()) files.push_back(job.report);
+    const std::vector<std::string> files = filesOf(job);
     JobResult r = resultFrom(runIsolated(job.input, files, [&] { return resultJson(runJob(job, sink)); }));
     r.input = job.input;
     return r;

@@ -30,6 +30,9 @@ struct JobResult {
     double seconds = 0;
 };
 
+// Every file `job` writes, in the order it writes them: meshes, plot, report.
+std::vector<std::string> filesOf(const Job& job);
+
 // Runs the pipeline and writes the outputs. Throws isohex::Error on failure
 // (after which no output of the job is half-written: each file is atomic).
 JobResult runJob(const Job& job, ProgressSink& sink);

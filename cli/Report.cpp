@@ -1,10 +1,7 @@
 #include "Report.hpp"
 
-#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
-#include <fstream>
 #include <sstream>
 
 #include <sys/resource.h>
@@ -12,7 +9,6 @@
 #include <nlohmann/json.hpp>
 
 #include "isohex/core/AtomicFile.hpp"
-#include "isohex/core/Error.hpp"
 
 namespace isohex::cli {
 
@@ -102,14 +98,7 @@ std::string describeDefects(const ValidityReport& v) {
 }
 
 void writeJsonFile(const nlohmann::json& j, const std::string& path, bool overwrite) {
-    io::writeAtomically(path, overwrite, [&](const std::string& tmp) {
-        std::ofstream f(tmp);
-        if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
-        f << j.dump(2) << "\n";
-        errno = 0;
-        f.close();
-        if (!f) throw Error(path + ": write failed" + (errno ? std::string(": ") + std::strerror(errno) : std::string()));
-    });
+    io::writeTextAtomically(path, overwrite, j.dump(2) + "\n");
 }
 
 }  // namespace isohex::cli

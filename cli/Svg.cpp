@@ -1,15 +1,11 @@
 #include "Svg.hpp"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <sstream>
 
 #include "isohex/core/AtomicFile.hpp"
-#include "isohex/core/Error.hpp"
 
 namespace isohex::cli {
 
@@ -103,14 +99,7 @@ std::string histogramSvg(const std::string& title, const std::vector<HistogramSe
 void writeHistogramSvg(const std::string& path, bool overwrite, const std::string& title,
                        const std::vector<HistogramSeries>& series) {
     const std::string svg = histogramSvg(title, series);
-    io::writeAtomically(path, overwrite, [&](const std::string& tmp) {
-        std::ofstream f(tmp);
-        if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
-        f << svg;
-        errno = 0;
-        f.close();
-        if (!f) throw Error(path + ": write failed" + (errno ? std::string(": ") + std::strerror(errno) : std::string()));
-    });
+    io::writeTextAtomically(path, overwrite, svg);
 }
 
 }  // namespace isohex::cli

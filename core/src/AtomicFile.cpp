@@ -1,10 +1,12 @@
 #include "isohex/core/AtomicFile.hpp"
 
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <system_error>
 
@@ -135,6 +137,17 @@ void writeAtomically(const std::string& path, bool overwrite,
         fs::remove(tmp, ec);
         throw Error(path + ": could not move the finished file into place: " + ec.message());
     }
+}
+
+void writeTextAtomically(const std::string& path, bool overwrite, const std::string& text) {
+    writeAtomically(path, overwrite, [&](const std::string& tmp) {
+        std::ofstream f(tmp);
+        if (!f) throw Error(path + ": cannot write here (permission denied or read-only folder)");
+        f << text;
+        errno = 0;
+        f.close();
+        if (!f) throw Error(path + ": write failed" + (errno ? std::string(": ") + std::strerror(errno) : std::string()));
+    });
 }
 
 }  // namespace isohex::io

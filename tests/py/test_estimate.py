@@ -62,9 +62,9 @@ class Estimate(unittest.TestCase):
                                  ("two_materials", os.path.join(self.phantoms, "two_materials.nii.gz"),
                                   ["--labels", "--size", "2"])):
             e = self.estimate(scan, *opts)["output_mb"]
-            for ext in ("vtu", "msh", "exo", "inp", "mesh"):
-                out = os.path.join(self.dir, f"{name}_size.{ext}")
-                run(["mesh", scan, "--quiet", "-o", out, "--force", *opts])
+            outs = {ext: os.path.join(self.dir, f"{name}_size.{ext}") for ext in ("vtu", "msh", "exo", "inp", "mesh")}
+            run(["mesh", scan, "--quiet", "-o", *outs.values(), "--force", *opts])
+            for ext, out in outs.items():
                 mb = os.path.getsize(out) / 2 ** 20
                 print(f"{name}.{ext}: estimate {e[ext]} MB, file {mb:.2f} MB", file=sys.stderr)
                 self.assertLess(abs(e[ext] - mb) / mb, 0.2, f"{name}.{ext}: estimate {e[ext]} MB, file {mb:.2f} MB")

@@ -17,6 +17,10 @@ namespace isohex::io {
 void writeAtomically(const std::string& path, bool overwrite,
                      const std::function<void(const std::string& tmpPath)>& produce);
 
+// writeAtomically of `text` as the whole file; errors name `path` and the
+// system's reason.
+void writeTextAtomically(const std::string& path, bool overwrite, const std::string& text);
+
 // How every temporary that process `pid` writes for `path` begins (its file
 // name, in the folder of `path`): ".<stem>.tmp<pid>_". A process that
 // outlives a writer it forked removes what the writer left with it.
