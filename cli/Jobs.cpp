@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "BatchPace.hpp"
 #include "Commands.hpp"
 #include "FullDisks.hpp"
 #include "Isolate.hpp"
@@ -22,6 +23,7 @@
 #include "isohex/core/DiskFullError.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Pieces.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Validate.hpp"
@@ -130,6 +132,27 @@ std::string belowMessage(const pipeline::QualityCertificate& c, bool written) {
            pipeline::describePlaces(c, 10);
 }
 
+// After each job of a batch of several, how many are left and when the
+// batch will end at its pace so far (an info line, or a "batch_progress"
+// event with --log-json).
+void notePace(ProgressSink& sink, const BatchPace& pace) {
+    if (pace.ran() + pace.left() < 2 || pace.left() == 0) return;
+    nlohmann::json fields = {{"ran", pace.ran()}, {"left", pace.left()}, {"elapsed_s", pace.elapsedSeconds()}};
+    if (const auto eta = pace.etaSeconds()) fields["eta_s"] = *eta;
+    sink.event("batch_progress", fields);
+    if (sink.mode() != ProgressSink::Mode::Json) sink.note("info", "batch: " + pace.line());
+}
+
+// A mesh in several pieces is said aloud: each piece of a finite-element
+// model needs its own support, and noise specks of a scan are such pieces.
+// (Not for a part of a split scan: isohex merge's report counts the merged mesh's.)
+void notePieces(ProgressSink& sink, const std::vector<MeshPiece>& pieces, const pipeline::MeshSettings& settings) {
+    const std::string d = describePieces(pieces);
+    if (d.empty() || settings.part) return;
+    sink.note("info", "the mesh has " + d + "; in a finite-element model each piece needs its own support" +
+                          (settings.keepLargest ? "" : " (--keep-largest keeps only the largest region of each material)"));
+}
+
 }  // namespace
 
 JobResult runJob(const Job& job, ProgressSink& sink) {
@@ -152,6 +175,8 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     // validate's topology is gone before the per-hex measures exist (the two
     // together were the job's peak once the optimiser's was lowered)
     const ValidityReport v = validate(out.mesh);
+    const std::vector<MeshPiece> pieces = meshPieces(out.mesh);
+    notePieces(sink, pieces, args.settings);
     HexQuality q = computeQuality(out.mesh);
     const QualitySummary s = summarize(out.mesh, q);
     std::vector<double> scaledJacobian = std::move(q.scaledJacobian);
@@ -172,6 +197,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     const nlohmann::json qj = toJson(s);
     for (const auto& [k, val] : qj.items()) report[k] = val;
     report["validity"] = toJson(v);
+    report["pieces"] = toJson(pieces);
     nlohmann::json timings;
     for (const auto& [stage, secs] : sink.timings().items()) timings[stage] = secs;
     timings["quality"] = qualitySeconds;
@@ -287,11 +313,15 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
     FullDisks fullDisks;
     // The plugins of the jobs' formats are loaded here, once: each job's child
     // process inherits them instead of loading them again.
+    std::size_t toRun = 0;
     for (const Job& job : jobs) {
         if (!force && !job.args.run.force && upToDate(job)) continue;
+        ++toRun;
         imaging::preloadReader(job.input);
         for (const std::string& out : job.outputs) io::preloadFormat(out);
     }
+    BatchPace pace(toRun);
+    ProgressSink batchSink(mode);
     for (std::size_t i = 0; i < jobs.size(); ++i) {
         const Job& job = jobs[i];
         ProgressSink sink(mode, "[" + std::to_string(i + 1) + "/" + std::to_string(jobs.size()) + "] " + stemOf(job.input));
@@ -311,6 +341,7 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
             fail(why);
             continue;
         }
+        const Stopwatch running;
         try {
             results.push_back(runJobIsolated(job, sink));
             const JobResult& r = results.back();
@@ -325,6 +356,8 @@ JobsOutcome runJobs(const std::vector<Job>& jobs, bool force, ProgressSink::Mode
         } catch (const std::exception& e) {
             fail(boundedMessage(userMessage(e, names), 65536));
         }
+        pace.jobRan(running.seconds());  // a failed job's time counts too
+        notePace(batchSink, pace);
     }
     std::printf("%-40s %-8s %10s %8s %8s %8s %8s  %s\n", "input", "status", "hexes", "min SJ", "mean SJ", "<0.2",
                 "inverted", "seconds / message");

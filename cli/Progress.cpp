@@ -29,7 +29,9 @@ bool writeAll(int fd, std::string_view text) {
     return true;
 }
 
-ProgressSink::ProgressSink(Mode mode, std::string job) : mode_(mode), job_(std::move(job)) {
+ProgressSink::ProgressSink(Mode mode, std::string job, std::vector<std::string> plan,
+                           std::map<std::string, double> weights)
+    : mode_(mode), job_(std::move(job)), model_(std::move(plan), std::move(weights)) {
     terminal_ = mode == Mode::Auto && ::isatty(STDERR_FILENO);
 }
 
@@ -75,7 +77,8 @@ void ProgressSink::reading(const std::string& file) { nowReading(file); }
 
 void ProgressSink::progress(double fraction) {
     std::lock_guard lock(mutex_);
-    fraction_ = std::clamp(fraction, 0.0, 1.0);
+    // A stage's own fraction never goes back either (the plain lines print it).
+    fraction_ = std::max(fraction_, std::clamp(fraction, 0.0, 1.0));
     model_.progress(fraction_);
     const double sinceDrawn = sinceDrawn_.seconds();
     if (mode_ == Mode::Json) {
@@ -93,8 +96,11 @@ void ProgressSink::progress(double fraction) {
         }
     } else if (mode_ == Mode::Auto && sinceDrawn >= 5.0) {
         sinceDrawn_.restart();
-        std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s; run %.0f%%)\n", job_.c_str(), job_.empty() ? "" : ": ",
-                     stage_.c_str(), 100 * fraction_, sinceStageBegan_.seconds(), 100 * model_.overall());
+        char left[48] = "";
+        if (const auto eta = model_.eta(sinceRunBegan_.seconds()))
+            std::snprintf(left, sizeof left, ", about %.0f s left", *eta);
+        std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s; run %.0f%%%s)\n", job_.c_str(), job_.empty() ? "" : ": ",
+                     stage_.c_str(), 100 * fraction_, sinceStageBegan_.seconds(), 100 * model_.overall(), left);
     }
 }
 

@@ -4,9 +4,11 @@
 // a terminal, plain periodic lines otherwise, one JSON object per event with
 // --log-json (stage events and progress carry the run's "overall" fraction
 // and "eta_s"), nothing with --quiet (warnings still print).
+#include <map>
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -25,7 +27,10 @@ bool writeAll(int fd, std::string_view text);
 class ProgressSink : public pipeline::StageSink {
 public:
     enum class Mode { Auto, Quiet, Json };
-    explicit ProgressSink(Mode mode, std::string job = {});
+    // `plan` and `weights`: the stages the run expects and their weights
+    // (ProgressModel), the mesh pipeline's by default.
+    explicit ProgressSink(Mode mode, std::string job = {}, std::vector<std::string> plan = ProgressModel::defaultPlan(),
+                          std::map<std::string, double> weights = {});
     void begin(std::string_view stage) override;
     void progress(double fraction) override;
     void end(std::string_view stage, double seconds) override;
@@ -33,6 +38,7 @@ public:
     void reading(const std::string& file) override;  // tells the job isolation (nowReading)
     void event(const std::string& name, const nlohmann::json& fields);  // JSON mode only
     void setJob(std::string job) { job_ = std::move(job); }
+    Mode mode() const { return mode_; }
     // Seconds per finished stage (a stage run twice adds up).
     const nlohmann::json& timings() const { return timings_; }
 

@@ -1,11 +1,14 @@
 #pragma once
 // The whole run's progress from its stages': each stage has a weight (its
-// usual share of a run's time). A stage that begins again (a retry meshes
-// again) adds the stages it repeats to the plan, each weighted by the time it
-// took the first time (at the run's rate of weight per second so far), and
-// what is left of the bar is spread over the larger plan: the fraction shown
-// never goes down. The ETA comes from the plan itself (done against planned
-// weight), so it covers the repeats from the moment they begin.
+// usual share of a run's time). The plan lists the stages expected in order,
+// a stage as often as it runs (compare optimises each variant); a planned
+// stage passed over (the optimiser with --no-optimize) leaves the plan when a
+// later one begins, and so does a retry's repeat that did not run. A stage
+// that begins again outside the plan (a retry meshes again) adds the stages
+// it repeats to the plan, each weighted by the time it took the first time
+// (at the run's rate of weight per second so far), and what is left of the
+// bar is spread over the larger plan: the fraction shown never goes down. The ETA comes from the plan itself (done
+// against planned weight), so it covers the repeats from the moment they begin.
 #include <map>
 #include <optional>
 #include <set>
@@ -17,8 +20,9 @@ namespace isohex::cli {
 
 class ProgressModel {
 public:
-    // `planned`: the stages expected, in order (the mesh pipeline's by default).
-    explicit ProgressModel(std::vector<std::string> planned = defaultPlan());
+    // `planned`: the stages expected, in order (the mesh pipeline's by
+    // default); `weights`: a command's own weights where they differ from weight().
+    explicit ProgressModel(std::vector<std::string> planned = defaultPlan(), std::map<std::string, double> weights = {});
     static std::vector<std::string> defaultPlan();
     static double weight(std::string_view stage);
 
@@ -34,7 +38,14 @@ private:
     double raw() const;  // done weight over planned weight
     void update();
     void grow(double more);
+    double weightOf(const std::string& stage) const;  // weights_ or weight()
+    // Takes the next planned occurrence of `stage`, passing over the planned
+    // stages before it that never began; false if the rest of the plan has none.
+    bool takePlanned(const std::string& stage);
 
+    std::vector<std::string> plan_;   // the stages expected
+    std::size_t nextPlanned_ = 0;     // the first entry of plan_ not yet begun or passed over
+    std::map<std::string, double> weights_;
     std::vector<std::string> order_;  // stages in the order they first began
     std::set<std::string> ended_;      // stages that have ended at least once
     std::multiset<std::string> repeats_;  // repeats already added to the plan, not yet begun

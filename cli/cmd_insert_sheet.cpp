@@ -19,6 +19,7 @@
 #include "Threads.hpp"
 #include "Report.hpp"
 #include "isohex/pipeline/MinQuality.hpp"
+#include "isohex/pipeline/OptimizerProgress.hpp"
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/SheetMethod.hpp"
 #include "isohex/core/Error.hpp"
@@ -134,9 +135,10 @@ void addInsertSheetCommand(CLI::App& app) {
             }
             std::size_t invertedBefore = 0, invertedAfter = 0;
             if (a->optimize) {
-                ProgressSink sink(a->run.progressMode());
+                ProgressSink sink(a->run.progressMode(), {}, {"optimize"});
                 sink.begin("optimize");
-                const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, [&](std::string_view, double f) { sink.progress(f); });
+                PhasedProgress phased = pipeline::optimizerProgress(sink, pipeline::WorstHexesInStage::No);
+                const auto r = smoothing::optimizeMesh(mesh, &geometry, {}, phased.callback());
                 sink.end("optimize", r.seconds);
                 invertedBefore = r.invertedBefore;
                 invertedAfter = r.invertedAfter;

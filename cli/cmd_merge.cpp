@@ -17,6 +17,7 @@
 #include "Versions.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Pieces.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Validate.hpp"
 #include "isohex/pipeline/Fidelity.hpp"
@@ -80,6 +81,7 @@ nlohmann::json mergeAndWrite(const MergeArgs& a) {
     const nlohmann::json quality = toJson(s);  // (items() of a temporary would dangle)
     for (const auto& [k, val] : quality.items()) report[k] = val;
     report["validity"] = toJson(v);
+    report["pieces"] = toJson(meshPieces(m.mesh));
     report["outputs"] = a.outputs;
     report["scan"] = a.scan.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.scan);
     // No mesh with inverted hexes or defects is written without a word (as

@@ -13,6 +13,7 @@
 #include "Report.hpp"
 #include "Versions.hpp"
 #include "isohex/core/MeshIO.hpp"
+#include "isohex/core/Pieces.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/core/Validate.hpp"
@@ -66,6 +67,8 @@ void addQualityCommand(CLI::App& app) {
             nlohmann::json j = toJson(s);
             j["mesh"] = args->mesh;
             j["validity"] = toJson(v);
+            const std::vector<MeshPiece> pieces = meshPieces(mesh);
+            j["pieces"] = toJson(pieces);
             j["peak_memory_mb"] = peakMemoryMb();
             j["versions"] = versionsJson();
             if (!args->reportPath.empty()) writeJsonFile(j, args->reportPath, args->run.force);
@@ -83,7 +86,10 @@ void addQualityCommand(CLI::App& app) {
                               << ": the per-hex quality fields are written to .vtu files only; this file holds the mesh\n";
             }
             if (args->json) std::cout << j.dump(2) << "\n";
-            else std::cout << args->mesh << "\n" << formatQuality(s, v);
+            else {
+                std::cout << args->mesh << "\n" << formatQuality(s, v);
+                if (const std::string d = describePieces(pieces); !d.empty()) std::cout << d << "\n";
+            }
             std::cout.flush();
             return nlohmann::json{{"invalid", args->strict && (!v.ok() || s.inverted > 0 || s.degenerate > 0)}};
         });

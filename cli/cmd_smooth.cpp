@@ -15,6 +15,7 @@
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/core/Topology.hpp"
+#include "isohex/pipeline/OptimizerProgress.hpp"
 #include "isohex/smoothing/Optimize.hpp"
 #include "isohex/smoothing/WorstHexes.hpp"
 
@@ -50,14 +51,15 @@ void addSmoothCommand(CLI::App& app) {
             const std::vector<Vec3> original = mesh.nodes;
             smoothing::SmoothingOptions opt;
             opt.fixBoundary = true;
-            ProgressSink sink(a->run.progressMode());
+            ProgressSink sink(a->run.progressMode(), {}, {"optimize"});
             sink.begin("optimize");
             const Stopwatch optimizing;
-            const auto r = smoothing::optimizeMesh(mesh, nullptr, opt, [&](std::string_view, double f) { sink.progress(f); });
+            PhasedProgress phased = pipeline::optimizerProgress(sink, pipeline::WorstHexesInStage::Yes);
+            const auto r = smoothing::optimizeMesh(mesh, nullptr, opt, phased.callback());
             // The mean-ratio sweeps raise the average and can lower the worst hex
             // (on an already optimised label-map mesh, by a factor of three): the
             // max-min pass after them, as isohex mesh runs it, with the boundary fixed.
-            smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{});
+            smoothing::raiseWorstHexes(mesh, nullptr, smoothing::WorstHexOptions{}, nullptr, phased.callback());
             sink.end("optimize", optimizing.seconds());
             HexQuality q = computeQuality(mesh);
             QualitySummary after = summarize(mesh, q);

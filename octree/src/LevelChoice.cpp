@@ -1,6 +1,7 @@
 // Choosing the grid level: LBIE's cell tests and the topology-keeping coarsest level.
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstdint>
 #include <cmath>
 #include <string>
@@ -117,6 +118,10 @@ std::size_t lbieFailures(const Labels& fine) {
     return failures;
 }
 
+std::string LevelRejection::note() const {
+    return "level " + std::to_string(level) + (cellTests ? ": " : " ") + why;
+}
+
 LevelChoice chooseLevel(const Domain& domain, const Grid& base, const LevelOptions& opt) {
     LevelChoice best;
     double refVolume = 0;
@@ -150,25 +155,26 @@ LevelChoice chooseLevel(const Domain& domain, const Grid& base, const LevelOptio
             Labels finer = sampleLabels(domain, coarsen(base, level - 1));
             const std::size_t failing = lbieFailures(finer);
             if (failing > 0) {
-                best.notes.push_back("level " + std::to_string(level) + ": " + std::to_string(failing) +
-                                     " coarse cells fail LBIE's sign-change and ambiguity tests");
+                best.rejected = LevelRejection{
+                    level, true, std::to_string(failing) + " coarse cells fail LBIE's sign-change and ambiguity tests"};
                 break;
             }
         }
         bool enoughPoints = true;
         for (const auto& t : topo) enoughPoints = enoughPoints && t.points >= opt.minPoints;
         if (!sameTopology) {
-            best.notes.push_back("level " + std::to_string(level) + " changes the topology (" + describe(topo) + ")");
+            best.rejected = LevelRejection{level, false, "changes the topology (" + describe(topo) + ")"};
             break;
         }
         if (change > opt.maxVolumeChange) {
-            best.notes.push_back("level " + std::to_string(level) + " changes the volume by " +
-                                 std::to_string(100 * change) + "%");
+            char percent[64];
+            std::snprintf(percent, sizeof percent, "%.1f%% (more than %.1f%%)", 100 * change, 100 * opt.maxVolumeChange);
+            best.rejected = LevelRejection{level, false, std::string("changes the volume by ") + percent};
             break;
         }
         if (!enoughPoints) {
-            best.notes.push_back("level " + std::to_string(level) + " leaves fewer than " +
-                                 std::to_string(opt.minPoints) + " grid points in a material");
+            best.rejected = LevelRejection{
+                level, false, "leaves fewer than " + std::to_string(opt.minPoints) + " grid points in a material"};
             break;
         }
         best.level = level;

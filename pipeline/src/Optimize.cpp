@@ -5,6 +5,7 @@
 #include <utility>
 #include <vector>
 
+#include "isohex/pipeline/OptimizerProgress.hpp"
 #include "Stage.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
@@ -15,12 +16,12 @@
 namespace isohex::pipeline {
 
 WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                                double slack, const Topology* topo) {
+                                double slack, const Topology* topo, const Progress& progress) {
     const Stopwatch clock;
     WorstHexPassResult r;
     r.options.target = target;
     r.options.surfaceSlack = slack;
-    r.result = smoothing::raiseWorstHexes(mesh, projector, r.options, topo);
+    r.result = smoothing::raiseWorstHexes(mesh, projector, r.options, topo, progress);
     r.seconds = clock.seconds();
     return r;
 }
@@ -38,12 +39,12 @@ std::pair<double, double> minAndMean(const std::vector<double>& sj) {
 }  // namespace
 
 StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                                double slack) {
+                                double slack, const Progress& progress) {
     StretchResult r;
     r.target = target;
     const std::vector<Vec3> start = mesh.nodes;
     std::tie(r.minBefore, r.meanBefore) = minAndMean(scaledJacobians(mesh));
-    r.pass = worstHexPass(mesh, projector, target, slack);
+    r.pass = worstHexPass(mesh, projector, target, slack, nullptr, progress);
     const auto [minAfter, meanAfter] = minAndMean(scaledJacobians(mesh));
     // (a minimum above the one before, itself at least the first target, means no hex is inverted)
     r.kept = minAfter > r.minBefore && meanAfter >= r.meanBefore - kStretchMeanLoss;
@@ -54,9 +55,10 @@ StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector
 }
 
 std::optional<StretchResult> stretchIfReached(HexMesh& mesh, const smoothing::SurfaceProjector* projector,
-                                              double firstTarget, double reached, double stretch, double slack) {
+                                              double firstTarget, double reached, double stretch, double slack,
+                                              const Progress& progress) {
     if (!(stretch > firstTarget && reached >= firstTarget && reached < stretch)) return std::nullopt;
-    return stretchWorstHexes(mesh, projector, stretch, slack);
+    return stretchWorstHexes(mesh, projector, stretch, slack, progress);
 }
 
 smoothing::BoundaryQuadResult smoothBoundaryOnIsosurface(HexMesh& mesh, const Prepared& p, StageSink& sink) {
@@ -81,12 +83,13 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
     if (scope == OptimizeScope::Neighbourhood) opt.relativeTolerance = 0;
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
+    PhasedProgress phased = optimizerProgress(
+        sink, settings.worstHexPass ? WorstHexesInStage::Yes : WorstHexesInStage::No);
     // The optimiser builds its own topology and keeps only the node-to-hex
     // rows of it while it runs; the worst-hex pass builds another. One shared
     // topology saved a build (about a second at 1.9 M hexes) and cost about
     // 130 bytes per hex at the job's peak, in the optimiser's release phase.
-    r.smoothingResult = smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt,
-                                                [&](std::string_view, double f) { sink.progress(f); });
+    r.smoothingResult = smoothing::optimizeMesh(mesh, settings.fixBoundary ? nullptr : &projector, opt, phased.callback());
     // The optimiser minimises a sum over all corners; the few hexes it leaves
     // poor (surface folds, spurs thinner than an element) get a max-min pass.
     if (settings.worstHexPass) {
@@ -98,11 +101,11 @@ OptimizeResult optimize(HexMesh& mesh, const Prepared& p, const MeshSettings& se
         const double slack = voxels * p.selection->materials.front().field.voxelSize();
         // aimed at the certified minimum when that is higher (--min-quality)
         r.worstHexes = worstHexPass(mesh, settings.fixBoundary ? nullptr : &projector,
-                                    worstHexTargetFor(p.facts.input.path, settings), slack);
+                                    worstHexTargetFor(p.facts.input.path, settings), slack, nullptr, phased.callback());
         r.worstHexes->surfaceToleranceVoxels = voxels;
         r.stretch = stretchIfReached(mesh, settings.fixBoundary ? nullptr : &projector, r.worstHexes->options.target,
                                      r.worstHexes->result.minAfter, stretchTargetFor(p.facts.input.path, settings),
-                                     slack);
+                                     slack, [&](std::string_view, double f) { phased.report("stretch", f); });
     }
     r.fixBoundary = settings.fixBoundary;
     // The warning counts what is still inverted after the worst-hex pass too

@@ -291,6 +291,27 @@ void describeInput(PrepareState& s) {
     }
 }
 
+// An element size for messages: "2", or "3.94 x 3.94 x 3.65" where the
+// voxels are not cubes.
+std::string sizeText(const std::array<double, 3>& size) {
+    if (size[0] == size[1] && size[1] == size[2]) return shortNumber(size[0]);
+    return shortNumber(size[0]) + " x " + shortNumber(size[1]) + " x " + shortNumber(size[2]);
+}
+
+// Says why the element size chosen from the scan is no coarser: a run
+// meshed at voxel size everywhere (millions of hexes) because some cells of
+// the next level fail its tests should not leave the user guessing. (Not in
+// the parts of a split run: they would all say it.)
+void noteLevelChoice(PrepareState& s, const std::array<double, 3>& size) {
+    const std::optional<octree::LevelRejection>& r = s.choice->rejected;
+    if (!r || s.settings.part) return;
+    const std::string coarser = "size " + sizeText({2 * size[0], 2 * size[1], 2 * size[2]});
+    const std::string why = r->cellTests ? "at " + coarser + ", " + r->why : coarser + " " + r->why;
+    s.sink.note("info", "element size " + sizeText(size) + " chosen from the scan, no coarser: " + why +
+                            ". --size sets another size: each doubling makes about an eighth of the hexes and may "
+                            "lose what is thinner than an element");
+}
+
 // The grid step in voxels per axis: from the element size, the level, or
 // the coarsest level that keeps the topology (octree::chooseLevel); then the grid.
 void chooseGrid(PrepareState& s) {
@@ -322,8 +343,9 @@ void chooseGrid(PrepareState& s) {
         s.choice = octree::chooseLevel(*s.domain, base);
         step.fill(static_cast<double>(1 << s.choice->level));
         grid.chosenBy = GridChoice::Topology;
-        grid.rejected = s.choice->notes;
+        if (s.choice->rejected) grid.rejected = {s.choice->rejected->note()};
         grid.level = s.choice->level;
+        noteLevelChoice(s, {step[0] * spacing[0], step[1] * spacing[1], step[2] * spacing[2]});
     }
     grid.stepVoxels = step;
     grid.grid = gridFor(xf, s.solid, step, pad);

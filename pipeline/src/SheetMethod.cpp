@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "isohex/pipeline/OptimizerProgress.hpp"
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/SettingError.hpp"
@@ -52,12 +53,14 @@ void optimizeOnTriangles(SheetMeshing& out, insertion::SheetGeometry& geometry, 
     smoothing::SmoothingOptions so;
     so.fixBoundary = settings.fixBoundary;
     out.report.optimization = timedStage(sink, "optimize", [&] {
-        return smoothing::optimizeMesh(out.mesh, &geometry, so, [&](std::string_view, double f) { sink.progress(f); });
+        PhasedProgress phased = optimizerProgress(sink, WorstHexesInStage::No);
+        return smoothing::optimizeMesh(out.mesh, &geometry, so, phased.callback());
     });
     if (settings.fixBoundary) return;
     if (settings.worstHexPass)
         out.report.worstHexes = timedStage(sink, "worst_hexes", [&] {
-            return worstHexPass(out.mesh, &geometry, worstHexTargetFor(out.report.path, settings));
+            return worstHexPass(out.mesh, &geometry, worstHexTargetFor(out.report.path, settings), 0, nullptr,
+                                [&](std::string_view, double f) { sink.progress(f); });
         });
     out.report.surfaceFit =
         timedStage(sink, "surface_fit", [&] { return insertion::fitSurfaceVolume(out.mesh, surface, surfaceId); });

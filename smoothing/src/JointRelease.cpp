@@ -459,7 +459,7 @@ void WorstHexPass::jointMoves() {
     settledKind_ = -1;
     // The joint move evens out the worst frames of the region; the compass
     // rounds then lift the hexes around it towards the target.
-    if (res_.jointRegionsImproved > 0) roundsUntilStill({});
+    if (res_.jointRegionsImproved > 0) roundsUntilStill({}, 0.33, 0.35);
 }
 
 }  // namespace isohex::smoothing::detail

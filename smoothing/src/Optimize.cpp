@@ -14,6 +14,7 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/smoothing/SweepProgress.hpp"
 
 namespace isohex::smoothing {
 
@@ -123,6 +124,7 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
     // a node's own byte, set at its visit: the visit counts come from it after
     // the sweep, with no counter shared by the threads on the sweep's path
     std::vector<std::uint8_t> visited(N, 0);
+    std::vector<std::size_t> visitsPerSweep;  // this phase's, for the progress estimate
     result_.converged = false;
 
     for (int sweep = 0; sweep < opt_.maxSweeps; ++sweep) {
@@ -167,14 +169,15 @@ void Smoother::meanRatioPhase(const ObjectiveSum& start, bool onlyTouched) {
         result_.surfaceNodeVisits += surfaceVisits;
         result_.visitHistory.push_back(visits);
         result_.objectiveHistory.push_back(start.finite ? total / corners : 0.0);
-        report("optimize", static_cast<double>(sweep + 1) / opt_.maxSweeps);
+        visitsPerSweep.push_back(visits);
+        report("mean_ratio", sweepProgress(visitsPerSweep));
         if (!(improvement > opt_.relativeTolerance * before) ||
             std::find(active.begin(), active.end(), std::uint8_t{1}) == active.end()) {
             result_.converged = true;
             break;
         }
     }
-    report("optimize", 1.0);
+    report("mean_ratio", 1.0);
     result_.meanRatioSeconds += watch.seconds();
 }
 
@@ -182,6 +185,7 @@ SmoothingResult Smoother::run(bool meanRatio) {
     const Stopwatch watch;
     setUp();
     result_.setupSeconds = watch.seconds();
+    report("setup", 1.0);
     {
         const ObjectiveSum s = objectiveNow();
         result_.objectiveBefore = meanOf(s);

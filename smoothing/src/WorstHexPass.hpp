@@ -37,7 +37,7 @@ class NodeSearch;
 class WorstHexPass {
 public:
     WorstHexPass(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& opt,
-                 const Topology* topology);
+                 const Topology* topology, const Progress& progress);
     WorstHexResult run();
 
 private:
@@ -46,8 +46,9 @@ private:
     bool measureStart();
     // Topology, per-node flags, compass directions and surface normals.
     void prepare();
-    // Rounds of one kind until a round moves nothing (at most maxRounds).
-    void roundsUntilStill(RoundKind kind);
+    // Rounds of one kind until a round moves nothing (at most maxRounds);
+    // the progress goes from `from` to `to` of the pass meanwhile.
+    void roundsUntilStill(RoundKind kind, double from, double to);
     // Joint moves of the regions of the hexes still inverted (JointRelease.cpp).
     void jointMoves();
     // Surface nodes still off their surface back towards it; `last` marks and counts what stays off.
@@ -56,6 +57,8 @@ private:
     void meanRestore();
     // The figures after.
     void finish();
+    // `fraction` of the part of the pass from `from` to `to` done.
+    void report(double from, double to, double fraction) const;
 
     // --- one round of node visits
     // The movable nodes of the hexes the round works on.
@@ -125,6 +128,7 @@ private:
     const SurfaceProjector* projector_;
     const WorstHexOptions& opt_;
     const Topology* givenTopology_;
+    const Progress& progress_;
     Topology ownTopology_;
     const Topology* topo_ = nullptr;
     WorstHexResult res_;

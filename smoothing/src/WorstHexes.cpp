@@ -60,8 +60,20 @@ private:
 };
 
 WorstHexPass::WorstHexPass(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& opt,
-                           const Topology* topology)
-    : mesh_(mesh), projector_(projector), opt_(opt), givenTopology_(topology), N_(mesh.nodeCount()) {}
+                           const Topology* topology, const Progress& progress)
+    : mesh_(mesh),
+      projector_(projector),
+      opt_(opt),
+      givenTopology_(topology),
+      progress_(progress),
+      N_(mesh.nodeCount()) {}
+
+// The pass's parts and their shares of its time on ch2bet (bench/RESULTS.md,
+// "The optimiser's work"): the max-min rounds 30%, the release, joint and
+// slack rounds 10%, the mean rounds 55%, the return the rest.
+void WorstHexPass::report(double from, double to, double fraction) const {
+    if (progress_) progress_("worst_hexes", from + (to - from) * std::clamp(fraction, 0.0, 1.0));
+}
 
 WorstHexResult WorstHexPass::run() {
     if (!measureStart()) return res_;
@@ -70,11 +82,12 @@ WorstHexResult WorstHexPass::run() {
     // moves; then, if hexes are still inverted, rounds over theirs only,
     // where surface nodes may leave their surface (validity before fidelity:
     // a fold of the surface within one element cannot be opened along it).
-    roundsUntilStill({});
+    roundsUntilStill({}, 0.0, 0.3);
     if (projector_ != nullptr && opt_.releaseDistance > 0 &&
         std::any_of(sj_.begin(), sj_.end(), [](double s) { return !(s > 0); }))
-        roundsUntilStill({.release = true});
+        roundsUntilStill({.release = true}, 0.3, 0.33);
     if (projector_ != nullptr && opt_.releaseDistance > 0 && opt_.jointRings > 0) jointMoves();
+    report(0.33, 0.35, 1.0);
     // Then the max-min rounds again with surface nodes free in 3-D within
     // surfaceSlack of their surface: on a fold or spur finer than an element
     // the hexes under a surface quad can open only across the surface. After
@@ -85,11 +98,13 @@ WorstHexResult WorstHexPass::run() {
     // released to untangle farther off.
     if (projector_ != nullptr && opt_.surfaceSlack > 0) {
         returnToSurface(false);
-        roundsUntilStill({.slack = true});
+        roundsUntilStill({.slack = true}, 0.35, 0.4);
     }
     if (meanRounds_) meanRestore();
+    report(0.4, 0.95, 1.0);
     returnToSurface(true);
     finish();
+    report(0.95, 1.0, 1.0);
     return res_;
 }
 
@@ -136,9 +151,10 @@ void WorstHexPass::findJunctions() {
         if (std::any_of(ids.begin(), ids.end(), [&](std::int32_t id) { return !projector_->projectsOnto(id); })) ids.clear();
 }
 
-void WorstHexPass::roundsUntilStill(RoundKind kind) {
-    for (int round = 0; round < opt_.maxRounds && runRound(kind); ++round) {
-    }
+void WorstHexPass::roundsUntilStill(RoundKind kind, double from, double to) {
+    for (int round = 0; round < opt_.maxRounds && runRound(kind); ++round)
+        report(from, to, static_cast<double>(round + 1) / opt_.maxRounds);
+    report(from, to, 1.0);
 }
 
 // Last, rounds that raise the mean: the max-min rounds stop once every hex is
@@ -155,6 +171,7 @@ void WorstHexPass::meanRestore() {
     if (opt_.meanOnlyNearMoved) markNearMoved();
     for (int round = 0; round < opt_.meanRounds && runRound({.mean = true}); ++round) {
         ++res_.meanRounds;
+        report(0.4, 0.95, static_cast<double>(round + 1) / opt_.meanRounds);
     }
     double after = 0;
     for (double v : sj_) after += v;
@@ -526,8 +543,8 @@ void WorstHexPass::countLeftOff(const std::vector<Index>& candidates, const std:
 }  // namespace detail
 
 WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& opt,
-                               const Topology* topology) {
-    return detail::WorstHexPass(mesh, projector, opt, topology).run();
+                               const Topology* topology, const Progress& progress) {
+    return detail::WorstHexPass(mesh, projector, opt, topology, progress).run();
 }
 
 }  // namespace isohex::smoothing

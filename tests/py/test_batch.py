@@ -210,6 +210,48 @@ class Batch(unittest.TestCase):
         self.assertGreater(cells(os.path.join(d, "s.vtu")), 0)
         self.assertEqual([n for n in os.listdir(d) if n.startswith(".")], [], "temporaries left behind")
 
+    def test_the_batch_says_how_many_jobs_are_left_and_when_it_will_end(self):
+        # Four jobs, one of them up to date and one failing: the three that run
+        # are the batch's; after each but the last, the jobs left and the time
+        # they take at the mean pace of those that ran (the failed one's too).
+        d = self.fresh("pace")
+        manifest = os.path.join(d, "jobs.csv")
+        with open(manifest, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["input", "output"])
+            for name in ("sphere", "torus", "garbage", "two_spheres"):
+                w.writerow([os.path.join(self.scans, name + ".nii.gz"), os.path.join(d, name + ".vtu")])
+        run(["mesh", os.path.join(self.scans, "torus.nii.gz"), "--iso", "50", "--size", "4", "-q", "-o",
+             os.path.join(d, "torus.vtu")])
+        p = run(["batch", manifest, "--iso", "50", "--size", "4", "--log-json"], check=False)
+        self.assertEqual(p.returncode, 1, p.stdout)
+        self.assertEqual(summary_rows(p.stdout), {"sphere.nii.gz": "ok", "torus.nii.gz": "skipped",
+                                                  "garbage.nii.gz": "failed", "two_spheres.nii.gz": "ok"})
+        events = [json.loads(line) for line in p.stderr.splitlines() if line.strip()]
+        pace = [e for e in events if e["event"] == "batch_progress"]
+        self.assertEqual([(e["ran"], e["left"]) for e in pace], [(1, 2), (2, 1)], pace)
+        for e in pace:
+            self.assertAlmostEqual(e["eta_s"], e["elapsed_s"] / e["ran"] * e["left"], places=6)
+        self.assertLess(pace[0]["elapsed_s"], pace[1]["elapsed_s"])
+        # the progress comes after the job it counts: the first after sphere's end, the second after garbage's
+        ends = [i for i, e in enumerate(events) if e["event"] == "job_end"]
+        marks = [i for i, e in enumerate(events) if e["event"] == "batch_progress"]
+        self.assertLess(ends[0], marks[0])
+        self.assertLess(ends[1], marks[1])
+        # plain lines say the same
+        plain = run(["batch", manifest, "--iso", "50", "--size", "4", "--force"], check=False)
+        lines = [l for l in plain.stderr.splitlines() if "info: batch:" in l]
+        self.assertEqual(len(lines), 3, plain.stderr)  # four jobs run with --force, a line after each but the last
+        self.assertRegex(lines[0], r"info: batch: 1 of 4 jobs run in [0-9.]+ s; about [0-9.]+ (s|min) left at this pace")
+        # with one job to run (the other up to date) there is nothing to pace
+        one = os.path.join(d, "one.csv")
+        with open(one, "w", newline="") as f:
+            csv.writer(f).writerows([["input", "output"], [os.path.join(self.scans, "sphere.nii.gz"), os.path.join(d, "s.vtu")],
+                                     [os.path.join(self.scans, "torus.nii.gz"), os.path.join(d, "torus.vtu")]])
+        single = run(["batch", one, "--iso", "50", "--size", "4", "--log-json"])
+        self.assertIn("1 skipped", single.stdout)
+        self.assertNotIn("batch_progress", single.stderr)
+
 
 class ManifestErrors(unittest.TestCase):
     """A malformed manifest fails before any job runs, naming the file and line."""

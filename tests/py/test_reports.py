@@ -313,5 +313,105 @@ class FidelityWhereTheRepairChangedTheGrid(unittest.TestCase):
         self.assertLessEqual(len(far), self.report["fidelity"]["boundary_nodes_in_repaired_cells"])
 
 
+def vtk_region_sizes(path):
+    """Cells per connected region (cells joined through shared points), by VTK's vtkConnectivityFilter."""
+    f = vtk.vtkConnectivityFilter()
+    f.SetInputData(read_vtu(path))
+    f.SetExtractionModeToAllRegions()
+    f.ColorRegionsOn()
+    f.Update()
+    region = ns.vtk_to_numpy(f.GetOutput().GetCellData().GetArray("RegionId"))
+    return sorted(np.bincount(region).tolist(), reverse=True)
+
+
+class Pieces(unittest.TestCase):
+    """A mesh in several pieces (each needs its own support in a finite-element model) is counted in the
+    report, against VTK's connected regions, and said on stderr; one piece is not."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("pieces")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
+                       check=True, capture_output=True)
+
+    def mesh(self, name):
+        vtu, rep = os.path.join(self.dir, name + ".vtu"), os.path.join(self.dir, name + ".json")
+        p = run(["mesh", os.path.join(self.dir, name + ".nii.gz"), "--iso", "50", "--size", "3", "-o", vtu,
+                 "--report", rep, "--force"])
+        with open(rep) as f:
+            return vtu, json.load(f), p.stderr
+
+    def test_two_spheres_are_two_pieces_as_vtk_finds(self):
+        vtu, rep, err = self.mesh("two_spheres")
+        sizes = vtk_region_sizes(vtu)
+        self.assertEqual(len(sizes), 2, sizes)
+        pieces = rep["pieces"]
+        self.assertEqual(pieces["count"], len(sizes))
+        self.assertEqual(pieces["largest_hexes"], sizes[0])
+        self.assertEqual(pieces["other_hexes"], sum(sizes[1:]))
+        self.assertEqual([o["hexes"] for o in pieces["others"]], sizes[1:])
+        self.assertIn("info: the mesh has 2 separate pieces: the largest has", err)
+        self.assertIn("--keep-largest", err)
+        # isohex quality on the written file finds the same
+        q = json.loads(run(["quality", vtu, "--json"]).stdout)["pieces"]
+        self.assertEqual((q["count"], q["largest_hexes"], q["other_hexes"]), (2, sizes[0], sizes[1]))
+        np.testing.assert_allclose(q["others"][0]["at"], pieces["others"][0]["at"], atol=1e-4)
+
+    def test_one_sphere_is_one_piece_without_a_note(self):
+        vtu, rep, err = self.mesh("sphere")
+        self.assertEqual(vtk_region_sizes(vtu), [rep["hexes"]])
+        self.assertEqual(rep["pieces"]["count"], 1)
+        self.assertEqual(rep["pieces"]["other_hexes"], 0)
+        self.assertNotIn("separate pieces", err)
+
+
+class LevelChoiceNote(unittest.TestCase):
+    """With no --size the element size comes from the scan; an info line says why it is no coarser (the
+    report's grid.rejected), so a run meshed at voxel size does not leave the user guessing."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.dir = workdir("level-note")
+        subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "samples", "make_phantoms.py"), cls.dir],
+                       check=True, capture_output=True)
+
+    def mesh(self, *extra):
+        rep = os.path.join(self.dir, "plate.json")
+        p = run(["mesh", os.path.join(self.dir, "thin_plate.nii.gz"), "--iso", "50", "-o",
+                 os.path.join(self.dir, "plate.vtu"), "--report", rep, "--force", *extra])
+        with open(rep) as f:
+            return json.load(f), p.stderr
+
+    def test_the_size_chosen_from_the_scan_says_why_it_is_no_coarser(self):
+        rep, err = self.mesh()
+        size = rep["grid"]["element_size"][0]
+        rejected = rep["grid"]["rejected"]
+        self.assertEqual(len(rejected), 1, rejected)
+        # the thin plate: the next level's cells fail LBIE's tests
+        self.assertRegex(rejected[0], r"^level \d+: \d+ coarse cells fail LBIE")
+        cells = rejected[0].split(": ")[1].split()[0]
+        line = next(l for l in err.splitlines() if "info: element size" in l)
+        self.assertIn(f"element size {size:g} chosen from the scan, no coarser: at size {2 * size:g}, {cells} "
+                      "coarse cells fail LBIE", line)
+        self.assertIn("--size sets another size", line)
+
+    def test_a_level_that_changes_the_volume_is_named_with_the_limit(self):
+        # the torus at its chosen size: the next level changes the volume too much
+        rep = os.path.join(self.dir, "torus.json")
+        p = run(["mesh", os.path.join(self.dir, "torus.nii.gz"), "--iso", "50", "-o",
+                 os.path.join(self.dir, "torus.vtu"), "--report", rep, "--force"])
+        with open(rep) as f:
+            grid = json.load(f)["grid"]
+        size = grid["element_size"][0]
+        self.assertRegex(grid["rejected"][0], r"^level \d+ changes the volume by \d+\.\d% \(more than 5\.0%\)$")
+        percent = grid["rejected"][0].split(" by ")[1]
+        self.assertIn(f"element size {size:g} chosen from the scan, no coarser: size {2 * size:g} changes the volume "
+                      f"by {percent}. --size sets another size", p.stderr)
+
+    def test_no_note_when_the_size_is_given(self):
+        _, err = self.mesh("--size", "2")
+        self.assertNotIn("info: element size", err)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

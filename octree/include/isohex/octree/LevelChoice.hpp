@@ -3,6 +3,7 @@
 // volume of the finest one (LBIE's starting level), with LBIE's per-cell
 // tests of whether coarse cells may replace their children.
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,13 +21,22 @@ namespace isohex::octree {
 // (diagonal) pattern. Returns the number of coarse cells that fail.
 std::size_t lbieFailures(const Labels& fine);
 
+// Why the next coarser level was not taken.
+struct LevelRejection {
+    int level = 0;           // the level not taken
+    bool cellTests = false;  // its cells failed LBIE's tests (`why` counts them)
+    std::string why;         // "10112 coarse cells fail ...", "changes the volume by 6.3% (...)"
+    // "level 1: 10112 coarse cells fail ..." or "level 2 changes the volume by ..."
+    std::string note() const;
+};
+
 struct LevelChoice {
     int level = 0;                        // grid step = 2^level base steps
     Grid grid;
     std::vector<RegionTopology> topology; // at the chosen level (after repair)
     std::vector<RegionTopology> reference;// at level 0 (after repair)
     double volumeChange = 0;              // relative change of labelled volume vs level 0
-    std::vector<std::string> notes;       // why finer / coarser levels were rejected
+    std::optional<LevelRejection> rejected;  // none when the coarsest level tried was taken
 };
 
 struct LevelOptions {

@@ -28,9 +28,10 @@ struct WorstHexPassResult {
 // (smoothing/WorstHexes.hpp), timed. Surface nodes move only with a
 // projector; `topo` (buildTopology(mesh)) saves building it again. `slack`:
 // how far (world units) surface nodes may end off their surface
-// (smoothing::WorstHexOptions::surfaceSlack).
+// (smoothing::WorstHexOptions::surfaceSlack). `progress` hears the pass's
+// ("worst_hexes").
 WorstHexPassResult worstHexPass(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                                double slack = 0, const Topology* topo = nullptr);
+                                double slack = 0, const Topology* topo = nullptr, const Progress& progress = {});
 
 // The max-min pass aimed at a second, higher target from where the first
 // left every hex at or above its own (stretchWorstHexes).
@@ -52,13 +53,14 @@ inline constexpr double kStretchMeanLoss = 0.005;
 // inverted and the mean falls by at most kStretchMeanLoss, otherwise every
 // node goes back where it was.
 StretchResult stretchWorstHexes(HexMesh& mesh, const smoothing::SurfaceProjector* projector, double target,
-                                double slack = 0);
+                                double slack = 0, const Progress& progress = {});
 
 // stretchWorstHexes aimed at `stretch` where it applies: the first pass
 // (aimed at `firstTarget`) reached `reached` >= firstTarget, and `stretch` is
 // above both; otherwise nothing is done.
 std::optional<StretchResult> stretchIfReached(HexMesh& mesh, const smoothing::SurfaceProjector* projector,
-                                              double firstTarget, double reached, double stretch, double slack = 0);
+                                              double firstTarget, double reached, double stretch, double slack = 0,
+                                              const Progress& progress = {});
 
 struct OptimizeResult {
     bool enabled = false;  // settings.optimize; nothing else is set without it

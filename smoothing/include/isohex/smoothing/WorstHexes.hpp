@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Progress.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Topology.hpp"
 #include "isohex/smoothing/NodeQuality.hpp"  // the helpers the pass shares (declared here before)
@@ -149,7 +150,8 @@ struct WorstHexResult {
 // knows their curve (3-D trial points projected onto it; never released);
 // Fixed nodes and Interior-classified nodes on the mesh boundary never move.
 // `topology`, if given, must be buildTopology(mesh); null builds it here.
+// `progress` hears "worst_hexes" and the fraction of the pass done.
 WorstHexResult raiseWorstHexes(HexMesh& mesh, const SurfaceProjector* projector, const WorstHexOptions& options = {},
-                               const Topology* topology = nullptr);
+                               const Topology* topology = nullptr, const Progress& progress = {});
 
 }  // namespace isohex::smoothing
