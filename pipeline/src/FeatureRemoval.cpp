@@ -90,17 +90,15 @@ struct Candidate {
 
 // Meshes `q` (best's labels without the features) again: only within
 // `cells` grid cells of the `changed` grid points, the rest keeping best's
-// optimised nodes (node keys `keptKeys`), or the whole volume (kWholeVolume).
-Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<NodeKey>& keptKeys,
-                      const std::vector<std::size_t>& changed, int cells, const MeshSettings& settings,
-                      StageSink& sink, double target) {
+// optimised nodes (its node keys set), or the whole volume (kWholeVolume).
+Candidate meshWithout(const Meshing& best, const Prepared& q, const std::vector<std::size_t>& changed, int cells,
+                      const MeshSettings& settings, StageSink& sink, double target) {
     Candidate c;
     if (cells == kWholeVolume) {
         c.meshing = meshLabels(q, settings, sink);
     } else {
-        std::vector<NodeKey> keys;
         LocalRegion region;
-        c.meshing = meshLabelsNear(q, settings, sink, best, keptKeys, changed, cells, keys, region);
+        c.meshing = meshLabelsNear(q, settings, sink, best, changed, cells, region);
         c.region = regionRecord(region);
     }
     c.relaxation = relaxToMinQuality(c.meshing.mesh, c.meshing.prepared, settings, sink);
@@ -145,15 +143,13 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
     // As the retries do it: the near neighbourhood of the changed points,
     // then the wide one, then (the last resort) the whole volume, until one
     // is better.
-    const bool local = localRetryApplies(best.prepared, settings);
-    std::vector<NodeKey> keptKeys;
-    if (local) keptKeys = meshingKeys(best.prepared, settings);
+    const bool local = localRetryApplies(best, settings);
     std::optional<Candidate> c;
     try {
         const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
         const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
         for (int cells : remeshScopes(local)) {
-            c = meshWithout(best, q, keptKeys, changed, cells, settings, sink, target);
+            c = meshWithout(best, q, changed, cells, settings, sink, target);
             if (better(c->below, before)) break;
         }
     } catch (const Error& e) {

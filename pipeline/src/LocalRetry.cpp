@@ -1,11 +1,12 @@
 #include "isohex/pipeline/LocalRetry.hpp"
 
 #include <algorithm>
+#include <string>
 #include <utility>
 
+#include "isohex/core/Error.hpp"
 #include "isohex/core/Pillow.hpp"
 #include "isohex/core/Stopwatch.hpp"
-#include "isohex/octree/DualContour.hpp"
 #include "isohex/pipeline/Contour.hpp"
 #include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Pillow.hpp"
@@ -145,35 +146,47 @@ LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, c
     return r;
 }
 
-}  // namespace
-
-bool localRetryApplies(const Prepared& prepared, const MeshSettings& settings) {
+// One sheet layer at most, no adaptive tree, not a part.
+bool numberedByGridCells(const Prepared& prepared, const MeshSettings& settings) {
     return !prepared.part && !settings.adaptive && (!settings.pillow || settings.boundaryLayers == 1);
 }
 
-std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& settings) {
-    octree::ExtractOptions opt;
-    opt.meshExterior = settings.meshExterior;
-    HexMesh mesh = octree::dualContourHexes(prepared.labels, prepared.extractionDomain(), opt);
-    std::vector<NodeKey> keys = contourKeys(mesh, wholeWindow(prepared.labels.grid));
-    if (settings.pillow) addCopyKeys(keys, pillowAllMaterials(mesh, 1), sortedMaterials(mesh));
-    return keys;
+}  // namespace
+
+bool localRetryApplies(const Meshing& best, const MeshSettings& settings) {
+    return numberedByGridCells(best.prepared, settings) && best.nodeKeys.size() == best.mesh.nodeCount();
+}
+
+bool keepsNodeKeys(const Meshing& m, const MeshSettings& settings) {
+    MeshSettings used = settings;
+    if (m.adaptive && m.adaptive->uniformKept) used.adaptive = false;
+    return used.optimize && used.method == Method::Dual && numberedByGridCells(m.prepared, used);
+}
+
+std::vector<NodeKey> contouredKeys(const HexMesh& contoured, const Prepared& prepared) {
+    return contourKeys(contoured, wholeWindow(prepared.labels.grid));
+}
+
+void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
+                  const MeshSettings& settings) {
+    if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(mesh));
 }
 
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
-                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
-                       std::vector<NodeKey>& keys, LocalRegion& region) {
+                       const std::vector<std::size_t>& edited, int cells, LocalRegion& region) {
+    if (kept.nodeKeys.size() != kept.mesh.nodeCount())
+        throw Error("meshing again: the kept mesh has no node keys (please report this with the input)");
     Meshing m;
     m.prepared = std::move(prepared);
     HeldBack heldBack;
     m.mesh = contour(m.prepared, settings, sink, nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
-    keys = contourKeys(m.mesh, wholeWindow(m.prepared.labels.grid));
+    m.nodeKeys = contouredKeys(m.mesh, m.prepared);
     std::vector<isohex::PillowResult> passes;
     m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
-    if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(m.mesh));
-    region = optimiseNearEdits(m.mesh, keys, kept.mesh, keptKeys, edited, cells, m.prepared, settings, sink);
+    addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
+    region = optimiseNearEdits(m.mesh, m.nodeKeys, kept.mesh, kept.nodeKeys, edited, cells, m.prepared, settings, sink);
     m.optimization = kept.optimization;
     return m;
 }

@@ -45,6 +45,7 @@ MeshOutcome runMeshPipeline(const std::string& input, const MeshSettings& settin
         RetryResult retries = retryStuckHexes(m, settings, sink);
         r.relaxation = relaxToMinQuality(m.mesh, m.prepared, settings, sink);
         features = removeFineFeatures(m, settings, sink, r.relaxation);
+        m.nodeKeys = {};  // nothing meshes again from here on
         warnStuckHexes(m, retries, settings, sink, warnings);
         if (settings.method == Method::Dual) r.retries = std::move(retries);
     }

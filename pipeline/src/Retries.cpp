@@ -30,7 +30,6 @@ struct RetryState {
     std::vector<std::size_t> frozen;                 // grid points edited once, never again
     std::shared_ptr<const octree::Labels> sampled;   // the grid sampled afresh, made on first use
     bool local = false;                              // retries optimise a neighbourhood (LocalRetry.hpp)
-    std::vector<NodeKey> keptKeys;                   // with local: the kept mesh's node keys, made on first use
 };
 
 // The hexes an attempt works on: inverted ones first (while any is left the
@@ -94,9 +93,9 @@ std::string scopeText(int cells) {
 // Meshes the edited labels `q` again on the field repaired for them; returns
 // how many grid points that field changes. Local retries contour and pillow
 // the whole grid but optimise only within `cells` grid cells of the edits
-// (`keys` then receives the new mesh's node keys, `tried` its region).
+// (`tried` then receives its region).
 std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::PointEdit>& edits, int cells,
-                       Meshing& again, std::vector<NodeKey>& keys, RetryAttempt& tried) {
+                       Meshing& again, RetryAttempt& tried) {
     const Prepared& p = s.best.prepared;
     if (!s.sampled) s.sampled = std::make_shared<const octree::Labels>(octree::sampleLabels(*p.domain, s.grid));
     auto repaired = std::make_shared<octree::RepairedDomain>(*p.domain, *s.sampled, q.labels);
@@ -106,11 +105,10 @@ std::size_t meshEdited(RetryState& s, Prepared& q, const std::vector<octree::Poi
         again = meshLabels(std::move(q), s.settings, s.sink);
         return repairedPoints;
     }
-    if (s.keptKeys.empty()) s.keptKeys = meshingKeys(s.best.prepared, s.settings);
     std::vector<std::size_t> edited;
     for (const auto& e : edits) edited.push_back(e.point);
     LocalRegion region;
-    again = meshLabelsNear(std::move(q), s.settings, s.sink, s.best, s.keptKeys, edited, cells, keys, region);
+    again = meshLabelsNear(std::move(q), s.settings, s.sink, s.best, edited, cells, region);
     tried.region = regionRecord(region);
     return repairedPoints;
 }
@@ -150,7 +148,6 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
     // neighbourhood can leave a hex flat, or the inverted hexes it was for.
     const std::vector<int> scopes = remeshScopes(s.local);
     Meshing again;
-    std::vector<NodeKey> keys;
     std::size_t repairedPoints = 0;
     Stuck now;
     bool better = false;
@@ -159,9 +156,8 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
             s.sink.note("info", "retry " + std::to_string(n) + ": optimising " + scopeText(scopes[i - 1]) +
                                     " did not help; optimising " + scopeText(scopes[i]));
         Prepared edited = q;
-        keys.clear();
         tried.region.reset();
-        repairedPoints = meshEdited(s, edited, edits, scopes[i], again, keys, tried);
+        repairedPoints = meshEdited(s, edited, edits, scopes[i], again, tried);
         now = stuckHexes(again.mesh, floor);
         better = now.betterThan(stuck, floor);
         if (better && (stuck.inverted.empty() || now.inverted.size() < stuck.inverted.size())) break;
@@ -176,7 +172,6 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
         again.contouredNodes = again.mesh.nodeCount();
         again.prepared.facts.grid.repairedFieldPoints = repairedPoints;
         s.best = std::move(again);
-        s.keptKeys = std::move(keys);  // empty after a whole meshing: made again when needed
         s.result.stuck = std::move(now);
         s.result.pointsEdited += edits.size();
     }
@@ -194,7 +189,11 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
     if (!m.prepared.part) {
-        m.pillow = pillowBoundary(m.mesh, settings, sink, nullptr, &heldBack);
+        const bool keyed = keepsNodeKeys(m, settings);
+        if (keyed) m.nodeKeys = contouredKeys(m.mesh, m.prepared);
+        std::vector<isohex::PillowResult> passes;
+        m.pillow = pillowBoundary(m.mesh, settings, sink, keyed ? &passes : nullptr, &heldBack);
+        if (keyed) addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
         // the sheet's hexes are appended, each on a boundary hex of the finest level
         if (m.adaptive) m.adaptive->hexLevel.resize(m.mesh.hexCount(), 0);
         m.optimization = optimize(m.mesh, m.prepared, settings, sink, false);
@@ -226,7 +225,7 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
     std::optional<AdaptiveFacts> keptFacts;
     if (best.adaptive && best.adaptive->uniformKept) keptFacts = best.adaptive;
     const MeshSettings& used = keptFacts ? asUniform : settings;
-    RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best.prepared, used), {}};
+    RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best, used)};
     s.result.allowed = maxRetries;
     s.result.floor = floor;
     s.result.stuck = leftStuck(best.mesh, floor);

@@ -37,12 +37,23 @@ inline constexpr int kWholeVolume = 0;
 std::vector<int> remeshScopes(bool local);
 
 // Whether a retry can be local: one sheet layer at most, no adaptive tree,
-// not a part (those number their nodes otherwise).
-bool localRetryApplies(const Prepared& prepared, const MeshSettings& settings);
+// not a part (those number their nodes otherwise), and `best` kept its node
+// keys.
+bool localRetryApplies(const Meshing& best, const MeshSettings& settings);
 
-// The node keys of the meshing of `prepared` (contoured and pillowed again
-// without the optimiser, the same node numbering as meshLabels gives).
-std::vector<NodeKey> meshingKeys(const Prepared& prepared, const MeshSettings& settings);
+// Whether meshLabels keeps the node keys of `m` (Meshing::nodeKeys), freshly
+// contoured and pillowed: when the retries or feature removal may mesh it
+// again locally (the uniform mesh the adaptive mesher fell back to included).
+bool keepsNodeKeys(const Meshing& m, const MeshSettings& settings);
+
+// The keys of the nodes of `contoured`, fresh from contour() on the labels'
+// whole grid (the grid cell of each contouring vertex, held back or not).
+std::vector<NodeKey> contouredKeys(const HexMesh& contoured, const Prepared& prepared);
+
+// Appends the keys of the sheets' copies (`passes`, pillowBoundary's) to
+// `keys`; nothing when the settings pillow nothing.
+void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
+                  const MeshSettings& settings);
 
 // What a local re-optimisation touched.
 struct LocalRegion {
@@ -56,14 +67,12 @@ struct LocalRegion {
 };
 
 // Contours and pillows the edited labels `prepared`, starts the mesh from the
-// optimised `kept` mesh (node keys `keptKeys`) and optimises the
+// optimised `kept` mesh (whose nodeKeys must be set) and optimises the
 // neighbourhood of `cells` grid cells around the grid points `edited`
-// (indices into the labels' grid), as above. `keys` receives the new mesh's
-// node keys. The result's optimization is kept's (the whole-mesh run); the
-// local one is in `region`.
+// (indices into the labels' grid), as above. The result keeps its node keys;
+// its optimization is kept's (the whole-mesh run); the local one is in `region`.
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
-                       const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
-                       std::vector<NodeKey>& keys, LocalRegion& region);
+                       const std::vector<std::size_t>& edited, int cells, LocalRegion& region);
 
 // The grid points whose material differs between `before` and `after` (the
 // same grid): what a local meshing of `after` must free around.

@@ -37,6 +37,11 @@ struct Meshing {
     OptimizeResult optimization;
     std::optional<AdaptiveFacts> adaptive;  // settings.adaptive: the tree's facts, a level per hex
     std::optional<PartNodes> partNodes;  // with prepared.part: the keys of the part's nodes
+    // With local retries (LocalRetry.hpp, keepsNodeKeys): each node's key, so
+    // that a meshing again can start from this mesh's optimised nodes without
+    // contouring it a second time. Empty otherwise, and once the retries and
+    // feature removal are over.
+    std::vector<NodeKey> nodeKeys;
 };
 
 struct RetryEdit {
