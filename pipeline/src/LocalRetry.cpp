@@ -167,9 +167,18 @@ std::vector<NodeKey> contouredKeys(const HexMesh& contoured, const Prepared& pre
     return contourKeys(contoured, wholeWindow(prepared.labels.grid));
 }
 
+StoredNodeKeys storedContouredKeys(const HexMesh& contoured, const Prepared& prepared) {
+    return StoredNodeKeys(contouredKeys(contoured, prepared), prepared.labels.material.size());
+}
+
 void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
                   const MeshSettings& settings) {
     if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(mesh));
+}
+
+void addSheetKeys(StoredNodeKeys& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
+                  const MeshSettings& settings) {
+    if (settings.pillow) keys.addSheets(passes, sortedMaterials(mesh));
 }
 
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
@@ -182,11 +191,14 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
     m.mesh = contour(m.prepared, settings, sink, nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
-    m.nodeKeys = contouredKeys(m.mesh, m.prepared);
+    std::vector<NodeKey> keys = contouredKeys(m.mesh, m.prepared);
+    m.nodeKeys = StoredNodeKeys(keys, m.prepared.labels.material.size());
     std::vector<isohex::PillowResult> passes;
     m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
+    addSheetKeys(keys, passes, m.mesh, settings);
     addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
-    region = optimiseNearEdits(m.mesh, m.nodeKeys, kept.mesh, kept.nodeKeys, edited, cells, m.prepared, settings, sink);
+    region =
+        optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys.expand(), edited, cells, m.prepared, settings, sink);
     m.optimization = kept.optimization;
     return m;
 }

@@ -190,7 +190,7 @@ Meshing meshLabels(Prepared prepared, const MeshSettings& settings, StageSink& s
     m.contouredNodes = m.mesh.nodeCount();
     if (!m.prepared.part) {
         const bool keyed = keepsNodeKeys(m, settings);
-        if (keyed) m.nodeKeys = contouredKeys(m.mesh, m.prepared);
+        if (keyed) m.nodeKeys = storedContouredKeys(m.mesh, m.prepared);
         std::vector<isohex::PillowResult> passes;
         m.pillow = pillowBoundary(m.mesh, settings, sink, keyed ? &passes : nullptr, &heldBack);
         if (keyed) addSheetKeys(m.nodeKeys, passes, m.mesh, settings);

@@ -20,6 +20,7 @@
 #include "isohex/pipeline/Optimize.hpp"
 #include "isohex/pipeline/Part.hpp"
 #include "isohex/pipeline/Retries.hpp"
+#include "isohex/pipeline/StoredNodeKeys.hpp"
 
 namespace isohex::pipeline {
 
@@ -49,10 +50,14 @@ bool keepsNodeKeys(const Meshing& m, const MeshSettings& settings);
 // The keys of the nodes of `contoured`, fresh from contour() on the labels'
 // whole grid (the grid cell of each contouring vertex, held back or not).
 std::vector<NodeKey> contouredKeys(const HexMesh& contoured, const Prepared& prepared);
+// The same, stored (Meshing::nodeKeys).
+StoredNodeKeys storedContouredKeys(const HexMesh& contoured, const Prepared& prepared);
 
 // Appends the keys of the sheets' copies (`passes`, pillowBoundary's) to
 // `keys`; nothing when the settings pillow nothing.
 void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
+                  const MeshSettings& settings);
+void addSheetKeys(StoredNodeKeys& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
                   const MeshSettings& settings);
 
 // What a local re-optimisation touched.

@@ -19,6 +19,7 @@
 #include "isohex/pipeline/Pillow.hpp"
 #include "isohex/pipeline/Prepare.hpp"
 #include "isohex/pipeline/StageSink.hpp"
+#include "isohex/pipeline/StoredNodeKeys.hpp"
 #include "isohex/pipeline/StuckHexes.hpp"
 
 namespace isohex::pipeline {
@@ -41,7 +42,7 @@ struct Meshing {
     // that a meshing again can start from this mesh's optimised nodes without
     // contouring it a second time. Empty otherwise, and once the retries and
     // feature removal are over.
-    std::vector<NodeKey> nodeKeys;
+    StoredNodeKeys nodeKeys;
 };
 
 struct RetryEdit {
