@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "isohex/core/Error.hpp"
@@ -146,6 +147,25 @@ LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, c
     return r;
 }
 
+// The stages of a meshing again that keeps the rest of the mesh, named apart
+// ("extract_again", "pillow_again", "optimize_again"): a progress bar weighs
+// them by themselves instead of as a repeat of the first meshing, whose
+// optimisation of the whole volume they do not repeat, and the report times
+// them apart from the first meshing's stages.
+class AgainStages final : public StageSink {
+public:
+    explicit AgainStages(StageSink& to) : to_(to) {}
+    void begin(std::string_view stage) override { to_.begin(again(stage)); }
+    void progress(double fraction) override { to_.progress(fraction); }
+    void end(std::string_view stage, double seconds) override { to_.end(again(stage), seconds); }
+    void note(std::string_view level, const std::string& text) override { to_.note(level, text); }
+    void reading(const std::string& file) override { to_.reading(file); }
+
+private:
+    static std::string again(std::string_view stage) { return std::string(stage) + "_again"; }
+    StageSink& to_;
+};
+
 // One sheet layer at most, no adaptive tree, not a part.
 bool numberedByGridCells(const Prepared& prepared, const MeshSettings& settings) {
     return !prepared.part && !settings.adaptive && (!settings.pillow || settings.boundaryLayers == 1);
@@ -185,20 +205,21 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
                        const std::vector<std::size_t>& edited, int cells, LocalRegion& region) {
     if (kept.nodeKeys.size() != kept.mesh.nodeCount())
         throw Error("meshing again: the kept mesh has no node keys (please report this with the input)");
+    AgainStages stages(sink);
     Meshing m;
     m.prepared = std::move(prepared);
     HeldBack heldBack;
-    m.mesh = contour(m.prepared, settings, sink, nullptr, &heldBack);
+    m.mesh = contour(m.prepared, settings, stages, nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
     std::vector<NodeKey> keys = contouredKeys(m.mesh, m.prepared);
     m.nodeKeys = StoredNodeKeys(keys, m.prepared.labels.material.size());
     std::vector<isohex::PillowResult> passes;
-    m.pillow = pillowBoundary(m.mesh, settings, sink, &passes, &heldBack);
+    m.pillow = pillowBoundary(m.mesh, settings, stages, &passes, &heldBack);
     addSheetKeys(keys, passes, m.mesh, settings);
     addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
-    region =
-        optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys.expand(), edited, cells, m.prepared, settings, sink);
+    region = optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys.expand(), edited, cells, m.prepared, settings,
+                               stages);
     m.optimization = kept.optimization;
     return m;
 }

@@ -10,7 +10,9 @@ import unittest
 sys.path.insert(0, os.path.dirname(__file__))
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "samples"))
 from common import SHARED_DATA, SOURCE, run, workdir  # noqa: E402
+from make_phantoms import write_nifti  # noqa: E402
 from vtk_tools import vtk_sj  # noqa: E402
 
 
@@ -33,8 +35,9 @@ class RunProgress(unittest.TestCase):
     def test_the_run_fraction_never_goes_back_through_retries_and_its_eta_covers_them(self):
         # A floor just above the torus's tenth-poorest hex (VTK's scaled
         # Jacobian of a first run) leaves about ten hexes "nearly flat", so
-        # the retries mesh the whole volume again: extract, pillow and
-        # optimize run more than once.
+        # the retries mesh again: extract, pillow and an optimisation run
+        # more than once (as "extract_again" and so on where a retry keeps
+        # the rest of the mesh, LocalRetry.hpp).
         src = os.path.join(self.dir, "torus.nii.gz")
         first = os.path.join(self.dir, "torus.vtu")
         run(["mesh", src, "--iso", "50", "--size", "3", "-o", first, "--force", "-q"])
@@ -43,8 +46,9 @@ class RunProgress(unittest.TestCase):
                  "--log-json", "-o", os.path.join(self.dir, "retried.vtu"), "--force"])
         ev = events(p.stderr)
         begins = [e["stage"] for e in ev if e["event"] == "stage_begin"]
-        self.assertGreaterEqual(begins.count("extract"), 2, begins)  # a retry did mesh again
-        self.assertGreaterEqual(begins.count("optimize"), 2, begins)
+        extracts = [s for s in begins if s in ("extract", "extract_again")]
+        self.assertGreaterEqual(len(extracts), 2, begins)  # a retry did mesh again
+        self.assertGreaterEqual(len([s for s in begins if s in ("optimize", "optimize_again")]), 2, begins)
         staged = [e for e in ev if e["event"] in ("stage_begin", "stage_end", "progress")]
         overall = [e["overall"] for e in staged]  # every one of them carries it
         for a, b in zip(overall, overall[1:]):
@@ -59,11 +63,44 @@ class RunProgress(unittest.TestCase):
         self.assertNotIn("eta_s", last)
         # When the first retry begins, the time left grows by the meshing it
         # repeats: the ETA then is above the one just before it.
-        second = [i for i, e in enumerate(staged) if e["event"] == "stage_begin" and e["stage"] == "extract"][1]
+        second = [i for i, e in enumerate(staged)
+                  if e["event"] == "stage_begin" and e["stage"] in ("extract", "extract_again")][1]
         before = staged[second - 1]
         self.assertEqual(before["event"], "stage_end")
         self.assertGreater(staged[second]["eta_s"], before.get("eta_s", 0), staged[second - 1:second + 1])
         self.assertLess(staged[second]["overall"], 1.0)
+
+    def test_a_local_meshing_again_is_not_weighed_as_a_whole_one(self):
+        # A one-voxel speck two voxels off a ball keeps a hex below 0.6; its
+        # removal meshes again and optimises only the speck's neighbourhood.
+        # Its stages are named apart, and the time left when it begins is a
+        # small part of the time spent (a repeat of the whole first meshing,
+        # optimisation included, made it about as long as the time spent).
+        n = 32
+        x, y, z = np.meshgrid(*(np.arange(n),) * 3, indexing="ij")
+        speck = (((x - 15.5) ** 2 + (y - 15.5) ** 2 + (z - 15.5) ** 2) < 10.5 ** 2).astype(np.uint8)
+        speck[15, 15, 29] = 1
+        src = os.path.join(self.dir, "speck.nii.gz")
+        write_nifti(src, speck)
+        out = os.path.join(self.dir, "speck.vtu")
+        p = run(["mesh", src, "--labels", "--size", "1", "--min-quality", "0.6", "--threads", "1", "--log-json",
+                 "-o", out, "--report", out + ".json", "--force"])
+        with open(out + ".json") as f:
+            report = json.load(f)
+        (removal,) = [m for m in report["quality"]["means"] if m["mean"] == "feature_removal"]
+        self.assertIn("region", removal)  # the case this test is about: a local meshing again
+        ev = events(p.stderr)
+        begins = [e["stage"] for e in ev if e["event"] == "stage_begin"]
+        self.assertEqual(begins.count("optimize"), 1, begins)
+        for s in ("extract_again", "pillow_again", "optimize_again"):
+            self.assertIn(s, begins)
+            self.assertGreater(report["timings_s"][s], 0.0, s)
+        start = ev[0]["time"]
+        (again,) = [e for e in ev if e["event"] == "stage_begin" and e["stage"] == "extract_again"]
+        self.assertLess(again["eta_s"], 0.5 * (again["time"] - start), again)
+        overall = [e["overall"] for e in ev if "overall" in e]
+        self.assertEqual(overall, sorted(overall))
+        self.assertGreaterEqual(overall[-1], 0.99)
 
     def test_a_stage_the_run_passes_over_is_not_waited_for(self):
         # --no-optimize: the optimiser, most of the planned run, never begins;

@@ -76,6 +76,7 @@ struct LocalRegion {
 // neighbourhood of `cells` grid cells around the grid points `edited`
 // (indices into the labels' grid), as above. The result keeps its node keys;
 // its optimization is kept's (the whole-mesh run); the local one is in `region`.
+// Its stages report as "extract_again", "pillow_again" and "optimize_again".
 Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSink& sink, const Meshing& kept,
                        const std::vector<std::size_t>& edited, int cells, LocalRegion& region);
 
