@@ -93,21 +93,18 @@ PartWindow wholeWindow(const octree::Grid& grid) {
 // alone would undo and leave flat. Only where the surfaces and curves are
 // numbered as in the kept mesh; otherwise such a node is freed.
 std::vector<std::uint8_t> startFromKept(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
-                                        const std::vector<NodeKey>& keptKeys, const std::vector<std::int64_t>& near,
+                                        const StoredNodeKeys& keptKeys, const std::vector<std::int64_t>& near,
                                         LocalRegion& r) {
-    std::vector<std::pair<NodeKey, Index>> byKey(keptKeys.size());
-    for (std::size_t v = 0; v < keptKeys.size(); ++v) byKey[v] = {keptKeys[v], static_cast<Index>(v)};
-    std::sort(byKey.begin(), byKey.end());
     const bool sameNumbering = mesh.surfaces == kept.surfaces && mesh.curves == kept.curves;
     std::vector<std::uint8_t> free(mesh.nodeCount(), 0);
     for (std::size_t v = 0; v < mesh.nodeCount(); ++v) {
         const NodeKey k = keys[v];
         const bool isNear = std::binary_search(near.begin(), near.end(), k.cell);
-        const auto it = std::lower_bound(byKey.begin(), byKey.end(), std::make_pair(k, Index{-1}));
-        if (it == byKey.end() || it->first != k) {
+        const Index found = keptKeys.find(k);
+        if (found == kNone) {
             free[v] = 1;
         } else {
-            const auto u = static_cast<std::size_t>(it->second);
+            const auto u = static_cast<std::size_t>(found);
             mesh.nodes[v] = kept.nodes[u];
             ++r.carried;
             const bool changed = mesh.nodeClass[v] != kept.nodeClass[u];
@@ -122,7 +119,7 @@ std::vector<std::uint8_t> startFromKept(HexMesh& mesh, const std::vector<NodeKey
 // Starts `mesh` from the optimised `kept` mesh and optimises the hexes
 // around the nodes within `cells` cells of the edits (see the header).
 LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, const HexMesh& kept,
-                              const std::vector<NodeKey>& keptKeys, const std::vector<std::size_t>& edited, int cells,
+                              const StoredNodeKeys& keptKeys, const std::vector<std::size_t>& edited, int cells,
                               const Prepared& prepared, const MeshSettings& settings, StageSink& sink) {
     const Stopwatch clock;
     LocalRegion r;
@@ -218,8 +215,7 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
     m.pillow = pillowBoundary(m.mesh, settings, stages, &passes, &heldBack);
     addSheetKeys(keys, passes, m.mesh, settings);
     addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
-    region = optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys.expand(), edited, cells, m.prepared, settings,
-                               stages);
+    region = optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys, edited, cells, m.prepared, settings, stages);
     m.optimization = kept.optimization;
     return m;
 }

@@ -1,8 +1,11 @@
 // The node keys a kept mesh stores for meshing it again locally
 // (StoredNodeKeys.hpp): they expand to exactly the keys contourKeys and
-// addCopyKeys give, in a small fraction of their size on real meshes.
+// addCopyKeys give, every key finds its node (the lowest where several share
+// it) and a key no node has finds none, in a small fraction of their size on
+// real meshes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -26,6 +29,14 @@ isohex::PillowResult pass(Index firstNewNode, std::vector<Index> copyOf) {
     return r;
 }
 
+// Every key finds the lowest node that has it.
+void expectEveryKeyFound(const StoredNodeKeys& stored, const std::vector<NodeKey>& keys) {
+    for (std::size_t v = 0; v < keys.size(); ++v) {
+        const auto first = std::find(keys.begin(), keys.end(), keys[v]) - keys.begin();
+        EXPECT_EQ(stored.find(keys[v]), static_cast<Index>(first)) << "node " << v;
+    }
+}
+
 std::vector<NodeKey> withCopies(std::vector<NodeKey> keys, const std::vector<isohex::PillowResult>& passes,
                                 const std::vector<std::int32_t>& materials) {
     addCopyKeys(keys, passes, materials);
@@ -43,6 +54,10 @@ TEST(StoredNodeKeys, AscendingKeysExpandToTheKeysAndTheirSheets) {
     EXPECT_EQ(stored.expand(), want);
     EXPECT_EQ(want[6], (NodeKey{3, 3}));
     EXPECT_EQ(want[10], (NodeKey{64, 8}));
+    expectEveryKeyFound(stored, want);
+    for (const NodeKey& missing : {NodeKey{5, 0}, NodeKey{63, 0}, NodeKey{131, 0}, NodeKey{-1, 0}, NodeKey{4, 3},
+                                   NodeKey{9, 8}, NodeKey{3, 5}, NodeKey{130, 9}})
+        EXPECT_EQ(stored.find(missing), kNone) << missing.cell << " " << missing.sheet;
 }
 
 TEST(StoredNodeKeys, KeysOutOfOrderAreKeptAsTheyAre) {
@@ -52,7 +67,11 @@ TEST(StoredNodeKeys, KeysOutOfOrderAreKeptAsTheyAre) {
                                                    std::vector<NodeKey>{{2, 0}, {9, 0}, {70, 0}}}) {
         StoredNodeKeys stored(contoured, 10);  // the last: a cell beyond the grid given
         stored.addSheets({pass(3, {2, 0})}, {1});
-        EXPECT_EQ(stored.expand(), withCopies(contoured, {pass(3, {2, 0})}, {1}));
+        const std::vector<NodeKey> want = withCopies(contoured, {pass(3, {2, 0})}, {1});
+        EXPECT_EQ(stored.expand(), want);
+        expectEveryKeyFound(stored, want);
+        EXPECT_EQ(stored.find({3, 0}), kNone);
+        EXPECT_EQ(stored.find({contoured[1].cell, 3}), kNone);  // no such sheet
     }
 }
 
@@ -61,6 +80,7 @@ TEST(StoredNodeKeys, RefusesSheetsThatDoNotFollowTheNodes) {
     EXPECT_THROW(stored.addSheets({pass(3, {0})}, {1}), Error);  // numbered past a gap
     EXPECT_THROW(stored.addSheets({pass(2, {0}), pass(3, {2})}, {1, 2}), Error);  // a copy of a copy
     EXPECT_THROW(stored.addSheets({pass(2, {0})}, {}), Error);  // a sheet without its material
+    EXPECT_THROW(stored.addSheets({pass(2, {0}), pass(3, {1})}, {4, 2}), Error);  // materials not ascending
 }
 
 // As meshLabels contours and pillows: the stored keys expand to the keys,
@@ -79,6 +99,7 @@ void checkRealMesh(const std::string& input, MeshSettings settings) {
     ASSERT_EQ(keys.size(), mesh.nodeCount());
     ASSERT_EQ(stored.size(), mesh.nodeCount());
     EXPECT_EQ(stored.expand(), keys) << input;
+    for (std::size_t v = 0; v < keys.size(); ++v) ASSERT_EQ(stored.find(keys[v]), static_cast<Index>(v)) << input;
     // kept as they are, the contoured keys alone would take half the keys' size
     EXPECT_LT(stored.bytes(), mesh.nodeCount() * sizeof(NodeKey) / 3)
         << input << ": " << stored.bytes() << " bytes for " << mesh.nodeCount() << " nodes";
