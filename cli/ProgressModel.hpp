@@ -7,8 +7,9 @@
 // that begins again outside the plan (a retry meshes again) adds the stages
 // it repeats to the plan, each weighted by the time it took the first time
 // (at the run's rate of weight per second so far), and what is left of the
-// bar is spread over the larger plan: the fraction shown never goes down. The ETA comes from the plan itself (done
-// against planned weight), so it covers the repeats from the moment they begin.
+// bar is spread over the larger plan: the fraction shown never goes down.
+// The ETA comes from the plan itself (done against planned weight), so it
+// covers the repeats from the moment they begin.
 #include <map>
 #include <optional>
 #include <set>

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "isohex/core/DisjointSets.hpp"
+#include "isohex/core/Quality.hpp"
 
 namespace isohex {
 
@@ -19,10 +20,7 @@ std::vector<MeshPiece> meshPieces(const HexMesh& mesh) {
         const auto root = static_cast<std::size_t>(nodes.find(mesh.hexes[h][0]));
         if (pieceOfRoot[root] < 0) {
             pieceOfRoot[root] = static_cast<std::int64_t>(pieces.size());
-            MeshPiece p;
-            for (Index v : mesh.hexes[h])
-                for (int k = 0; k < 3; ++k) p.at[k] += mesh.nodes[static_cast<std::size_t>(v)][k] / 8;
-            pieces.push_back(p);
+            pieces.push_back({0, hexCentre(mesh, static_cast<Index>(h))});
         }
         ++pieces[static_cast<std::size_t>(pieceOfRoot[root])].hexes;
     }

@@ -157,6 +157,13 @@ HexCoords hexCoords(const HexMesh& mesh, Index hex) {
     return x;
 }
 
+Vec3 hexCentre(const HexMesh& mesh, Index hex) {
+    Vec3 c{0, 0, 0};
+    for (const Vec3& x : hexCoords(mesh, hex))
+        for (int i = 0; i < 3; ++i) c[i] += x[i] / 8.0;
+    return c;
+}
+
 HexQuality computeQuality(const HexMesh& mesh) {
     const std::size_t H = mesh.hexes.size();
     HexQuality q;

@@ -188,11 +188,6 @@ StoredNodeKeys storedContouredKeys(const HexMesh& contoured, const Prepared& pre
     return StoredNodeKeys(contouredKeys(contoured, prepared), prepared.labels.material.size());
 }
 
-void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
-                  const MeshSettings& settings) {
-    if (settings.pillow) addCopyKeys(keys, passes, sortedMaterials(mesh));
-}
-
 void addSheetKeys(StoredNodeKeys& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
                   const MeshSettings& settings) {
     if (settings.pillow) keys.addSheets(passes, sortedMaterials(mesh));
@@ -209,13 +204,12 @@ Meshing meshLabelsNear(Prepared prepared, const MeshSettings& settings, StageSin
     m.mesh = contour(m.prepared, settings, stages, nullptr, &heldBack);
     m.contouredHexes = m.mesh.hexCount();
     m.contouredNodes = m.mesh.nodeCount();
-    std::vector<NodeKey> keys = contouredKeys(m.mesh, m.prepared);
-    m.nodeKeys = StoredNodeKeys(keys, m.prepared.labels.material.size());
+    m.nodeKeys = storedContouredKeys(m.mesh, m.prepared);
     std::vector<isohex::PillowResult> passes;
     m.pillow = pillowBoundary(m.mesh, settings, stages, &passes, &heldBack);
-    addSheetKeys(keys, passes, m.mesh, settings);
     addSheetKeys(m.nodeKeys, passes, m.mesh, settings);
-    region = optimiseNearEdits(m.mesh, keys, kept.mesh, kept.nodeKeys, edited, cells, m.prepared, settings, stages);
+    region = optimiseNearEdits(m.mesh, m.nodeKeys.expand(), kept.mesh, kept.nodeKeys, edited, cells, m.prepared,
+                               settings, stages);
     m.optimization = kept.optimization;
     return m;
 }

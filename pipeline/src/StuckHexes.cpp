@@ -16,13 +16,6 @@ std::vector<Index> invertedHexes(const HexMesh& mesh) {
     });
 }
 
-Vec3 hexCentre(const HexMesh& mesh, Index h) {
-    Vec3 c{0, 0, 0};
-    for (const Vec3& x : hexCoords(mesh, h))
-        for (int i = 0; i < 3; ++i) c[i] += x[i] / 8.0;
-    return c;
-}
-
 bool Stuck::betterThan(const Stuck& o, double floor) const {
     if (inverted.size() != o.inverted.size()) return inverted.size() < o.inverted.size();
     if (!(floor > 0)) return false;

@@ -94,7 +94,7 @@ void checkRealMesh(const std::string& input, MeshSettings settings) {
     StoredNodeKeys stored = storedContouredKeys(mesh, p);
     std::vector<isohex::PillowResult> passes;
     pillowBoundary(mesh, settings, sink, &passes, &heldBack);
-    addSheetKeys(keys, passes, mesh, settings);
+    addCopyKeys(keys, passes, sortedMaterials(mesh));
     addSheetKeys(stored, passes, mesh, settings);
     ASSERT_EQ(keys.size(), mesh.nodeCount());
     ASSERT_EQ(stored.size(), mesh.nodeCount());

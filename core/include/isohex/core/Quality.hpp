@@ -75,6 +75,8 @@ double centreDeterminant(const HexCoords& x);
 double minJacobianDeterminant(const HexCoords& x);
 
 HexCoords hexCoords(const HexMesh& mesh, Index hex);
+// The mean of a hex's eight corners.
+Vec3 hexCentre(const HexMesh& mesh, Index hex);
 
 struct HexQuality {
     std::vector<double> scaledJacobian;

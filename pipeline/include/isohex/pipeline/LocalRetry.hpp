@@ -55,8 +55,6 @@ StoredNodeKeys storedContouredKeys(const HexMesh& contoured, const Prepared& pre
 
 // Appends the keys of the sheets' copies (`passes`, pillowBoundary's) to
 // `keys`; nothing when the settings pillow nothing.
-void addSheetKeys(std::vector<NodeKey>& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
-                  const MeshSettings& settings);
 void addSheetKeys(StoredNodeKeys& keys, const std::vector<isohex::PillowResult>& passes, const HexMesh& mesh,
                   const MeshSettings& settings);
 

@@ -7,15 +7,13 @@
 #include <vector>
 
 #include "isohex/core/HexMesh.hpp"
+#include "isohex/core/Quality.hpp"  // hexCentre, which the warnings use
 #include "isohex/pipeline/StageSink.hpp"
 
 namespace isohex::pipeline {
 
 // Hexes with a corner or centre Jacobian determinant <= 0, by index.
 std::vector<Index> invertedHexes(const HexMesh& mesh);
-
-// The mean of a hex's eight corners.
-Vec3 hexCentre(const HexMesh& mesh, Index h);
 
 // The counts the report gives of a Stuck.
 struct StuckCounts {
