@@ -123,13 +123,14 @@ JobResult resultOf(const Job& job, const QualitySummary& s, double seconds) {
 }
 
 // What a mesh below the minimum quality says: the target, what was reached,
-// whether it was written, and the places.
+// whether it was written, the places and what to try.
 std::string belowMessage(const pipeline::QualityCertificate& c, bool written) {
     char figures[96];
     std::snprintf(figures, sizeof figures, "%g: smallest scaled Jacobian %.3g, ", c.target, c.achieved);
     return "below the minimum quality " + std::string(figures) + std::to_string(c.hexesBelow) + " hex(es) below it" +
            (written ? " (written: --allow-below)" : " (nothing written; --allow-below writes it)") + ":\n" +
-           pipeline::describePlaces(c, 10);
+           pipeline::describePlaces(c, 10) +
+           "  a finer --size or a larger --max-deviation may reach it; --min-quality sets a lower minimum\n";
 }
 
 // After each job of a batch of several, how many are left and when the

@@ -491,9 +491,9 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
     const char* g = "Quality";
     t.push_back(number<std::optional<double>>(
         "min-quality", g,
-        "Certified minimum scaled Jacobian of the mesh written (default 0.3 for intensity scans; 0 for label maps "
-        "and with --no-optimize: no inverted or degenerate hex; 0.5 for triangle surfaces, 0.2 with --method "
-        "sheets). The max-min pass aims at it; a mesh "
+        "Certified minimum scaled Jacobian of the mesh written (default 0.3 for intensity scans and label maps; "
+        "0 with --no-optimize or --fix-boundary: no inverted or degenerate hex; 0.5 for triangle surfaces, 0.2 "
+        "with --method sheets). The max-min pass aims at it; a mesh "
         "left below it is not written (unless --allow-below), its places are named, and the command exits with "
         "status 4",
         "scaled Jacobian 0..1", [](MeshArgs& a) -> auto& { return a.settings.minQuality; }, between(0.0, 1.0)));
@@ -504,8 +504,8 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
     t.push_back(number<std::optional<double>>(
         "max-deviation", g,
         "How far, in voxels, boundary and interface nodes may leave the isosurface to lift hexes still below "
-        "--min-quality after the optimiser and the retries (default 0.5; reported as quality.means; label maps "
-        "with the default --min-quality of 0 are relaxed towards 0.3)",
+        "--min-quality after the optimiser and the retries (default 0.5, for label maps 1: their interfaces are "
+        "known to a voxel; reported as quality.means)",
         "voxels 0..5", [](MeshArgs& a) -> auto& { return a.settings.maxDeviation; }, between(0.0, 5.0, "(voxels)")));
     t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
     t.push_back(onOff("keep-features", g,

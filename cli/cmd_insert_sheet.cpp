@@ -43,10 +43,10 @@ struct InsertSheetArgs {
     MeshArgs quality;  // --min-quality and --allow-below (the option table's rows)
 };
 
-// The mesh the surfaces cut may be any mesh (a label map's among them), so
-// the default minimum is a label map's: no inverted or degenerate hex.
+// The mesh the surfaces cut may be any mesh, made with any means, so the
+// default minimum is no inverted or degenerate hex.
 double minQualityOf(const InsertSheetArgs& a) {
-    return a.quality.settings.minQuality.value_or(pipeline::kDefaultMinQualityLabelMap);
+    return a.quality.settings.minQuality.value_or(pipeline::kDefaultMinQualityAnyMesh);
 }
 
 // After the optimiser, a max-min pass aimed at the minimum quality where

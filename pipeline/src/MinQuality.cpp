@@ -31,16 +31,14 @@ double minQualityFor(const std::string& input, const MeshSettings& settings) {
     if (settings.minQuality) return *settings.minQuality;
     if (settings.method == Method::Sheets) return kDefaultMinQualitySheetMethod;
     if (imaging::isSurfaceFile(input)) return kDefaultMinQualitySurface;
-    if (settings.load.labels) return kDefaultMinQualityLabelMap;
-    return settings.optimize && !settings.fixBoundary ? kDefaultMinQualityIntensity
-                                                      : kDefaultMinQualityIntensityWithoutMeans;
+    if (!settings.optimize || settings.fixBoundary) return kDefaultMinQualityWithoutMeans;
+    return settings.load.labels ? kDefaultMinQualityLabelMap : kDefaultMinQualityIntensity;
 }
 
-double relaxationTargetFor(const std::string& input, const MeshSettings& settings) {
-    const double q = minQualityFor(input, settings);
-    const bool labelMapDefault = !settings.minQuality && settings.load.labels && settings.method == Method::Dual &&
-                                 !imaging::isSurfaceFile(input);
-    return labelMapDefault ? std::max(q, kRelaxationTargetLabelMap) : q;
+double maxDeviationFor(const std::string& input, const MeshSettings& settings) {
+    if (settings.maxDeviation) return *settings.maxDeviation;
+    return settings.load.labels && !imaging::isSurfaceFile(input) ? kDefaultMaxDeviationLabelMap
+                                                                   : kDefaultMaxDeviation;
 }
 
 double worstHexTargetFor(const std::string& input, const MeshSettings& settings) {
@@ -161,9 +159,9 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     if (!settings.optimize || settings.fixBoundary || !settings.worstHexPass || settings.method != Method::Dual)
         return std::nullopt;
     const double tolerance = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
-    const double maxDeviation = settings.maxDeviation.value_or(kDefaultMaxDeviation);
+    const double maxDeviation = maxDeviationFor(p.facts.input.path, settings);
     if (!(maxDeviation > tolerance)) return std::nullopt;
-    const double target = relaxationTargetFor(p.facts.input.path, settings);
+    const double target = minQualityFor(p.facts.input.path, settings);
     if (!anyBelow(mesh, target)) return std::nullopt;
     Stage st(sink, "relax");
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());

@@ -148,30 +148,33 @@ class MinQuality(unittest.TestCase):
         self.assertEqual(q["min_quality_certified"], bool(sj.min() >= 0.3))
         self.assertEqual(p.returncode == 0, q["min_quality_certified"])
 
-    def test_a_label_map_is_certified_at_0_and_still_relaxed_towards_0_3(self):
-        # Label maps promise no inverted or degenerate hex by default, but their
-        # boundary relaxation aims at 0.3: against the same run with the
-        # relaxation off (a deviation under the surface tolerance) the worst
-        # hex must rise and the mean must not fall, with no feature removed.
-        relaxed, report = self.paths("labels_default")
-        pinned, _ = self.paths("labels_pinned")
-        p = run(["mesh", JHU, "--labels", "--size", "4", "-o", relaxed, "--report", report, "-q", "--force"],
+    def test_a_label_map_is_certified_at_0_3_by_default(self):
+        # Label maps promise 0.3 by default, with their interface nodes free
+        # to leave the isosurface by a voxel (half a voxel for scans): at
+        # 3.5 mm the JHU atlas's junctions need more than half a voxel.
+        out, report = self.paths("labels_default")
+        half, half_report = self.paths("labels_half_voxel")
+        p = run(["mesh", JHU, "--labels", "--size", "3.5", "-o", out, "--report", report, "-q", "--force"],
                 check=False)
         self.assertEqual(p.returncode, 0, p.stderr)
-        run(["mesh", JHU, "--labels", "--size", "4", "--max-deviation", "0.05", "-o", pinned, "-q", "--force"])
         with open(report) as f:
             q = json.load(f)["quality"]
-        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.0, True, True))
+        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.3, True, True))
         relax = [m for m in q["means"] if m["mean"] == "boundary_relaxation"]
         self.assertEqual(len(relax), 1, q["means"])
-        self.assertEqual(relax[0]["target"], 0.3)
-        self.assertLessEqual(relax[0]["largest_deviation_voxels"], 0.5 + 1e-6)
-        self.assertEqual([m for m in q["means"] if m["mean"] == "feature_removal"], [])
-        a, b = vtk_sj(pinned), vtk_sj(relaxed)
-        self.assertEqual(len(a), len(b))
-        self.assertGreater(b.min(), a.min() + 1e-4)
-        self.assertGreaterEqual(b.mean(), a.mean())
-        self.assertLess(int((b < 0.2).sum()), int((a < 0.2).sum()))
+        self.assertEqual((relax[0]["target"], relax[0]["max_deviation_voxels"]), (0.3, 1.0))
+        self.assertGreater(relax[0]["largest_deviation_voxels"], 0.5)
+        self.assertLessEqual(relax[0]["largest_deviation_voxels"], 1.0 + 1e-6)
+        sj = vtk_sj(out)
+        self.assertGreaterEqual(sj.min(), 0.3)
+        self.assertAlmostEqual(q["achieved"], sj.min(), delta=1e-9)
+        # the same run held to half a voxel stays below 0.3, says so and what to try
+        p = run(["mesh", JHU, "--labels", "--size", "3.5", "--max-deviation", "0.5", "-o", half, "--report",
+                 half_report, "-q", "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        self.assertIn("below the minimum quality 0.3", p.stderr)
+        self.assertIn("a finer --size or a larger --max-deviation may reach it", p.stderr)
+        self.assertFalse(os.path.exists(half))
 
     def test_max_deviation_needs_moving_surface_nodes(self):
         p = run(["mesh", self.sphere, "--iso", "50", "--max-deviation", "0.5", "--fix-boundary", "-o",
