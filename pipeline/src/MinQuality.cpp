@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <utility>
 
 #include "Format.hpp"
 #include "isohex/core/Quality.hpp"
@@ -99,16 +101,78 @@ bool anyBelow(const HexMesh& mesh, double target) {
     return std::any_of(sj.begin(), sj.end(), [&](double v) { return belowTarget(v, target); });
 }
 
-}  // namespace
 
-RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double target,
-                               double maxDeviation, double tolerance, double voxel) {
-    const Stopwatch clock;
-    RelaxationResult r;
-    r.maxDeviationVoxels = maxDeviation / voxel;
+// The surface, curve and junction nodes off one of their places (released to
+// untangle, held back at extraction; a junction node off all but one of its
+// surfaces), with those distances, ascending: a node the relaxation moves
+// counts where it went farther from one. Sparse: a few dozen surface nodes
+// of two million on a brain at 1 mm, and a label map's curve and junction
+// nodes; no copy of every node is kept across the pass.
+using OffPlaces = std::vector<std::pair<Index, std::vector<double>>>;
+OffPlaces offPlacesOf(const HexMesh& mesh, const smoothing::SurfaceProjector& projector,
+                      const smoothing::JunctionSurfaces& junctions) {
+    OffPlaces off;
+    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
+        if (mesh.nodeClass[v].kind == NodeKind::Surface || mesh.nodeClass[v].kind == NodeKind::Curve) {
+            std::vector<double> d = offPlaces(mesh, projector, junctions, static_cast<Index>(v));
+            if (std::any_of(d.begin(), d.end(), [](double e) { return e > 0; }))
+                off.emplace_back(static_cast<Index>(v), std::move(d));
+        }
+    return off;
+}
+
+// The positions of some nodes, to put them back.
+struct NodePositions {
+    std::vector<Index> nodes;  // ascending
+    std::vector<Vec3> at;
+    NodePositions(const HexMesh& mesh, std::vector<Index> which) : nodes(std::move(which)) {
+        at.reserve(nodes.size());
+        for (Index v : nodes) at.push_back(mesh.nodes[static_cast<std::size_t>(v)]);
+    }
+    void restore(HexMesh& mesh) const {
+        for (std::size_t i = 0; i < nodes.size(); ++i) mesh.nodes[static_cast<std::size_t>(nodes[i])] = at[i];
+    }
+    // Whether every node of `ascending` is one of them.
+    bool holdsAll(const std::vector<Index>& ascending) const {
+        return std::includes(nodes.begin(), nodes.end(), ascending.begin(), ascending.end());
+    }
+};
+
+// Rings of hexes around the hexes below the relaxation's target whose nodes
+// relaxableNodes holds. A relaxation moves the nodes of those hexes, then in
+// its mean rounds nodes near moved ones; on the JHU labels at 4 mm the nodes
+// it moved reached past one ring, and past two in a second relaxation there.
+constexpr int kRelaxableRings = 3;
+
+// The nodes a relaxation aimed at `target` may move, ascending: those within
+// kRelaxableRings rings of hexes of the hexes below it, and the nodes off
+// their places (its return step).
+std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffPlaces& off) {
+    const std::vector<double> sj = scaledJacobians(mesh);
+    std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);  // 1: of a hex below; r + 1: in ring r
+    for (std::size_t h = 0; h < sj.size(); ++h)
+        if (belowTarget(sj[h], target))
+            for (Index v : mesh.hexes[h]) mark[static_cast<std::size_t>(v)] = 1;
+    for (int ring = 1; ring <= kRelaxableRings; ++ring)
+        for (const auto& hex : mesh.hexes)
+            if (std::any_of(hex.begin(), hex.end(), [&](Index v) { return mark[static_cast<std::size_t>(v)] == ring; }))
+                for (Index v : hex)
+                    if (!mark[static_cast<std::size_t>(v)]) mark[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(ring + 1);
+    for (const auto& entry : off) mark[static_cast<std::size_t>(entry.first)] = 2;
+    std::vector<Index> nodes;
+    for (std::size_t v = 0; v < mark.size(); ++v)
+        if (mark[v]) nodes.push_back(static_cast<Index>(v));
+    return nodes;
+}
+
+// One max-min pass of the relaxation, its compass search starting with steps
+// of `firstStep` local edge lengths.
+smoothing::WorstHexResult relaxOnce(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double target,
+                                    double maxDeviation, double firstStep) {
     smoothing::WorstHexOptions o;
     o.target = target;
     o.surfaceSlack = maxDeviation;
+    o.firstStep = firstStep;
     // Only the nodes of the hexes below the target move, and then, in the
     // mean rounds, the nodes next to them, each as far as no hex goes below
     // the target: a move that lifts one hex lowers its neighbours (down to
@@ -120,21 +184,55 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     o.releaseDistance = 0;
     o.jointRings = 0;
     o.listMovedNodes = true;
-    // The surface, curve and junction nodes already off one of their places
-    // (released to untangle, held back at extraction; a junction node off
-    // all but one of its surfaces), with those distances: a moved one counts
-    // where the relaxation took it farther from one. Sparse: a few dozen
-    // surface nodes of two million on a brain at 1 mm, and a label map's
-    // curve and junction nodes; no copy of every node is kept across the pass.
+    return smoothing::raiseWorstHexes(mesh, &projector, o);
+}
+
+// Whether a hex below q has a curve or junction node (BelowCause::LabelJunction).
+bool belowAtJunction(const HexMesh& mesh, double q) {
+    const std::vector<double> sj = scaledJacobians(mesh);
+    for (std::size_t h = 0; h < sj.size(); ++h)
+        if (belowTarget(sj[h], q) && causeOf(mesh, static_cast<Index>(h)) == BelowCause::LabelJunction) return true;
+    return false;
+}
+
+// The relaxation, aimed at `aim`, from kRelaxationFirstSteps[0]; then, while
+// its minimum stays below q at a junction of labels, from each further step,
+// every pass from the same start, the best kept (highest minimum, then fewest
+// hexes below the aim). A mesh without curve nodes (one material) gets the
+// one pass. Nodes are put back only where relaxableNodes says a pass can move
+// them: a pass that moved another node cannot be undone, so it is kept and no
+// further pass runs.
+smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
+                                            double aim, double maxDeviation, const OffPlaces& offBefore) {
+    const bool curves = std::any_of(mesh.nodeClass.begin(), mesh.nodeClass.end(),
+                                    [](const NodeClass& c) { return c.kind == NodeKind::Curve; });
+    if (!curves) return relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[0]);
+    const NodePositions start(mesh, relaxableNodes(mesh, aim, offBefore));
+    smoothing::WorstHexResult best = relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[0]);
+    for (std::size_t k = 1; k < kRelaxationFirstSteps.size(); ++k) {
+        if (best.minAfter >= q || !start.holdsAll(best.movedNodes) || !belowAtJunction(mesh, q)) break;
+        const NodePositions kept(mesh, start.nodes);
+        start.restore(mesh);
+        smoothing::WorstHexResult again = relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[k]);
+        const bool better = again.minAfter > best.minAfter ||
+                            (again.minAfter == best.minAfter && again.belowAfter < best.belowAfter);
+        if (better || !start.holdsAll(again.movedNodes)) best = std::move(again);
+        else kept.restore(mesh);
+    }
+    return best;
+}
+
+}  // namespace
+
+RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
+                               double maxDeviation, double tolerance, double voxel) {
+    const Stopwatch clock;
+    RelaxationResult r;
+    r.maxDeviationVoxels = maxDeviation / voxel;
     const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
-    std::vector<std::pair<Index, std::vector<double>>> offBefore;
-    for (std::size_t v = 0; v < mesh.nodes.size(); ++v)
-        if (mesh.nodeClass[v].kind == NodeKind::Surface || mesh.nodeClass[v].kind == NodeKind::Curve) {
-            std::vector<double> d = offPlaces(mesh, projector, junctions, static_cast<Index>(v));
-            if (std::any_of(d.begin(), d.end(), [](double e) { return e > 0; }))
-                offBefore.emplace_back(static_cast<Index>(v), std::move(d));
-        }
-    const smoothing::WorstHexResult w = smoothing::raiseWorstHexes(mesh, &projector, o);
+    const OffPlaces offBefore = offPlacesOf(mesh, projector, junctions);
+    const double aim = std::min(1.0, q + kRelaxationMargin);
+    const smoothing::WorstHexResult w = relaxFromEachStep(mesh, projector, q, aim, maxDeviation, offBefore);
     r.nodesMoved = w.nodesMoved;
     r.minBefore = w.minBefore;
     r.minAfter = w.minAfter;
@@ -167,8 +265,7 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     const double voxel = p.selection->materials.front().field.voxelSize();
-    RelaxationResult r = relaxBoundary(mesh, projector, std::min(1.0, target + kRelaxationMargin), maxDeviation * voxel,
-                                       tolerance * voxel, voxel);
+    RelaxationResult r = relaxBoundary(mesh, projector, target, maxDeviation * voxel, tolerance * voxel, voxel);
     r.target = target;
     st.finish();
     return r;
