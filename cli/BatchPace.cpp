@@ -1,7 +1,8 @@
 #include "BatchPace.hpp"
 
 #include <algorithm>
-#include <cstdio>
+
+#include "DurationText.hpp"
 
 namespace isohex::cli {
 
@@ -21,13 +22,5 @@ std::string BatchPace::line() const {
     return s;
 }
 
-std::string durationText(double seconds) {
-    char text[32];
-    if (seconds < 10) std::snprintf(text, sizeof text, "%.1f s", seconds);
-    else if (seconds < 90) std::snprintf(text, sizeof text, "%.0f s", seconds);
-    else if (seconds < 5400) std::snprintf(text, sizeof text, "%.1f min", seconds / 60);
-    else std::snprintf(text, sizeof text, "%.1f h", seconds / 3600);
-    return text;
-}
 
 }  // namespace isohex::cli

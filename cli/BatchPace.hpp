@@ -28,7 +28,4 @@ private:
     double seconds_ = 0;
 };
 
-// "45 s", "2.5 min", "3.2 h"
-std::string durationText(double seconds);
-
 }  // namespace isohex::cli

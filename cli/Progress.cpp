@@ -1,5 +1,6 @@
 #include "Progress.hpp"
 
+#include "DurationText.hpp"
 #include "JobStage.hpp"
 
 #include <algorithm>
@@ -96,11 +97,11 @@ void ProgressSink::progress(double fraction) {
         }
     } else if (mode_ == Mode::Auto && sinceDrawn >= 5.0) {
         sinceDrawn_.restart();
-        char left[48] = "";
-        if (const auto eta = model_.eta(sinceRunBegan_.seconds()))
-            std::snprintf(left, sizeof left, ", about %.0f s left", *eta);
+        std::string left;
+        if (const auto eta = model_.eta(sinceRunBegan_.seconds())) left = ", about " + durationText(*eta) + " left";
         std::fprintf(stderr, "isohex: %s%s%s %3.0f%% (%.1f s; run %.0f%%%s)\n", job_.c_str(), job_.empty() ? "" : ": ",
-                     stage_.c_str(), 100 * fraction_, sinceStageBegan_.seconds(), 100 * model_.overall(), left);
+                     stage_.c_str(), 100 * fraction_, sinceStageBegan_.seconds(), 100 * model_.overall(),
+                     left.c_str());
     }
 }
 
@@ -142,11 +143,10 @@ void ProgressSink::drawBar(bool final) {
     const int filled = static_cast<int>(overall * width + 0.5);
     std::string bar(static_cast<std::size_t>(filled), '#');
     bar.resize(width, '.');
-    char eta[32] = "";
-    if (const auto left = model_.eta(sinceRunBegan_.seconds()); left && !final)
-        std::snprintf(eta, sizeof eta, "  ETA %.1f s", *left);
+    std::string eta;
+    if (const auto left = model_.eta(sinceRunBegan_.seconds()); left && !final) eta = "  ETA " + durationText(*left);
     std::fprintf(stderr, "\r\033[K%-9s [%s] %3.0f%%  %.1f s%s%s", stage_.c_str(), bar.c_str(), 100 * overall,
-                 sinceStageBegan_.seconds(), eta, final ? "\n" : "");
+                 sinceStageBegan_.seconds(), eta.c_str(), final ? "\n" : "");
     std::fflush(stderr);
 }
 

@@ -101,7 +101,6 @@ bool anyBelow(const HexMesh& mesh, double target) {
     return std::any_of(sj.begin(), sj.end(), [&](double v) { return belowTarget(v, target); });
 }
 
-
 // The surface, curve and junction nodes off one of their places (released to
 // untangle, held back at extraction; a junction node off all but one of its
 // surfaces), with those distances, ascending: a node the relaxation moves
@@ -153,11 +152,12 @@ std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffP
     for (std::size_t h = 0; h < sj.size(); ++h)
         if (belowTarget(sj[h], target))
             for (Index v : mesh.hexes[h]) mark[static_cast<std::size_t>(v)] = 1;
+    const auto at = [&](Index v) -> std::uint8_t& { return mark[static_cast<std::size_t>(v)]; };
     for (int ring = 1; ring <= kRelaxableRings; ++ring)
         for (const auto& hex : mesh.hexes)
-            if (std::any_of(hex.begin(), hex.end(), [&](Index v) { return mark[static_cast<std::size_t>(v)] == ring; }))
+            if (std::any_of(hex.begin(), hex.end(), [&](Index v) { return at(v) == ring; }))
                 for (Index v : hex)
-                    if (!mark[static_cast<std::size_t>(v)]) mark[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>(ring + 1);
+                    if (!at(v)) at(v) = static_cast<std::uint8_t>(ring + 1);
     for (const auto& entry : off) mark[static_cast<std::size_t>(entry.first)] = 2;
     std::vector<Index> nodes;
     for (std::size_t v = 0; v < mark.size(); ++v)
