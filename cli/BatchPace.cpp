@@ -22,5 +22,4 @@ std::string BatchPace::line() const {
     return s;
 }
 
-
 }  // namespace isohex::cli

@@ -123,14 +123,18 @@ JobResult resultOf(const Job& job, const QualitySummary& s, double seconds) {
 }
 
 // What a mesh below the minimum quality says: the target, what was reached,
-// whether it was written, the places and what to try.
-std::string belowMessage(const pipeline::QualityCertificate& c, bool written) {
+// whether it was written, the places and what to try (--max-deviation only
+// where the run relaxes the boundary; the option is refused otherwise).
+std::string belowMessage(const pipeline::QualityCertificate& c, bool written, const pipeline::MeshSettings& s) {
     char figures[96];
     std::snprintf(figures, sizeof figures, "%g: smallest scaled Jacobian %.3g, ", c.target, c.achieved);
+    const bool relaxes =
+        s.optimize && !s.fixBoundary && s.worstHexPass && s.method == pipeline::Method::Dual;
     return "below the minimum quality " + std::string(figures) + std::to_string(c.hexesBelow) + " hex(es) below it" +
            (written ? " (written: --allow-below)" : " (nothing written; --allow-below writes it)") + ":\n" +
-           pipeline::describePlaces(c, 10) +
-           "  a finer --size or a larger --max-deviation may reach it; --min-quality sets a lower minimum\n";
+           pipeline::describePlaces(c, 10) + "  a finer --size" +
+           (relaxes ? " or a larger --max-deviation" : "") +
+           " may reach it; --min-quality sets a lower minimum\n";
 }
 
 // After each job of a batch of several, how many are left and when the
@@ -191,7 +195,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
         JobResult r = resultOf(job, s, total.seconds());
         r.status = "below";
         r.written = false;
-        r.message = belowMessage(out.quality, false);
+        r.message = belowMessage(out.quality, false, args.settings);
         return r;
     }
     nlohmann::json report = out.report;
@@ -264,7 +268,7 @@ JobResult runJob(const Job& job, ProgressSink& sink) {
     }
     if (!out.quality.certified && !args.settings.part) {
         r.status = "below";
-        r.message = belowMessage(out.quality, true) + (r.message.empty() ? "" : r.message + "\n");
+        r.message = belowMessage(out.quality, true, args.settings) + (r.message.empty() ? "" : r.message + "\n");
     }
     return r;
 }

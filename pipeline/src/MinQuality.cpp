@@ -137,28 +137,29 @@ struct NodePositions {
     }
 };
 
-// Rings of hexes around the hexes below the relaxation's target whose nodes
-// relaxableNodes holds. A relaxation moves the nodes of those hexes, then in
-// its mean rounds nodes near moved ones; on the JHU labels at 4 mm the nodes
-// it moved reached past one ring, and past two in a second relaxation there.
+// Rings of hexes whose nodes relaxableNodes adds around the nodes a
+// relaxation moves first. Its mean rounds then move nodes near moved ones; on
+// the JHU labels at 4 mm the nodes it moved reached past one ring, and past
+// two in a second relaxation there.
 constexpr int kRelaxableRings = 3;
 
-// The nodes a relaxation aimed at `target` may move, ascending: those within
-// kRelaxableRings rings of hexes of the hexes below it, and the nodes off
-// their places (its return step).
+// The nodes a relaxation aimed at `target` may move, ascending: the nodes of
+// the hexes below it and the nodes off their places (which its return step
+// moves), with every node within kRelaxableRings rings of hexes around them.
 std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffPlaces& off) {
+    static_assert(kRelaxableRings < 255, "ring marks are bytes");
     const std::vector<double> sj = scaledJacobians(mesh);
-    std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);  // 1: of a hex below; r + 1: in ring r
+    std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);  // 1: a node a pass moves first; r + 1: in ring r
+    const auto at = [&](Index v) -> std::uint8_t& { return mark[static_cast<std::size_t>(v)]; };
     for (std::size_t h = 0; h < sj.size(); ++h)
         if (belowTarget(sj[h], target))
-            for (Index v : mesh.hexes[h]) mark[static_cast<std::size_t>(v)] = 1;
-    const auto at = [&](Index v) -> std::uint8_t& { return mark[static_cast<std::size_t>(v)]; };
+            for (Index v : mesh.hexes[h]) at(v) = 1;
+    for (const auto& entry : off) at(entry.first) = 1;
     for (int ring = 1; ring <= kRelaxableRings; ++ring)
         for (const auto& hex : mesh.hexes)
             if (std::any_of(hex.begin(), hex.end(), [&](Index v) { return at(v) == ring; }))
                 for (Index v : hex)
                     if (!at(v)) at(v) = static_cast<std::uint8_t>(ring + 1);
-    for (const auto& entry : off) mark[static_cast<std::size_t>(entry.first)] = 2;
     std::vector<Index> nodes;
     for (std::size_t v = 0; v < mark.size(); ++v)
         if (mark[v]) nodes.push_back(static_cast<Index>(v));
@@ -200,10 +201,14 @@ bool belowAtJunction(const HexMesh& mesh, double q) {
 // every pass from the same start, the best kept (highest minimum, then fewest
 // hexes below the aim). A mesh without curve nodes (one material) gets the
 // one pass. Nodes are put back only where relaxableNodes says a pass can move
-// them: a pass that moved another node cannot be undone, so it is kept and no
-// further pass runs.
+// them: a pass that moved another node cannot be undone, so it is kept even
+// if worse (not seen on the bench's inputs) and no further pass runs.
+// `passes` and `firstStep`: the passes run and the kept one's first step.
 smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
-                                            double aim, double maxDeviation, const OffPlaces& offBefore) {
+                                            double aim, double maxDeviation, const OffPlaces& offBefore, int& passes,
+                                            double& firstStep) {
+    passes = 1;
+    firstStep = kRelaxationFirstSteps[0];
     const bool curves = std::any_of(mesh.nodeClass.begin(), mesh.nodeClass.end(),
                                     [](const NodeClass& c) { return c.kind == NodeKind::Curve; });
     if (!curves) return relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[0]);
@@ -216,8 +221,13 @@ smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::Surf
         smoothing::WorstHexResult again = relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[k]);
         const bool better = again.minAfter > best.minAfter ||
                             (again.minAfter == best.minAfter && again.belowAfter < best.belowAfter);
-        if (better || !start.holdsAll(again.movedNodes)) best = std::move(again);
-        else kept.restore(mesh);
+        ++passes;
+        if (better || !start.holdsAll(again.movedNodes)) {
+            best = std::move(again);
+            firstStep = kRelaxationFirstSteps[k];
+        } else {
+            kept.restore(mesh);
+        }
     }
     return best;
 }
@@ -232,7 +242,8 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
     const OffPlaces offBefore = offPlacesOf(mesh, projector, junctions);
     const double aim = std::min(1.0, q + kRelaxationMargin);
-    const smoothing::WorstHexResult w = relaxFromEachStep(mesh, projector, q, aim, maxDeviation, offBefore);
+    const smoothing::WorstHexResult w =
+        relaxFromEachStep(mesh, projector, q, aim, maxDeviation, offBefore, r.passes, r.firstStep);
     r.nodesMoved = w.nodesMoved;
     r.minBefore = w.minBefore;
     r.minAfter = w.minAfter;

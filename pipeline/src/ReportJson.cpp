@@ -290,6 +290,8 @@ nlohmann::json toJson(const RelaxationResult& r) {
             {"min_scaled_jacobian_after", r.minAfter},
             {"below_target_before", r.belowBefore},
             {"below_target_after", r.belowAfter},
+            {"passes", r.passes},
+            {"first_step", r.firstStep},
             {"seconds", r.seconds}};
 }
 

@@ -189,6 +189,39 @@ class MinQuality(unittest.TestCase):
         # finer and coarser steps and keeps the best, which reaches 0.3.
         self.certified_jhu("labels_4mm", "4")
 
+    def test_a_label_map_left_below_at_a_junction_ran_every_relaxation_pass(self):
+        # At 6 mm four JHU labels meet at nodes of 15 hexes and no pass lifts
+        # them to 0.3: the relaxation ran from each of its three first steps,
+        # the report says so and which pass it kept, and the error names the
+        # junctions and what to try.
+        out, report = self.paths("labels_6mm")
+        p = run(["mesh", JHU, "--labels", "--size", "6", "--allow-below", "-o", out, "--report", report, "-q",
+                 "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertFalse(q["min_quality_certified"])
+        self.assertIn("label junction", [pl["cause"] for pl in q["places"]])
+        relax = [m for m in q["means"] if m["mean"] == "boundary_relaxation"]
+        self.assertEqual(relax[-1]["passes"], 3)
+        self.assertIn(relax[-1]["first_step"], (0.25, 0.125, 0.5))
+        self.assertIn("a finer --size or a larger --max-deviation may reach it", p.stderr)
+
+    def test_a_label_map_without_the_optimiser_is_certified_at_0(self):
+        # --no-optimize gives up the means that reach 0.3: Q is 0 (no
+        # inverted or degenerate hex), as for scans, and a mesh below even
+        # that does not advise --max-deviation, which the run refuses.
+        out, report = self.paths("labels_no_optimize")
+        p = run(["mesh", JHU, "--labels", "--size", "4", "--no-optimize", "--allow-below", "-o", out, "--report",
+                 report, "-q", "--force"], check=False)
+        self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)  # hexes left inverted as extracted
+        with open(report) as f:
+            q = json.load(f)["quality"]
+        self.assertEqual((q["target"], q["default_target"], q["min_quality_certified"]), (0.0, True, False))
+        self.assertLessEqual(vtk_sj(out).min(), 0)
+        self.assertIn("a finer --size may reach it", p.stderr)
+        self.assertNotIn("--max-deviation", p.stderr)
+
     def test_max_deviation_needs_moving_surface_nodes(self):
         p = run(["mesh", self.sphere, "--iso", "50", "--max-deviation", "0.5", "--fix-boundary", "-o",
                  os.path.join(self.dir, "x.vtu")], check=False)
