@@ -168,10 +168,11 @@ std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffP
 
 // One max-min pass of the relaxation, its compass search starting with steps
 // of `firstStep` local edge lengths.
-smoothing::WorstHexResult relaxOnce(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double target,
-                                    double maxDeviation, double firstStep) {
+smoothing::WorstHexResult relaxOnce(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
+                                    double target, double maxDeviation, double firstStep) {
     smoothing::WorstHexOptions o;
     o.target = target;
+    o.reportBelow = q;  // the report counts hexes below Q, not below the aim
     o.surfaceSlack = maxDeviation;
     o.firstStep = firstStep;
     // Only the nodes of the hexes below the target move, and then, in the
@@ -211,14 +212,14 @@ smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::Surf
     firstStep = kRelaxationFirstSteps[0];
     const bool curves = std::any_of(mesh.nodeClass.begin(), mesh.nodeClass.end(),
                                     [](const NodeClass& c) { return c.kind == NodeKind::Curve; });
-    if (!curves) return relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[0]);
+    if (!curves) return relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[0]);
     const NodePositions start(mesh, relaxableNodes(mesh, aim, offBefore));
-    smoothing::WorstHexResult best = relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[0]);
+    smoothing::WorstHexResult best = relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[0]);
     for (std::size_t k = 1; k < kRelaxationFirstSteps.size(); ++k) {
         if (best.minAfter >= q || !start.holdsAll(best.movedNodes) || !belowAtJunction(mesh, q)) break;
         const NodePositions kept(mesh, start.nodes);
         start.restore(mesh);
-        smoothing::WorstHexResult again = relaxOnce(mesh, projector, aim, maxDeviation, kRelaxationFirstSteps[k]);
+        smoothing::WorstHexResult again = relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[k]);
         const bool better = again.minAfter > best.minAfter ||
                             (again.minAfter == best.minAfter && again.belowAfter < best.belowAfter);
         ++passes;
@@ -247,8 +248,8 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     r.nodesMoved = w.nodesMoved;
     r.minBefore = w.minBefore;
     r.minAfter = w.minAfter;
-    r.belowBefore = w.belowBefore;
-    r.belowAfter = w.belowAfter;
+    r.belowBefore = w.reportedBelowBefore;
+    r.belowAfter = w.reportedBelowAfter;
     const std::vector<double> none;
     for (Index v : w.movedNodes) {
         const auto it = std::lower_bound(offBefore.begin(), offBefore.end(), v,

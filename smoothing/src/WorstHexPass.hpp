@@ -108,7 +108,7 @@ private:
     void refreshAround(std::size_t v);
     // nearMoved_ from everMoved_.
     void markNearMoved();
-    std::size_t countBelow() const;
+    std::size_t countBelow(double threshold) const;
 
     // --- the joint moves (JointRelease.cpp)
     Region regionOf(Index h0, int rings) const;

@@ -114,9 +114,11 @@ bool WorstHexPass::measureStart() {
     for (double& s : sj_)
         if (scaledJacobianCollapsed(s)) s = -2.0;
     res_.minBefore = sj_.empty() ? 0.0 : *std::min_element(sj_.begin(), sj_.end());
-    res_.belowBefore = countBelow();
+    res_.belowBefore = countBelow(opt_.target);
+    res_.reportedBelowBefore = opt_.reportBelow > 0 ? countBelow(opt_.reportBelow) : 0;
     res_.minAfter = res_.minBefore;
     res_.belowAfter = res_.belowBefore;
+    res_.reportedBelowAfter = res_.reportedBelowBefore;
     meanRounds_ =
         opt_.meanRounds > 0 && std::any_of(sj_.begin(), sj_.end(), [&](double s) { return s < opt_.meanBelow; });
     return res_.belowBefore > 0 || meanRounds_ || (projector_ != nullptr && opt_.returnPasses > 0);
@@ -181,7 +183,8 @@ void WorstHexPass::meanRestore() {
 
 void WorstHexPass::finish() {
     res_.minAfter = *std::min_element(sj_.begin(), sj_.end());
-    res_.belowAfter = countBelow();
+    res_.belowAfter = countBelow(opt_.target);
+    res_.reportedBelowAfter = opt_.reportBelow > 0 ? countBelow(opt_.reportBelow) : 0;
     res_.nodesMoved = static_cast<std::size_t>(std::count(everMoved_.begin(), everMoved_.end(), 1));
     if (opt_.listMovedNodes)
         for (std::size_t v = 0; v < everMoved_.size(); ++v)
@@ -245,8 +248,8 @@ void WorstHexPass::markNearMoved() {
     }
 }
 
-std::size_t WorstHexPass::countBelow() const {
-    return static_cast<std::size_t>(std::count_if(sj_.begin(), sj_.end(), [&](double s) { return s < opt_.target; }));
+std::size_t WorstHexPass::countBelow(double threshold) const {
+    return static_cast<std::size_t>(std::count_if(sj_.begin(), sj_.end(), [&](double s) { return s < threshold; }));
 }
 
 // Picked node by node in parallel (on a 2 M-node mesh the mean rounds pick

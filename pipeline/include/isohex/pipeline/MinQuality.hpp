@@ -60,7 +60,7 @@ struct RelaxationResult {
     double largestDeviationVoxels = 0;  // the farthest of the nodes it took farther off
     std::size_t nodesMoved = 0;
     double minBefore = 0, minAfter = 0;
-    std::size_t belowBefore = 0, belowAfter = 0;
+    std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target (Q, not the aim above it)
     int passes = 1;          // max-min passes run (kRelaxationFirstSteps)
     double firstStep = 0;    // the kept pass's first step, in local edge lengths
     double seconds = 0;

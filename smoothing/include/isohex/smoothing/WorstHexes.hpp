@@ -125,11 +125,16 @@ struct WorstHexOptions {
     // List the nodes that moved in the result (a caller that measures only
     // what moved then keeps no copy of every node).
     bool listMovedNodes = false;
+    // A second threshold the result counts hexes below, before and after
+    // (WorstHexResult::reportedBelow*), for a caller that aims above the
+    // figure it reports (the boundary relaxation aims 0.01 above Q); 0: none.
+    double reportBelow = 0;
 };
 
 struct WorstHexResult {
     double minBefore = 0, minAfter = 0;           // smallest scaled Jacobian of the mesh
     std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target
+    std::size_t reportedBelowBefore = 0, reportedBelowAfter = 0;  // below WorstHexOptions::reportBelow
     std::size_t nodesMoved = 0;
     std::size_t surfaceNodesReleased = 0;  // surface nodes left off their surface
     std::size_t jointRegionsTried = 0;     // joint moves made (an inverted hex's region, first or second move)
