@@ -1,7 +1,9 @@
 #include "isohex/pipeline/CutBands.hpp"
 
 #include <algorithm>
+#include <utility>
 
+#include "isohex/core/NodeRings.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/pipeline/Optimize.hpp"
@@ -12,19 +14,6 @@
 namespace isohex::pipeline {
 
 namespace {
-
-// The band: which nodes move (within `rings` hex rings of a cut node).
-std::vector<std::uint8_t> bandNodes(const HexMesh& mesh, const std::vector<std::uint8_t>& onCut, int rings) {
-    std::vector<std::uint8_t> in = onCut;
-    for (int r = 0; r < rings; ++r) {
-        std::vector<std::uint8_t> next = in;
-        for (const Hex& h : mesh.hexes)
-            if (std::any_of(h.begin(), h.end(), [&](Index v) { return in[static_cast<std::size_t>(v)] != 0; }))
-                for (Index v : h) next[static_cast<std::size_t>(v)] = 1;
-        in = std::move(next);
-    }
-    return in;
-}
 
 // The hexes touching a band node as a mesh of their own; `from` gives each
 // of its nodes' index in `mesh`.
@@ -82,7 +71,7 @@ CutBandResult optimiseCutBands(HexMesh& mesh, const std::vector<std::uint8_t>& o
     for (std::size_t h = 0; h < mesh.hexCount(); ++h)
         if (!(sj[h] >= target) || scaledJacobianCollapsed(sj[h]))
             for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
-    const std::vector<std::uint8_t> band = bandNodes(mesh, seeds, rings);
+    const std::vector<std::uint8_t> band = nodesWithinRings(mesh, std::move(seeds), rings);  // the nodes that move
     std::vector<Index> from;
     HexMesh sub = bandMesh(mesh, band, from);
     r.hexes = sub.hexCount();

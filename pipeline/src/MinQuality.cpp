@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "Format.hpp"
+#include "isohex/core/NodeRings.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "Stage.hpp"
@@ -147,22 +148,16 @@ constexpr int kRelaxableRings = 3;
 // the hexes below it and the nodes off their places (which its return step
 // moves), with every node within kRelaxableRings rings of hexes around them.
 std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffPlaces& off) {
-    static_assert(kRelaxableRings < 255, "ring marks are bytes");
     const std::vector<double> sj = scaledJacobians(mesh);
-    std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);  // 1: a node a pass moves first; r + 1: in ring r
-    const auto at = [&](Index v) -> std::uint8_t& { return mark[static_cast<std::size_t>(v)]; };
+    std::vector<std::uint8_t> seeds(mesh.nodes.size(), 0);
     for (std::size_t h = 0; h < sj.size(); ++h)
         if (belowTarget(sj[h], target))
-            for (Index v : mesh.hexes[h]) at(v) = 1;
-    for (const auto& entry : off) at(entry.first) = 1;
-    for (int ring = 1; ring <= kRelaxableRings; ++ring)
-        for (const auto& hex : mesh.hexes)
-            if (std::any_of(hex.begin(), hex.end(), [&](Index v) { return at(v) == ring; }))
-                for (Index v : hex)
-                    if (!at(v)) at(v) = static_cast<std::uint8_t>(ring + 1);
+            for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
+    for (const auto& entry : off) seeds[static_cast<std::size_t>(entry.first)] = 1;
+    const std::vector<std::uint8_t> within = nodesWithinRings(mesh, std::move(seeds), kRelaxableRings);
     std::vector<Index> nodes;
-    for (std::size_t v = 0; v < mark.size(); ++v)
-        if (mark[v]) nodes.push_back(static_cast<Index>(v));
+    for (std::size_t v = 0; v < within.size(); ++v)
+        if (within[v]) nodes.push_back(static_cast<Index>(v));
     return nodes;
 }
 

@@ -1,6 +1,7 @@
 #include "isohex/pipeline/StoredNodeKeys.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <string>
 
 #include "isohex/core/Error.hpp"
@@ -40,7 +41,7 @@ StoredNodeKeys::StoredNodeKeys(const std::vector<NodeKey>& contoured, std::size_
     std::uint32_t count = 0;
     for (std::size_t w = 0; w < cellBits_.size(); ++w) {
         before_[w] = count;
-        count += static_cast<std::uint32_t>(__builtin_popcountll(cellBits_[w]));
+        count += static_cast<std::uint32_t>(std::popcount(cellBits_[w]));
     }
 }
 
@@ -83,7 +84,7 @@ Index StoredNodeKeys::contouredNode(std::int64_t cell) const {
         const auto c = static_cast<std::size_t>(cell);
         const std::uint64_t word = cellBits_[c / 64], bit = std::uint64_t{1} << (c % 64);
         if (!(word & bit)) return kNone;
-        return static_cast<Index>(before_[c / 64] + static_cast<std::uint32_t>(__builtin_popcountll(word & (bit - 1))));
+        return static_cast<Index>(before_[c / 64] + static_cast<std::uint32_t>(std::popcount(word & (bit - 1))));
     }
     const auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(cell, Index{-1}));
     return it != cells_.end() && it->first == cell ? it->second : kNone;
@@ -105,7 +106,7 @@ std::vector<NodeKey> StoredNodeKeys::expand() const {
         std::size_t v = 0;
         for (std::size_t w = 0; w < cellBits_.size(); ++w)
             for (std::uint64_t bits = cellBits_[w]; bits != 0; bits &= bits - 1)
-                keys[v++] = {static_cast<std::int64_t>(w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits))), 0};
+                keys[v++] = {static_cast<std::int64_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(bits))), 0};
     } else {
         for (const auto& [cell, node] : cells_) keys[static_cast<std::size_t>(node)] = {cell, 0};
     }
