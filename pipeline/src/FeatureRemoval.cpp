@@ -5,11 +5,14 @@
 #include <memory>
 #include <set>
 
+#include <Eigen/Dense>
+
 #include "Format.hpp"
 #include "Stage.hpp"
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/octree/GridEdits.hpp"
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
@@ -63,12 +66,8 @@ std::vector<FineFeature> featuresNear(const Meshing& m, const std::vector<Index>
     return out;
 }
 
-// The labels with the features given the label around them, repaired, on
-// the field repaired for them.
-Prepared withoutFeatures(const Prepared& p, const std::vector<FineFeature>& features, std::size_t& repairedPoints) {
-    Prepared q = p;
-    for (const FineFeature& f : features)
-        for (std::size_t pt : f.points) q.labels.material[pt] = f.replacedBy;
+// `q` (p with some labels changed), repaired, on the field repaired for it.
+Prepared repairedAfterEdits(Prepared q, const Prepared& p, std::size_t& repairedPoints) {
     const octree::RepairReport repair = octree::repairNonManifold(q.labels, *p.domain);
     q.facts.grid.repair.report.pointsAdded += repair.pointsAdded;
     q.facts.grid.repair.report.pointsRemoved += repair.pointsRemoved;
@@ -78,6 +77,15 @@ Prepared withoutFeatures(const Prepared& p, const std::vector<FineFeature>& feat
     q.repairedDomain = std::move(repaired);
     q.facts.grid.topology = octree::regionTopology(q.labels);
     return q;
+}
+
+// The labels with the features given the label around them, repaired, on
+// the field repaired for them.
+Prepared withoutFeatures(const Prepared& p, const std::vector<FineFeature>& features, std::size_t& repairedPoints) {
+    Prepared q = p;
+    for (const FineFeature& f : features)
+        for (std::size_t pt : f.points) q.labels.material[pt] = f.replacedBy;
+    return repairedAfterEdits(std::move(q), p, repairedPoints);
 }
 
 // One meshing without the features, relaxed, and what is left below the target.
@@ -110,6 +118,132 @@ bool better(const Below& after, const Below& before) {
     return after.min > before.min || (after.min == before.min && after.hexes.size() < before.hexes.size());
 }
 
+// Makes the candidate's meshing the best one (the uniform mesh --adaptive
+// kept stays marked as such, every hex at level 0).
+void adopt(Meshing& best, Candidate& c, std::optional<RelaxationResult>& relaxation) {
+    Meshing& again = c.meshing;
+    again.contouredHexes = again.mesh.hexCount();
+    again.contouredNodes = again.mesh.nodeCount();
+    if (best.adaptive && best.adaptive->uniformKept) {
+        again.adaptive = std::move(best.adaptive);
+        again.adaptive->hexLevel.assign(again.mesh.hexCount(), 0);
+    }
+    best = std::move(again);
+    relaxation = std::move(c.relaxation);
+}
+
+// The hexes below the target at label junctions (BelowCause::LabelJunction),
+// worst first, at most kMaxStuckToRetry.
+std::vector<Index> junctionHexes(const HexMesh& mesh, const Below& below) {
+    std::vector<Index> out;
+    for (Index h : below.hexes)
+        if (out.size() < kMaxStuckToRetry && causeOf(mesh, h) == BelowCause::LabelJunction) out.push_back(h);
+    return out;
+}
+
+// The hexes' centres in the grid's coordinates.
+std::vector<std::array<double, 3>> gridPositions(const HexMesh& mesh, const octree::Grid& g,
+                                                 const std::vector<Index>& hexes) {
+    Eigen::Matrix3d axes;
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
+    const Eigen::Matrix3d toGrid = axes.inverse();
+    std::vector<std::array<double, 3>> at;
+    for (Index h : hexes) {
+        const Vec3 c = hexCentre(mesh, h);
+        const Eigen::Vector3d x = toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
+        at.push_back({x[0], x[1], x[2]});
+    }
+    return at;
+}
+
+// The report's entries for junction points given another label.
+void recordJunctionPoints(const octree::Grid& g, const std::vector<octree::PointEdit>& edits, FeatureRemovalResult& r) {
+    Eigen::Matrix3d axes;
+    for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
+    for (const octree::PointEdit& e : edits) {
+        const auto [i, j, k] = g.coords(e.point);
+        r.features.push_back({LocalShape::TripleLine, e.from, e.to, g.point(i, j, k), std::abs(axes.determinant()), 1});
+    }
+}
+
+// One round of junction edits (see removeFineFeatures): the most exposed grid
+// point next to each hex below the target at a label junction takes the
+// label most of its face neighbours hold, where that changes no label's
+// components, tunnels or cavities (octree::editNearInvertedHexes), and the
+// labels are meshed again around the edits. Keeps the result in `best` (and
+// `now`, `relaxation`) and returns true when its worst hex is better.
+bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, StageSink& sink, double target,
+                   std::vector<std::size_t>& frozen, FeatureRemovalResult& r,
+                   std::optional<RelaxationResult>& relaxation) {
+    const std::vector<Index> work = junctionHexes(best.mesh, now);
+    if (work.empty()) return false;
+    Prepared q = best.prepared;
+    const std::vector<octree::PointEdit> edits =
+        octree::editNearInvertedHexes(q.labels, gridPositions(best.mesh, q.labels.grid, work), frozen);
+    if (edits.empty()) return false;
+    for (const octree::PointEdit& e : edits) frozen.push_back(e.point);
+    sink.note("info", "meshing again with " + std::to_string(edits.size()) +
+                          " grid point(s) at label junctions next to the hexes below " + shortNumber(target) +
+                          " given the label around them");
+    std::size_t repairedPoints = 0;
+    const Prepared edited = repairedAfterEdits(std::move(q), best.prepared, repairedPoints);
+    const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, edited.labels);
+    std::optional<Candidate> c;
+    for (int cells : remeshScopes(localRetryApplies(best, settings))) {
+        c = meshWithout(best, edited, changed, cells, settings, sink, target);
+        if (better(c->below, now)) break;
+    }
+    if (!better(c->below, now)) return false;
+    recordJunctionPoints(edited.labels.grid, edits, r);
+    r.repairedPoints += repairedPoints;
+    r.region = c->region;
+    now = std::move(c->below);
+    adopt(best, *c, relaxation);
+    return true;
+}
+
+}  // namespace
+
+namespace {
+
+
+// The features finer than an element next to the hexes below the target,
+// given the label around them and meshed again (the near neighbourhood of the
+// changed points, then the wide one, then the whole volume, until one is
+// better, as the retries do); kept when better.
+void removeFeatures(Meshing& best, Below& now, const MeshSettings& settings, StageSink& sink, double target,
+                    FeatureRemovalResult& r, std::optional<RelaxationResult>& relaxation) {
+    const std::vector<FineFeature> features = featuresNear(best, now.hexes);
+    if (features.empty()) {
+        r.notMeshedBecause = "no speck, pocket, strand or tunnel finer than an element next to the hexes below " +
+                             shortNumber(target);
+        return;
+    }
+    for (const FineFeature& f : features)
+        r.features.push_back({f.shape, f.material, f.replacedBy, f.at, f.volume, f.points.size()});
+    sink.note("info", "meshing again without " + std::to_string(features.size()) +
+                          " feature(s) finer than an element next to the hexes below " + shortNumber(target));
+    std::optional<Candidate> c;
+    try {
+        const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
+        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
+        for (int cells : remeshScopes(localRetryApplies(best, settings))) {
+            c = meshWithout(best, q, changed, cells, settings, sink, target);
+            if (better(c->below, now)) break;
+        }
+    } catch (const Error& e) {
+        r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
+        return;
+    }
+    r.region = c->region;
+    if (!better(c->below, now)) return;  // (listed as tried; the mesh keeps them)
+    r.kept = true;
+    now = std::move(c->below);
+    adopt(best, *c, relaxation);
+}
+
 }  // namespace
 
 std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const MeshSettings& given, StageSink& sink,
@@ -123,55 +257,26 @@ std::optional<FeatureRemovalResult> removeFineFeatures(Meshing& best, const Mesh
         (best.adaptive && !uniformKept))
         return std::nullopt;
     const double target = minQualityFor(best.prepared.facts.input.path, settings);
-    const Below before = belowOf(best.mesh, target);
-    if (before.hexes.empty()) return std::nullopt;
+    Below now = belowOf(best.mesh, target);
+    if (now.hexes.empty()) return std::nullopt;
     const Stopwatch clock;
     FeatureRemovalResult r;
-    r.minBefore = r.minAfter = before.min;
-    r.belowBefore = r.belowAfter = before.hexes.size();
-    const std::vector<FineFeature> features = featuresNear(best, before.hexes);
-    if (features.empty()) {
-        r.notMeshedBecause = "no speck, pocket, strand or tunnel finer than an element next to the hexes below " +
-                             shortNumber(target);
-        r.seconds = clock.seconds();
-        return r;
-    }
-    for (const FineFeature& f : features)
-        r.features.push_back({f.shape, f.material, f.replacedBy, f.at, f.volume, f.points.size()});
-    sink.note("info", "meshing again without " + std::to_string(features.size()) +
-                          " feature(s) finer than an element next to the hexes below " + shortNumber(target));
-    // As the retries do it: the near neighbourhood of the changed points,
-    // then the wide one, then (the last resort) the whole volume, until one
-    // is better.
-    const bool local = localRetryApplies(best, settings);
-    std::optional<Candidate> c;
+    r.minBefore = now.min;
+    r.belowBefore = now.hexes.size();
+    removeFeatures(best, now, settings, sink, target, r, relaxation);
+    // Then the label junctions, round by round while the worst hex gets better.
+    std::vector<std::size_t> frozen;
     try {
-        const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
-        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
-        for (int cells : remeshScopes(local)) {
-            c = meshWithout(best, q, changed, cells, settings, sink, target);
-            if (better(c->below, before)) break;
+        for (int round = 0; round < kJunctionEditRounds && !now.hexes.empty(); ++round) {
+            if (!junctionRound(best, now, settings, sink, target, frozen, r, relaxation)) break;
+            r.kept = true;
         }
     } catch (const Error& e) {
-        r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
-        r.seconds = clock.seconds();
-        return r;
+        if (!r.notMeshedBecause)
+            r.notMeshedBecause = std::string("the labels with junction points changed could not be meshed: ") + e.what();
     }
-    r.region = c->region;
-    r.minAfter = c->below.min;
-    r.belowAfter = c->below.hexes.size();
-    r.kept = better(c->below, before);
-    if (r.kept) {
-        Meshing& again = c->meshing;
-        again.contouredHexes = again.mesh.hexCount();
-        again.contouredNodes = again.mesh.nodeCount();
-        if (uniformKept) {
-            again.adaptive = std::move(best.adaptive);
-            again.adaptive->hexLevel.assign(again.mesh.hexCount(), 0);
-        }
-        best = std::move(again);
-        relaxation = std::move(c->relaxation);
-    }
+    r.minAfter = now.min;
+    r.belowAfter = now.hexes.size();
     r.seconds = clock.seconds();
     return r;
 }

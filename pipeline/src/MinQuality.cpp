@@ -81,19 +81,6 @@ double fartherOff(const std::vector<double>& now, const std::vector<double>& was
     return grew;
 }
 
-BelowCause causeOf(const HexMesh& mesh, Index h) {
-    int onSurface = 0;
-    bool junction = false;
-    for (Index v : mesh.hexes[static_cast<std::size_t>(h)]) {
-        const NodeKind k = mesh.nodeClass[static_cast<std::size_t>(v)].kind;
-        if (k == NodeKind::Curve || k == NodeKind::Fixed) junction = true;
-        if (k != NodeKind::Interior) ++onSurface;
-    }
-    if (junction) return BelowCause::LabelJunction;
-    if (onSurface == 8) return BelowCause::ThinFeature;
-    if (onSurface > 0) return BelowCause::BoundaryPinned;
-    return BelowCause::Interior;
-}
 
 // Whether a hex is below `target` as certifyQuality counts: below it, not
 // positive, or degenerate.
@@ -229,6 +216,20 @@ smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::Surf
 }
 
 }  // namespace
+
+BelowCause causeOf(const HexMesh& mesh, Index h) {
+    int onSurface = 0;
+    bool junction = false;
+    for (Index v : mesh.hexes[static_cast<std::size_t>(h)]) {
+        const NodeKind k = mesh.nodeClass[static_cast<std::size_t>(v)].kind;
+        if (k == NodeKind::Curve || k == NodeKind::Fixed) junction = true;
+        if (k != NodeKind::Interior) ++onSurface;
+    }
+    if (junction) return BelowCause::LabelJunction;
+    if (onSurface == 8) return BelowCause::ThinFeature;
+    if (onSurface > 0) return BelowCause::BoundaryPinned;
+    return BelowCause::Interior;
+}
 
 RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
                                double maxDeviation, double tolerance, double voxel) {

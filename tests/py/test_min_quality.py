@@ -190,22 +190,44 @@ class MinQuality(unittest.TestCase):
         self.certified_jhu("labels_4mm", "4")
 
     def test_a_label_map_left_below_at_a_junction_ran_every_relaxation_pass(self):
-        # At 6 mm four JHU labels meet at nodes of 15 hexes and no pass lifts
-        # them to 0.3: the relaxation ran from each of its three first steps,
-        # the report says so and which pass it kept, and the error names the
-        # junctions and what to try.
-        out, report = self.paths("labels_6mm")
-        p = run(["mesh", JHU, "--labels", "--size", "6", "--allow-below", "-o", out, "--report", report, "-q",
-                 "--force"], check=False)
+        # At 6 mm four JHU labels meet at nodes of 15 hexes and no relaxation
+        # pass lifts them to 0.3. With the labels kept as they are
+        # (--keep-features), the relaxation ran from each of its three first
+        # steps, the report says so and which pass it kept, and the error names
+        # the junctions and what to try.
+        out, report = self.paths("labels_6mm_kept")
+        p = run(["mesh", JHU, "--labels", "--size", "6", "--keep-features", "--allow-below", "-o", out, "--report",
+                 report, "-q", "--force"], check=False)
         self.assertEqual(p.returncode, EXIT_BELOW_QUALITY, p.stderr)
         with open(report) as f:
             q = json.load(f)["quality"]
         self.assertFalse(q["min_quality_certified"])
+        self.assertLess(vtk_sj(out).min(), 0.3)
         self.assertIn("label junction", [pl["cause"] for pl in q["places"]])
         relax = [m for m in q["means"] if m["mean"] == "boundary_relaxation"]
         self.assertEqual(relax[-1]["passes"], 3)
         self.assertIn(relax[-1]["first_step"], (0.25, 0.125, 0.5))
+        self.assertEqual([m for m in q["means"] if m["mean"] == "feature_removal"], [])
         self.assertIn("a finer --size or a larger --max-deviation may reach it", p.stderr)
+
+    def test_a_label_map_gives_a_junction_point_another_label_where_nothing_else_lifts_it(self):
+        # The same run by default: after the relaxation and the fine features,
+        # the grid points at the junction that no placement lifts take the
+        # label of most of their face neighbours (each listed with its
+        # position and volume), the labels are meshed again around them, and
+        # the mesh reaches 0.3.
+        out, q = self.certified_jhu("labels_6mm", "6")
+        (removal,) = [m for m in q["means"] if m["mean"] == "feature_removal"]
+        self.assertIs(removal["kept"], True)
+        junction = [f for f in removal["features"] if f["shape"] == "label triple line"]
+        self.assertGreater(len(junction), 0, removal["features"])
+        for f in junction:
+            self.assertEqual(f["grid_points"], 1)
+            self.assertAlmostEqual(f["volume"], 6.0 ** 3)  # one 6 mm cell
+            self.assertNotEqual(f["material"], f["replaced_by"])
+        self.assertGreaterEqual(removal["min_scaled_jacobian_after"], 0.3)
+        self.assertLess(removal["min_scaled_jacobian_before"], 0.3)
+        self.assertIn("region", removal)  # meshed again around the edits, not the whole volume
 
     def test_a_label_map_without_the_optimiser_is_certified_at_0(self):
         # --no-optimize gives up the means that reach 0.3: Q is 0 (no

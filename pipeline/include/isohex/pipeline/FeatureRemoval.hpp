@@ -23,6 +23,8 @@ namespace isohex::pipeline {
 
 // The hexes below Q whose neighbourhoods are searched, worst first.
 inline constexpr std::size_t kMaxHexesForFeatures = 256;
+// Rounds of junction edits at most (each kept only when better).
+inline constexpr int kJunctionEditRounds = 3;
 
 struct RemovedFeature {
     LocalShape shape = LocalShape::Speck;

@@ -35,6 +35,11 @@ enum class BelowCause {
 // the messages' wording.
 const char* causeText(BelowCause cause);
 
+// Why hex h stays below the target, from its nodes' classes (a curve or
+// fixed node: a label junction; every node on a surface: a thin feature; some:
+// pinned to the boundary; none: interior).
+BelowCause causeOf(const HexMesh& mesh, Index h);
+
 // One hex left below the target.
 struct BelowPlace {
     Vec3 at{};                  // its centre, world coordinates
