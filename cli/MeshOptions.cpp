@@ -509,10 +509,11 @@ void addMinQualityRows(std::vector<MeshOption>& t) {
         "voxels 0..5", [](MeshArgs& a) -> auto& { return a.settings.maxDeviation; }, between(0.0, 5.0, "(voxels)")));
     t.back().excludes = {"no-worst-hex-pass", "fix-boundary", "no-optimize"};
     t.push_back(onOff("keep-features", g,
-                      "Never remove a speck, pocket, strand or tunnel finer than an element, even where hexes stay "
-                      "below --min-quality after every other means (by default such features next to those hexes "
-                      "take the label around them and the labels are meshed again; each one is listed in the "
-                      "report's quality.means with its position and volume)",
+                      "Never remove a speck, pocket, strand or tunnel finer than an element, nor give a grid point "
+                      "where labels meet another label, even where hexes stay below --min-quality after every other "
+                      "means (by default such features next to those hexes, then such junction points, take the "
+                      "label around them and the labels are meshed again; each one is listed in the report's "
+                      "quality.means with its position and volume)",
                       "true/false", [](MeshArgs& a) -> auto& { return a.settings.removeFeatures; }, true));
     t.back().excludes = {"no-optimize"};
 }
