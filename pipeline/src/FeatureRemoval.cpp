@@ -1,11 +1,10 @@
 #include "isohex/pipeline/FeatureRemoval.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <set>
-
-#include <Eigen/Dense>
 
 #include "Format.hpp"
 #include "Stage.hpp"
@@ -16,6 +15,7 @@
 #include "isohex/octree/NonManifoldRepair.hpp"
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
+#include "isohex/pipeline/GridPositions.hpp"
 #include "isohex/pipeline/LocalRetry.hpp"
 
 namespace isohex::pipeline {
@@ -141,30 +141,11 @@ std::vector<Index> junctionHexes(const HexMesh& mesh, const Below& below) {
     return out;
 }
 
-// The hexes' centres in the grid's coordinates.
-std::vector<std::array<double, 3>> gridPositions(const HexMesh& mesh, const octree::Grid& g,
-                                                 const std::vector<Index>& hexes) {
-    Eigen::Matrix3d axes;
-    for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
-    const Eigen::Matrix3d toGrid = axes.inverse();
-    std::vector<std::array<double, 3>> at;
-    for (Index h : hexes) {
-        const Vec3 c = hexCentre(mesh, h);
-        const Eigen::Vector3d x = toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
-        at.push_back({x[0], x[1], x[2]});
-    }
-    return at;
-}
-
 // The report's entries for junction points given another label.
 void recordJunctionPoints(const octree::Grid& g, const std::vector<octree::PointEdit>& edits, FeatureRemovalResult& r) {
-    Eigen::Matrix3d axes;
-    for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) axes(c, a) = g.axes[a][c];
     for (const octree::PointEdit& e : edits) {
         const auto [i, j, k] = g.coords(e.point);
-        r.features.push_back({LocalShape::TripleLine, e.from, e.to, g.point(i, j, k), std::abs(axes.determinant()), 1});
+        r.features.push_back({LocalShape::TripleLine, e.from, e.to, g.point(i, j, k), std::abs(g.determinant()), 1});
     }
 }
 
@@ -181,7 +162,7 @@ bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, Stag
     if (work.empty()) return false;
     Prepared q = best.prepared;
     const std::vector<octree::PointEdit> edits =
-        octree::editNearInvertedHexes(q.labels, gridPositions(best.mesh, q.labels.grid, work), frozen);
+        octree::editNearInvertedHexes(q.labels, hexCentresInGrid(best.mesh, q.labels.grid, work), frozen);
     if (edits.empty()) return false;
     for (const octree::PointEdit& e : edits) frozen.push_back(e.point);
     sink.note("info", "meshing again with " + std::to_string(edits.size()) +

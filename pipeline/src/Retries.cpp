@@ -3,8 +3,6 @@
 #include <memory>
 #include <utility>
 
-#include <Eigen/Dense>
-
 #include "Format.hpp"
 #include "isohex/core/Stopwatch.hpp"
 #include "isohex/octree/Grid.hpp"
@@ -13,6 +11,7 @@
 #include "isohex/octree/Regions.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
 #include "isohex/pipeline/Contour.hpp"
+#include "isohex/pipeline/GridPositions.hpp"
 #include "isohex/pipeline/LocalRetry.hpp"
 
 namespace isohex::pipeline {
@@ -26,7 +25,6 @@ struct RetryState {
     StageSink& sink;
     RetryResult result;
     octree::Grid grid;                               // the element grid (edits keep it)
-    Eigen::Matrix3d toGrid;                          // world offsets to grid coordinates
     std::vector<std::size_t> frozen;                 // grid points edited once, never again
     std::shared_ptr<const octree::Labels> sampled;   // the grid sampled afresh, made on first use
     bool local = false;                              // retries optimise a neighbourhood (LocalRetry.hpp)
@@ -62,18 +60,6 @@ void dropHexesNearCuts(const RetryState& s, std::vector<std::array<double, 3>>& 
     }
     at.resize(kept);
     work.resize(kept);
-}
-
-// The hexes' centres in grid coordinates.
-std::vector<std::array<double, 3>> gridPositions(const RetryState& s, const std::vector<Index>& work) {
-    const octree::Grid& g = s.grid;
-    std::vector<std::array<double, 3>> at;
-    for (Index h : work) {
-        const Vec3 c = hexCentre(s.best.mesh, h);
-        const Eigen::Vector3d x = s.toGrid * Eigen::Vector3d(c[0] - g.origin[0], c[1] - g.origin[1], c[2] - g.origin[2]);
-        at.push_back({x[0], x[1], x[2]});
-    }
-    return at;
 }
 
 // What the retries work on and the warnings name: with a floor, the
@@ -125,7 +111,7 @@ bool attempt(RetryState& s, int n, int maxRetries, double floor) {
         s.result.attempts.push_back(tried);
         return false;
     }
-    std::vector<std::array<double, 3>> at = gridPositions(s, work);
+    std::vector<std::array<double, 3>> at = hexCentresInGrid(s.best.mesh, s.grid, work);
     dropHexesNearCuts(s, at, work);
     Prepared q = s.best.prepared;
     const std::vector<octree::PointEdit> edits = octree::editNearInvertedHexes(q.labels, at, s.frozen);
@@ -225,14 +211,10 @@ RetryResult retryStuckHexes(Meshing& best, const MeshSettings& settings, StageSi
     std::optional<AdaptiveFacts> keptFacts;
     if (best.adaptive && best.adaptive->uniformKept) keptFacts = best.adaptive;
     const MeshSettings& used = keptFacts ? asUniform : settings;
-    RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, {}, localRetryApplies(best, used)};
+    RetryState s{best, used, sink, {}, best.prepared.labels.grid, {}, {}, localRetryApplies(best, used)};
     s.result.allowed = maxRetries;
     s.result.floor = floor;
     s.result.stuck = leftStuck(best.mesh, floor);
-    Eigen::Matrix3d axes;
-    for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) axes(c, a) = s.grid.axes[a][c];
-    s.toGrid = axes.inverse();
     for (int n = 1; n <= maxRetries && !(s.result.stuck.inverted.empty() && s.result.stuck.flat.empty()); ++n)
         if (!attempt(s, n, maxRetries, floor)) break;
     if (s.result.pointsEdited > 0) {
