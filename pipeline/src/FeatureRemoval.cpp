@@ -185,11 +185,6 @@ bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, Stag
     return true;
 }
 
-}  // namespace
-
-namespace {
-
-
 // The features finer than an element next to the hexes below the target,
 // given the label around them and meshed again (the near neighbourhood of the
 // changed points, then the wide one, then the whole volume, until one is
