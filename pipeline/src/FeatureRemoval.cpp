@@ -153,13 +153,16 @@ void recordJunctionPoints(const octree::Grid& g, const std::vector<octree::Point
 // point next to each hex below the target at a label junction takes the
 // label most of its face neighbours hold, where that changes no label's
 // components, tunnels or cavities (octree::editNearInvertedHexes), and the
-// labels are meshed again around the edits. Keeps the result in `best` (and
-// `now`, `relaxation`) and returns true when its worst hex is better.
+// labels are meshed again around the edits: the near neighbourhood, then the
+// wide one, never the whole volume (a round is one point per place, and up to
+// three rounds of the whole volume would cost a large label map minutes).
+// Keeps the result in `best` (and `now`, `relaxation`) and returns true when
+// its worst hex is better.
 bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, StageSink& sink, double target,
                    std::vector<std::size_t>& frozen, FeatureRemovalResult& r,
                    std::optional<RelaxationResult>& relaxation) {
     const std::vector<Index> work = junctionHexes(best.mesh, now);
-    if (work.empty()) return false;
+    if (work.empty() || !localRetryApplies(best, settings)) return false;
     Prepared q = best.prepared;
     const std::vector<octree::PointEdit> edits =
         octree::editNearInvertedHexes(q.labels, hexCentresInGrid(best.mesh, q.labels.grid, work), frozen);
@@ -172,7 +175,7 @@ bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, Stag
     const Prepared edited = repairedAfterEdits(std::move(q), best.prepared, repairedPoints);
     const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, edited.labels);
     std::optional<Candidate> c;
-    for (int cells : remeshScopes(localRetryApplies(best, settings))) {
+    for (int cells : {kLocalRetryCells, kWideRetryCells}) {
         c = meshWithout(best, edited, changed, cells, settings, sink, target);
         if (better(c->below, now)) break;
     }
