@@ -128,8 +128,7 @@ JobResult resultOf(const Job& job, const QualitySummary& s, double seconds) {
 std::string belowMessage(const pipeline::QualityCertificate& c, bool written, const pipeline::MeshSettings& s) {
     char figures[96];
     std::snprintf(figures, sizeof figures, "%g: smallest scaled Jacobian %.3g, ", c.target, c.achieved);
-    const bool relaxes =
-        s.optimize && !s.fixBoundary && s.worstHexPass && s.method == pipeline::Method::Dual;
+    const bool relaxes = pipeline::relaxesBoundary(s);
     return "below the minimum quality " + std::string(figures) + std::to_string(c.hexesBelow) + " hex(es) below it" +
            (written ? " (written: --allow-below)" : " (nothing written; --allow-below writes it)") + ":\n" +
            pipeline::describePlaces(c, 10) + "  a finer --size" +

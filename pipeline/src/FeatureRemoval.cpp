@@ -118,6 +118,20 @@ bool better(const Below& after, const Below& before) {
     return after.min > before.min || (after.min == before.min && after.hexes.size() < before.hexes.size());
 }
 
+// Meshes `q` (best's labels edited) again in each scope in turn (grid cells
+// around the changed points, or kWholeVolume) until one is better than `now`;
+// the last one tried.
+Candidate firstBetter(const Meshing& best, const Prepared& q, const std::vector<int>& scopes, const Below& now,
+                      const MeshSettings& settings, StageSink& sink, double target) {
+    const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
+    std::optional<Candidate> c;
+    for (int cells : scopes) {
+        c = meshWithout(best, q, changed, cells, settings, sink, target);
+        if (better(c->below, now)) break;
+    }
+    return std::move(*c);
+}
+
 // Makes the candidate's meshing the best one (the uniform mesh --adaptive
 // kept stays marked as such, every hex at level 0).
 void adopt(Meshing& best, Candidate& c, std::optional<RelaxationResult>& relaxation) {
@@ -173,18 +187,13 @@ bool junctionRound(Meshing& best, Below& now, const MeshSettings& settings, Stag
                           " given the label around them");
     std::size_t repairedPoints = 0;
     const Prepared edited = repairedAfterEdits(std::move(q), best.prepared, repairedPoints);
-    const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, edited.labels);
-    std::optional<Candidate> c;
-    for (int cells : {kLocalRetryCells, kWideRetryCells}) {
-        c = meshWithout(best, edited, changed, cells, settings, sink, target);
-        if (better(c->below, now)) break;
-    }
-    if (!better(c->below, now)) return false;
+    Candidate c = firstBetter(best, edited, {kLocalRetryCells, kWideRetryCells}, now, settings, sink, target);
+    if (!better(c.below, now)) return false;
     recordJunctionPoints(edited.labels.grid, edits, r);
     r.repairedPoints += repairedPoints;
-    r.region = c->region;
-    now = std::move(c->below);
-    adopt(best, *c, relaxation);
+    r.region = c.region;
+    now = std::move(c.below);
+    adopt(best, c, relaxation);
     return true;
 }
 
@@ -207,11 +216,7 @@ void removeFeatures(Meshing& best, Below& now, const MeshSettings& settings, Sta
     std::optional<Candidate> c;
     try {
         const Prepared q = withoutFeatures(best.prepared, features, r.repairedPoints);
-        const std::vector<std::size_t> changed = changedPoints(best.prepared.labels, q.labels);
-        for (int cells : remeshScopes(localRetryApplies(best, settings))) {
-            c = meshWithout(best, q, changed, cells, settings, sink, target);
-            if (better(c->below, now)) break;
-        }
+        c = firstBetter(best, q, remeshScopes(localRetryApplies(best, settings)), now, settings, sink, target);
     } catch (const Error& e) {
         r.notMeshedBecause = std::string("the labels without them could not be meshed: ") + e.what();
         return;

@@ -260,10 +260,13 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     return r;
 }
 
+bool relaxesBoundary(const MeshSettings& settings) {
+    return settings.optimize && !settings.fixBoundary && settings.worstHexPass && settings.method == Method::Dual;
+}
+
 std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared& p, const MeshSettings& settings,
                                                   StageSink& sink) {
-    if (!settings.optimize || settings.fixBoundary || !settings.worstHexPass || settings.method != Method::Dual)
-        return std::nullopt;
+    if (!relaxesBoundary(settings)) return std::nullopt;
     const double tolerance = settings.surfaceTolerance.value_or(kDefaultSurfaceTolerance);
     const double maxDeviation = maxDeviationFor(p.facts.input.path, settings);
     if (!(maxDeviation > tolerance)) return std::nullopt;

@@ -273,11 +273,10 @@ std::vector<std::uint8_t> WorstHexPass::pickNodes(RoundKind kind) const {
         if (hexIn(sj_[h])) few.push_back(static_cast<Index>(h));
     if (few.size() <= most) {
         for (Index h : few)
-            for (Index u : mesh_.hexes[static_cast<std::size_t>(h)]) pick[static_cast<std::size_t>(u)] = 1;
-        for (Index h : few)
-            for (Index u : mesh_.hexes[static_cast<std::size_t>(h)])
-                if (pick[static_cast<std::size_t>(u)] == 1) pick[static_cast<std::size_t>(u)] = pickable(static_cast<std::size_t>(u)) ? 2 : 0;
-        for (std::uint8_t& p : pick) p = p == 2;
+            for (Index u : mesh_.hexes[static_cast<std::size_t>(h)]) {
+                const auto su = static_cast<std::size_t>(u);
+                if (!pick[su] && pickable(su)) pick[su] = 1;
+            }
         return pick;
     }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N_, 4096), [&](const auto& r) {

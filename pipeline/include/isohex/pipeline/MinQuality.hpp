@@ -167,6 +167,11 @@ double stretchTargetFor(const std::string& input, const MeshSettings& settings);
 RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
                                double maxDeviation, double tolerance, double voxel);
 
+// Whether a run's settings let the boundary relax (the optimiser with its
+// worst-hex pass, the dual method, surface nodes free): where not, stage
+// "relax" never runs and --max-deviation has nothing to bound.
+bool relaxesBoundary(const MeshSettings& settings);
+
 // Stage "relax" of the dual pipeline, after the retries: relaxBoundary on the
 // scan's isosurfaces when hexes are still below Q and --max-deviation is
 // beyond the surface tolerance (none with --no-optimize, --fix-boundary or
