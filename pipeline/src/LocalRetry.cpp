@@ -8,6 +8,7 @@
 #include "isohex/core/Error.hpp"
 #include "isohex/core/Pillow.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/core/Submesh.hpp"
 #include "isohex/pipeline/Contour.hpp"
 #include "isohex/pipeline/MinQuality.hpp"
 #include "isohex/pipeline/Pillow.hpp"
@@ -15,52 +16,6 @@
 namespace isohex::pipeline {
 
 namespace {
-
-// The part of a mesh the local re-optimisation works on: the hexes with a
-// free node, their nodes renumbered (free ones keep their class, the others
-// are Fixed), and where each came from.
-struct Submesh {
-    HexMesh mesh;
-    std::vector<Index> from;  // per submesh node, its node in the whole mesh
-};
-
-Submesh cutOut(const HexMesh& mesh, const std::vector<std::uint8_t>& free) {
-    Submesh s;
-    std::vector<Index> to(mesh.nodeCount(), kNone);
-    for (std::size_t h = 0; h < mesh.hexCount(); ++h) {
-        const Hex& hex = mesh.hexes[h];
-        if (std::none_of(hex.begin(), hex.end(), [&](Index v) { return free[static_cast<std::size_t>(v)] != 0; }))
-            continue;
-        Hex out{};
-        for (int c = 0; c < 8; ++c) {
-            const auto v = static_cast<std::size_t>(hex[c]);
-            if (to[v] == kNone) {
-                to[v] = static_cast<Index>(s.from.size());
-                s.from.push_back(hex[c]);
-            }
-            out[c] = to[v];
-        }
-        s.mesh.addHex(out, mesh.material[h]);
-    }
-    // nodes in whole-mesh order, so the submesh does not depend on hex order quirks
-    std::vector<Index> order(s.from.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<Index>(i);
-    std::sort(order.begin(), order.end(), [&](Index a, Index b) { return s.from[a] < s.from[b]; });
-    std::vector<Index> rank(order.size());
-    for (std::size_t i = 0; i < order.size(); ++i) rank[static_cast<std::size_t>(order[i])] = static_cast<Index>(i);
-    for (Hex& h : s.mesh.hexes)
-        for (Index& v : h) v = rank[static_cast<std::size_t>(v)];
-    std::vector<Index> from(order.size());
-    for (std::size_t i = 0; i < order.size(); ++i) from[i] = s.from[static_cast<std::size_t>(order[i])];
-    s.from = std::move(from);
-    for (Index v : s.from) {
-        const auto u = static_cast<std::size_t>(v);
-        s.mesh.addNode(mesh.nodes[u], free[u] ? mesh.nodeClass[u] : NodeClass{NodeKind::Fixed, -1});
-    }
-    s.mesh.surfaces = mesh.surfaces;
-    s.mesh.curves = mesh.curves;
-    return s;
-}
 
 // Grid cells within `r` cells of an edited point, sorted.
 std::vector<std::int64_t> cellsNear(const octree::Grid& grid, const std::vector<std::size_t>& edited, int r) {
@@ -134,12 +89,7 @@ LocalRegion optimiseNearEdits(HexMesh& mesh, const std::vector<NodeKey>& keys, c
     MeshSettings window = settings;
     window.worstHexTarget = settings.worstHexTarget.value_or(kDefaultWorstHexTarget);
     r.optimization = optimize(s.mesh, prepared, window, sink, false, OptimizeScope::Neighbourhood);
-    // positions back, and the classes of the free nodes (the optimiser's set-up may demote curve nodes)
-    for (std::size_t i = 0; i < s.from.size(); ++i) {
-        const auto v = static_cast<std::size_t>(s.from[i]);
-        mesh.nodes[v] = s.mesh.nodes[i];
-        if (free[v]) mesh.nodeClass[v] = s.mesh.nodeClass[i];
-    }
+    putBack(s, mesh);  // with the free nodes' classes: the optimiser's set-up may demote curve nodes
     r.seconds = clock.seconds();
     return r;
 }

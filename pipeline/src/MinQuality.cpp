@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 
 #include "Format.hpp"
 #include "isohex/core/NodeRings.hpp"
 #include "isohex/core/Quality.hpp"
 #include "isohex/core/Stopwatch.hpp"
+#include "isohex/core/Submesh.hpp"
 #include "Stage.hpp"
 #include "isohex/imaging/SurfaceVolume.hpp"
 #include "isohex/octree/RepairedDomain.hpp"
@@ -108,44 +110,40 @@ OffPlaces offPlacesOf(const HexMesh& mesh, const smoothing::SurfaceProjector& pr
     return off;
 }
 
-// The positions of some nodes, to put them back.
-struct NodePositions {
-    std::vector<Index> nodes;  // ascending
-    std::vector<Vec3> at;
-    NodePositions(const HexMesh& mesh, std::vector<Index> which) : nodes(std::move(which)) {
-        at.reserve(nodes.size());
-        for (Index v : nodes) at.push_back(mesh.nodes[static_cast<std::size_t>(v)]);
-    }
-    void restore(HexMesh& mesh) const {
-        for (std::size_t i = 0; i < nodes.size(); ++i) mesh.nodes[static_cast<std::size_t>(nodes[i])] = at[i];
-    }
-    // Whether every node of `ascending` is one of them.
-    bool holdsAll(const std::vector<Index>& ascending) const {
-        return std::includes(nodes.begin(), nodes.end(), ascending.begin(), ascending.end());
-    }
-};
-
-// Rings of hexes whose nodes relaxableNodes adds around the nodes a
+// Rings of hexes whose nodes relaxRegion adds around the nodes a
 // relaxation moves first. Its mean rounds then move nodes near moved ones; on
 // the JHU labels at 4 mm the nodes it moved reached past one ring, and past
 // two in a second relaxation there.
 constexpr int kRelaxableRings = 3;
 
-// The nodes a relaxation aimed at `target` may move, ascending: the nodes of
-// the hexes below it and the nodes off their places (which its return step
+// Where a relaxation aimed at `aim` works: `free` flags the nodes of the
+// hexes below the aim and the nodes off their places (which its return step
 // moves), with every node within kRelaxableRings rings of hexes around them.
-std::vector<Index> relaxableNodes(const HexMesh& mesh, double target, const OffPlaces& off) {
+// The relaxation runs on the submesh of those nodes (cutOut): a pass over the
+// whole mesh costs its set-up and per-round scans over every hex and node
+// (about a second at a million hexes) to lift a few dozen. `outsideMin`: the
+// smallest scaled Jacobian of the hexes with no free node, which it leaves
+// as they are (all at or above the aim; infinity if there are none).
+struct RelaxRegion {
+    std::vector<std::uint8_t> free;
+    double outsideMin = std::numeric_limits<double>::infinity();
+};
+
+RelaxRegion relaxRegion(const HexMesh& mesh, double aim, const OffPlaces& off) {
     const std::vector<double> sj = scaledJacobians(mesh);
     std::vector<std::uint8_t> seeds(mesh.nodes.size(), 0);
     for (std::size_t h = 0; h < sj.size(); ++h)
-        if (belowTarget(sj[h], target))
+        if (belowTarget(sj[h], aim))
             for (Index v : mesh.hexes[h]) seeds[static_cast<std::size_t>(v)] = 1;
     for (const auto& entry : off) seeds[static_cast<std::size_t>(entry.first)] = 1;
-    const std::vector<std::uint8_t> within = nodesWithinRings(mesh, std::move(seeds), kRelaxableRings);
-    std::vector<Index> nodes;
-    for (std::size_t v = 0; v < within.size(); ++v)
-        if (within[v]) nodes.push_back(static_cast<Index>(v));
-    return nodes;
+    RelaxRegion r;
+    r.free = nodesWithinRings(mesh, std::move(seeds), kRelaxableRings);
+    for (std::size_t h = 0; h < sj.size(); ++h) {
+        const Hex& hex = mesh.hexes[h];
+        if (std::none_of(hex.begin(), hex.end(), [&](Index v) { return r.free[static_cast<std::size_t>(v)] != 0; }))
+            r.outsideMin = std::min(r.outsideMin, sj[h]);
+    }
+    return r;
 }
 
 // One max-min pass of the relaxation, its compass search starting with steps
@@ -171,45 +169,47 @@ smoothing::WorstHexResult relaxOnce(HexMesh& mesh, const smoothing::SurfaceProje
     return smoothing::raiseWorstHexes(mesh, &projector, o);
 }
 
-// Whether a hex below q has a curve or junction node (BelowCause::LabelJunction).
-bool belowAtJunction(const HexMesh& mesh, double q) {
-    const std::vector<double> sj = scaledJacobians(mesh);
-    for (std::size_t h = 0; h < sj.size(); ++h)
-        if (belowTarget(sj[h], q) && causeOf(mesh, static_cast<Index>(h)) == BelowCause::LabelJunction) return true;
+// Whether a hex of the submesh below q has a curve or junction node
+// (BelowCause::LabelJunction), by the classes the nodes have in the whole
+// mesh (the submesh's own make its border nodes Fixed).
+bool belowAtJunction(const Submesh& s, const HexMesh& whole, double q) {
+    const std::vector<double> sj = scaledJacobians(s.mesh);
+    for (std::size_t h = 0; h < sj.size(); ++h) {
+        if (!belowTarget(sj[h], q)) continue;
+        for (Index v : s.mesh.hexes[h]) {
+            const NodeKind k = whole.nodeClass[static_cast<std::size_t>(s.from[static_cast<std::size_t>(v)])].kind;
+            if (k == NodeKind::Curve || k == NodeKind::Fixed) return true;
+        }
+    }
     return false;
 }
 
-// The relaxation, aimed at `aim`, from kRelaxationFirstSteps[0]; then, while
-// its minimum stays below q at a junction of labels, from each further step,
-// every pass from the same start, the best kept (highest minimum, then fewest
-// hexes below the aim). A mesh without curve nodes (one material) gets the
-// one pass. Nodes are put back only where relaxableNodes says a pass can move
-// them: a pass that moved another node cannot be undone, so it is kept even
-// if worse (not seen on the bench's inputs) and no further pass runs.
-// `passes` and `firstStep`: the passes run and the kept one's first step.
-smoothing::WorstHexResult relaxFromEachStep(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
-                                            double aim, double maxDeviation, const OffPlaces& offBefore, int& passes,
-                                            double& firstStep) {
+// The relaxation of the submesh `s` of `whole`, aimed at `aim`, from
+// kRelaxationFirstSteps[0]; then, while its minimum stays below q at a
+// junction of labels, from each further step, every pass from the same
+// start, the best kept (highest minimum, then fewest hexes below the aim). A
+// mesh without curve nodes (one material) gets the one pass. `passes` and
+// `firstStep`: the passes run and the kept one's first step.
+smoothing::WorstHexResult relaxFromEachStep(Submesh& s, const HexMesh& whole,
+                                            const smoothing::SurfaceProjector& projector, double q, double aim,
+                                            double maxDeviation, int& passes, double& firstStep) {
     passes = 1;
     firstStep = kRelaxationFirstSteps[0];
-    const bool curves = std::any_of(mesh.nodeClass.begin(), mesh.nodeClass.end(),
-                                    [](const NodeClass& c) { return c.kind == NodeKind::Curve; });
-    if (!curves) return relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[0]);
-    const NodePositions start(mesh, relaxableNodes(mesh, aim, offBefore));
-    smoothing::WorstHexResult best = relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[0]);
+    const std::vector<Vec3> start = s.mesh.nodes;
+    smoothing::WorstHexResult best = relaxOnce(s.mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[0]);
     for (std::size_t k = 1; k < kRelaxationFirstSteps.size(); ++k) {
-        if (best.minAfter >= q || !start.holdsAll(best.movedNodes) || !belowAtJunction(mesh, q)) break;
-        const NodePositions kept(mesh, start.nodes);
-        start.restore(mesh);
-        smoothing::WorstHexResult again = relaxOnce(mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[k]);
+        if (best.minAfter >= q || !belowAtJunction(s, whole, q)) break;
+        std::vector<Vec3> kept = s.mesh.nodes;
+        s.mesh.nodes = start;
+        smoothing::WorstHexResult again = relaxOnce(s.mesh, projector, q, aim, maxDeviation, kRelaxationFirstSteps[k]);
         const bool better = again.minAfter > best.minAfter ||
                             (again.minAfter == best.minAfter && again.belowAfter < best.belowAfter);
         ++passes;
-        if (better || !start.holdsAll(again.movedNodes)) {
+        if (better) {
             best = std::move(again);
             firstStep = kRelaxationFirstSteps[k];
         } else {
-            kept.restore(mesh);
+            s.mesh.nodes = std::move(kept);
         }
     }
     return best;
@@ -239,15 +239,20 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
     const OffPlaces offBefore = offPlacesOf(mesh, projector, junctions);
     const double aim = std::min(1.0, q + kRelaxationMargin);
+    const RelaxRegion region = relaxRegion(mesh, aim, offBefore);
+    Submesh s = cutOut(mesh, region.free);
     const smoothing::WorstHexResult w =
-        relaxFromEachStep(mesh, projector, q, aim, maxDeviation, offBefore, r.passes, r.firstStep);
+        relaxFromEachStep(s, mesh, projector, q, aim, maxDeviation, r.passes, r.firstStep);
+    putBack(s, mesh);
     r.nodesMoved = w.nodesMoved;
-    r.minBefore = w.minBefore;
-    r.minAfter = w.minAfter;
+    // (the hexes below the aim, and so the smallest, are all in the submesh)
+    r.minBefore = std::min(w.minBefore, region.outsideMin);
+    r.minAfter = std::min(w.minAfter, region.outsideMin);
     r.belowBefore = w.reportedBelowBefore;
     r.belowAfter = w.reportedBelowAfter;
     const std::vector<double> none;
-    for (Index v : w.movedNodes) {
+    for (Index moved : w.movedNodes) {
+        const Index v = s.from[static_cast<std::size_t>(moved)];
         const auto it = std::lower_bound(offBefore.begin(), offBefore.end(), v,
                                          [](const auto& entry, Index u) { return entry.first < u; });
         const std::vector<double>& was = it != offBefore.end() && it->first == v ? it->second : none;
