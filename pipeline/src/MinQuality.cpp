@@ -241,6 +241,7 @@ RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector&
     const double aim = std::min(1.0, q + kRelaxationMargin);
     const RelaxRegion region = relaxRegion(mesh, aim, offBefore);
     Submesh s = cutOut(mesh, region.free);
+    r.regionHexes = s.mesh.hexCount();
     const smoothing::WorstHexResult w =
         relaxFromEachStep(s, mesh, projector, q, aim, maxDeviation, r.passes, r.firstStep);
     putBack(s, mesh);

@@ -292,6 +292,7 @@ nlohmann::json toJson(const RelaxationResult& r) {
             {"below_target_after", r.belowAfter},
             {"passes", r.passes},
             {"first_step", r.firstStep},
+            {"region_hexes", r.regionHexes},
             {"seconds", r.seconds}};
 }
 

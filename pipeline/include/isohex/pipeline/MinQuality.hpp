@@ -68,6 +68,7 @@ struct RelaxationResult {
     std::size_t belowBefore = 0, belowAfter = 0;  // hexes below the target (Q, not the aim above it)
     int passes = 1;          // max-min passes run (kRelaxationFirstSteps)
     double firstStep = 0;    // the kept pass's first step, in local edge lengths
+    std::size_t regionHexes = 0;  // hexes of the submesh it worked on (MinQuality.cpp, relaxRegion)
     double seconds = 0;
 };
 
