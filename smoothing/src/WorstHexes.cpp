@@ -125,7 +125,9 @@ bool WorstHexPass::measureStart() {
 }
 
 void WorstHexPass::prepare() {
-    if (!givenTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::SurfaceMoves);
+    // The pass reads the node-to-hex rows, the boundary flags and the
+    // boundary and interface quads (normals, junctions), never the edges.
+    if (!givenTopology_) ownTopology_ = buildTopology(mesh_, TopologyParts::Surfaces);
     else requireTopologyOf(mesh_, *givenTopology_, "worst-hex pass");
     topo_ = givenTopology_ ? givenTopology_ : &ownTopology_;
     everMoved_.assign(N_, 0);
