@@ -84,10 +84,9 @@ double fartherOff(const std::vector<double>& now, const std::vector<double>& was
 }
 
 
-// Whether a hex is below `target` as certifyQuality counts: below it, not
-// positive, or degenerate.
-bool anyBelow(const HexMesh& mesh, double target) {
-    const std::vector<double> sj = scaledJacobians(mesh);
+// Whether a hex (`sj`: scaledJacobians of the mesh) is below `target` as
+// certifyQuality counts: below it, not positive, or degenerate.
+bool anyBelow(const std::vector<double>& sj, double target) {
     return std::any_of(sj.begin(), sj.end(), [&](double v) { return belowTarget(v, target); });
 }
 
@@ -129,8 +128,7 @@ struct RelaxRegion {
     double outsideMin = std::numeric_limits<double>::infinity();
 };
 
-RelaxRegion relaxRegion(const HexMesh& mesh, double aim, const OffPlaces& off) {
-    const std::vector<double> sj = scaledJacobians(mesh);
+RelaxRegion relaxRegion(const HexMesh& mesh, const std::vector<double>& sj, double aim, const OffPlaces& off) {
     std::vector<std::uint8_t> seeds(mesh.nodes.size(), 0);
     for (std::size_t h = 0; h < sj.size(); ++h)
         if (belowTarget(sj[h], aim))
@@ -231,15 +229,15 @@ BelowCause causeOf(const HexMesh& mesh, Index h) {
     return BelowCause::Interior;
 }
 
-RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
-                               double maxDeviation, double tolerance, double voxel) {
+RelaxationResult relaxBoundary(HexMesh& mesh, const std::vector<double>& sj, const smoothing::SurfaceProjector& projector,
+                               double q, double maxDeviation, double tolerance, double voxel) {
     const Stopwatch clock;
     RelaxationResult r;
     r.maxDeviationVoxels = maxDeviation / voxel;
     const smoothing::JunctionSurfaces junctions = smoothing::junctionSurfaces(mesh);
     const OffPlaces offBefore = offPlacesOf(mesh, projector, junctions);
     const double aim = std::min(1.0, q + kRelaxationMargin);
-    const RelaxRegion region = relaxRegion(mesh, aim, offBefore);
+    const RelaxRegion region = relaxRegion(mesh, sj, aim, offBefore);
     Submesh s = cutOut(mesh, region.free);
     r.regionHexes = s.mesh.hexCount();
     const smoothing::WorstHexResult w =
@@ -277,12 +275,13 @@ std::optional<RelaxationResult> relaxToMinQuality(HexMesh& mesh, const Prepared&
     const double maxDeviation = maxDeviationFor(p.facts.input.path, settings);
     if (!(maxDeviation > tolerance)) return std::nullopt;
     const double target = minQualityFor(p.facts.input.path, settings);
-    if (!anyBelow(mesh, target)) return std::nullopt;
+    const std::vector<double> sj = scaledJacobians(mesh);
+    if (!anyBelow(sj, target)) return std::nullopt;
     Stage st(sink, "relax");
     const auto* domain = static_cast<const SelectionDomain*>(p.domain.get());
     const FieldProjector projector(*domain, mesh, static_cast<const octree::RepairedDomain*>(p.repairedDomain.get()));
     const double voxel = p.selection->materials.front().field.voxelSize();
-    RelaxationResult r = relaxBoundary(mesh, projector, target, maxDeviation * voxel, tolerance * voxel, voxel);
+    RelaxationResult r = relaxBoundary(mesh, sj, projector, target, maxDeviation * voxel, tolerance * voxel, voxel);
     r.target = target;
     st.finish();
     return r;

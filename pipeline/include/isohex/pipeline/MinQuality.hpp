@@ -165,8 +165,9 @@ double stretchTargetFor(const std::string& input, const MeshSettings& settings);
 // kRelaxationFirstSteps while hexes at label junctions stay below q, the
 // best kept. `voxel` converts the figures to voxels for the report;
 // `tolerance` (world units) is the distance a node off its surface counts from.
-RelaxationResult relaxBoundary(HexMesh& mesh, const smoothing::SurfaceProjector& projector, double q,
-                               double maxDeviation, double tolerance, double voxel);
+// `sj`: scaledJacobians(mesh) as the mesh is (the caller has it already).
+RelaxationResult relaxBoundary(HexMesh& mesh, const std::vector<double>& sj, const smoothing::SurfaceProjector& projector,
+                               double q, double maxDeviation, double tolerance, double voxel);
 
 // Whether a run's settings let the boundary relax (the optimiser with its
 // worst-hex pass, the dual method, surface nodes free): where not, stage
